@@ -1,0 +1,173 @@
+"""Command line: argument parsing, progress and error messages; no geometry here.
+
+Bad input ends with one line on stderr and exit code 2; ``verify`` exits 1 when it finds problems.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+from . import __version__
+from .errors import InputError
+from .tolerances import GOUGE_TOL, HOLDER_CLEARANCE
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        self.exit(2, f"meshmill: error: {message}\n")
+
+
+def _say(args, text):
+    if not getattr(args, "quiet", False):
+        print(text, file=sys.stderr, flush=True)
+
+
+def _progress(args):
+    start = time.perf_counter()
+
+    def stage(name):
+        _say(args, f"[{time.perf_counter() - start:7.2f} s] {name}")
+
+    return stage
+
+
+def _load_part(args, path):
+    from .geometry.mesh import load_mesh
+
+    mesh = load_mesh(path)
+    for w in mesh.warnings:
+        _say(args, f"warning: {w}")
+    return mesh
+
+
+def _write_json(path, data):
+    with open(path, "w") as fh:
+        json.dump(data, fh, indent=2, default=float)
+        fh.write("\n")
+
+
+def _out_dir(path):
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot create the output folder ({exc.strerror})") from None
+    return path
+
+
+def cmd_finish(args):
+    from .ops.finish import FinishParams, finish
+    from .tools.table import load_tools
+    from .toolpath.cldata import write_apt
+
+    t0 = time.perf_counter()
+    tools = load_tools(args.tools)
+    mesh = _load_part(args, args.part)
+    load_s = time.perf_counter() - t0
+    params = FinishParams(step_down=args.step_down, sample=args.sample, max_tilt=args.max_tilt,
+                          tilt_step=args.tilt_step, order=args.order, safe_z=args.safe_z, tol=args.tolerance,
+                          clearance=args.clearance, lead=args.lead)
+    params.check()
+    out = _out_dir(args.out)
+    tp, summary, _ = finish(mesh, tools, params, progress=_progress(args))
+    summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
+    summary["seconds"]["load"] = round(load_s, 4)
+    summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
+    write_apt(os.path.join(out, "toolpath.cl"), tp, tools, partno=os.path.basename(args.part))
+    _write_json(os.path.join(out, "summary.json"), summary)
+    v = summary["verify"]
+    _say(args, f"contours {summary['contours']} (machinable {summary['machinable_contours']}), "
+               f"CC points {summary['cc_points']}, left out {summary['points_left_out']}, "
+               f"tilted {summary['points_tilted']}, passes {summary['passes']}")
+    for name, entry in summary["tools_used"].items():
+        _say(args, f"  {name}: {entry['contours']} contour(s), {entry['cc_points']} CC points")
+    _say(args, f"verify: {'OK' if v['ok'] else 'PROBLEMS'} ({v['poses_checked']} poses, max gouge "
+               f"{v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
+    _say(args, f"wrote {os.path.join(out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s")
+    return 0 if v["ok"] else 1
+
+
+def cmd_verify(args):
+    from .geometry.bvh import build_bvh
+    from .ops.verify import verify_toolpath
+    from .tools.table import load_tools
+    from .toolpath.cldata import read_apt
+
+    if args.step <= 0 or args.tolerance < 0:
+        raise InputError("--step must be > 0 and --tolerance >= 0")
+    tools = load_tools(args.tools)
+    mesh = _load_part(args, args.part)
+    tp, warnings = read_apt(args.toolpath, tools)
+    for w in warnings:
+        _say(args, f"warning: {w}")
+    report = verify_toolpath(build_bvh(mesh.vertices, mesh.faces), tp, tools, args.tolerance, args.step,
+                             worst=args.worst)
+    report.pop("problem_moves")
+    if args.out:
+        _write_json(args.out, report)
+    print(f"{report['moves']} moves, {report['poses_checked']} poses checked: "
+          f"{report['gouging_moves']} gouging, {report['colliding_moves']} colliding, "
+          f"{report['rapid_moves_touching']} rapid into the part; max gouge {report['max_gouge']:.4f} mm, "
+          f"max collision {report['max_collision']:.4f} mm (tolerance {report['tolerance']} mm)")
+    for line in report["worst"]:
+        print("  " + line)
+    print("OK" if report["ok"] else "PROBLEMS FOUND")
+    return 0 if report["ok"] else 1
+
+
+def build_parser():
+    p = _Parser(prog="meshmill", description="Exact, verified multi-axis milling tool paths from triangle meshes.")
+    p.add_argument("--version", action="version", version=f"meshmill {__version__}")
+    sub = p.add_subparsers(dest="command", parser_class=_Parser)
+
+    f = sub.add_parser("finish", help="5-axis Z-constant finishing with ball-end tools")
+    f.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
+    f.add_argument("--tools", required=True, help="TOML tool table")
+    f.add_argument("--step-down", type=float, required=True, help="distance between Z planes, mm")
+    f.add_argument("--sample", type=float, default=0.5, help="largest distance between CC points, mm (0.5)")
+    f.add_argument("--max-tilt", type=float, default=60.0, help="largest tool tilt from vertical, degrees (60)")
+    f.add_argument("--tilt-step", type=float, default=5.0, help="tilt search step, degrees (5)")
+    f.add_argument("--order", choices=("contour", "tool"), default="contour",
+                   help="contour by contour from the top, or grouped by tool (contour)")
+    f.add_argument("--safe-z", type=float, default=None, help="safe plane for rapid moves, mm (part top + 5 + ...)")
+    f.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge tolerance, mm ({GOUGE_TOL})")
+    f.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
+                   help=f"shank and holder clearance, mm ({HOLDER_CLEARANCE})")
+    f.add_argument("--lead", type=float, default=2.0, help="lead-in/out distance, mm (2)")
+    f.add_argument("--out", default="out", help="output folder (out)")
+    f.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    f.set_defaults(func=cmd_finish)
+
+    v = sub.add_parser("verify", help="check an APT CL file for gouges and collisions")
+    v.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
+    v.add_argument("toolpath", help="APT CL file")
+    v.add_argument("--tools", required=True, help="TOML tool table")
+    v.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge tolerance, mm ({GOUGE_TOL})")
+    v.add_argument("--step", type=float, default=0.5, help="largest distance between checked poses along a move, mm")
+    v.add_argument("--worst", type=int, default=10, help="how many worst cases to print (10)")
+    v.add_argument("--out", default=None, help="write the report as JSON to this file")
+    v.add_argument("--quiet", action="store_true", help="no warnings")
+    v.set_defaults(func=cmd_verify)
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None):
+        parser.print_help()
+        return 2
+    try:
+        return args.func(args)
+    except InputError as exc:
+        print(f"meshmill: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("meshmill: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

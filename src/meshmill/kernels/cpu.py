@@ -1,0 +1,214 @@
+"""CPU backend: the device functions of :mod:`meshmill.kernels.geom` compiled with numba, and the
+parallel loops (one independent item per ``prange`` iteration) that the operations call.
+
+Every array argument is float64 mm unless said otherwise; ``bvh`` is ``BVH.arrays``.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba import prange
+
+from .geom import INF, STACK_SIZE, build
+
+dev = build(numba.njit(fastmath=False, cache=True))
+_point = dev.mesh_point_dist2
+_cyl = dev.mesh_cylinder_dist2
+_body_clear = dev.body_clear
+
+
+@numba.njit(parallel=True, cache=True)
+def _mesh_distances(p, cap, node_lo, node_hi, node_child, node_range, tris):
+    out = np.empty(p.shape[0])
+    for i in prange(p.shape[0]):
+        stack = np.empty(STACK_SIZE, np.int32)
+        d2 = _point(p[i, 0], p[i, 1], p[i, 2], cap * cap, 0.0,
+                    node_lo, node_hi, node_child, node_range, tris, stack)
+        out[i] = math.sqrt(d2)
+    return out
+
+
+def mesh_distances(points, bvh, cap=INF):
+    """Exact distance ``(k,)`` from each of ``points (k, 3)`` to the mesh (values above cap: cap)."""
+    cap = min(cap, 1e150)
+    return _mesh_distances(np.ascontiguousarray(points, np.float64), cap, *bvh)
+
+
+@numba.njit(parallel=True, cache=True)
+def _largest_ball(cc, nrm, radii, tol, node_lo, node_hi, node_child, node_range, tris):
+    out = np.full(cc.shape[0], -1, np.int32)
+    for i in prange(cc.shape[0]):
+        stack = np.empty(STACK_SIZE, np.int32)
+        for t in range(radii.shape[0]):
+            r = radii[t]
+            lim = (r - tol) * (r - tol)
+            d2 = _point(cc[i, 0] + r * nrm[i, 0], cc[i, 1] + r * nrm[i, 1], cc[i, 2] + r * nrm[i, 2],
+                        lim, lim, node_lo, node_hi, node_child, node_range, tris, stack)
+            if d2 >= lim:
+                out[i] = t
+                break
+    return out
+
+
+def largest_ball(cc, normals, radii, tol, bvh):
+    """Index into ``radii`` (sorted decreasing, mm) of the largest ball whose sphere at
+    CE = cc + R·n stays out of the mesh by more than ``-tol``; -1 where none does. ``(k,) int32``."""
+    return _largest_ball(np.ascontiguousarray(cc), np.ascontiguousarray(normals),
+                         np.ascontiguousarray(radii, np.float64), float(tol), *bvh)
+
+
+@numba.njit(cache=True)
+def candidate_axis(f, s, alpha, beta):
+    """Unit axis tilted by alpha toward the feed direction f and beta toward the outward side s."""
+    ca = math.cos(alpha)
+    sa = math.sin(alpha)
+    cb = math.cos(beta)
+    sb = math.sin(beta)
+    ux = sa * f[0] + ca * sb * s[0]
+    uy = sa * f[1] + ca * sb * s[1]
+    uz = sa * f[2] + ca * (cb + sb * s[2])
+    n = math.sqrt(ux * ux + uy * uy + uz * uz)
+    return ux / n, uy / n, uz / n
+
+
+@numba.njit(cache=True)
+def _clear_at(i, c, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+              node_lo, node_hi, node_child, node_range, tris, stack):
+    ux, uy, uz = candidate_axis(f[i], s[i], cand[c, 0], cand[c, 1])
+    r = radius[tool[i]]
+    return _body_clear(ce[i, 0] - r * ux, ce[i, 1] - r * uy, ce[i, 2] - r * uz, ux, uy, uz,
+                       seg_t0, seg_t1, seg_r, tool[i], node_lo, node_hi, node_child, node_range, tris, stack)
+
+
+@numba.njit(parallel=True, cache=True)
+def _axis_search(ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                 node_lo, node_hi, node_child, node_range, tris):
+    out = np.full(ce.shape[0], -1, np.int32)
+    for i in prange(ce.shape[0]):
+        if tool[i] < 0:
+            continue
+        stack = np.empty(STACK_SIZE, np.int32)
+        for c in range(cand.shape[0]):
+            if _clear_at(i, c, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                         node_lo, node_hi, node_child, node_range, tris, stack):
+                out[i] = c
+                break
+    return out
+
+
+@numba.njit(parallel=True, cache=True)
+def _keep_previous(choice, offsets, cand_tilt, slack, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                   node_lo, node_hi, node_child, node_range, tris):
+    out = choice.copy()
+    for k in prange(offsets.shape[0] - 1):
+        stack = np.empty(STACK_SIZE, np.int32)
+        for i in range(offsets[k] + 1, offsets[k + 1]):
+            prev = out[i - 1]
+            c = out[i]
+            if prev < 0 or c < 0 or prev == c or cand_tilt[prev] > cand_tilt[c] + slack:
+                continue
+            if _clear_at(i, prev, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                         node_lo, node_hi, node_child, node_range, tris, stack):
+                out[i] = prev
+    return out
+
+
+def axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body, offsets, bvh):
+    """Collision-free tool axis per point.
+
+    ``ce (k, 3)`` ball centres, ``feed/side (k, 3)`` unit feed and outward side directions,
+    ``tool (k,)`` tool index (-1: skip), ``candidates (c, 2)`` (alpha, beta) rad in order of
+    preference, ``cand_tilt (c,)`` their tilt from +Z, ``radius (T,)`` ball radii, ``body`` the
+    ``(seg_t0, seg_t1, seg_r)`` arrays (T, K) of the parts that must stay clear, ``offsets (p+1,)``
+    point ranges of the contours. A point keeps its predecessor's candidate when that is clear and
+    at most ``slack`` rad more tilted. Returns ``(k,) int32`` candidate index, -1 where none is clear.
+    """
+    args = (np.ascontiguousarray(ce), np.ascontiguousarray(feed), np.ascontiguousarray(side),
+            np.ascontiguousarray(tool, np.int32), np.ascontiguousarray(candidates, np.float64),
+            np.ascontiguousarray(radius, np.float64), *body)
+    first = _axis_search(*args, *bvh)
+    return _keep_previous(first, np.ascontiguousarray(offsets, np.int64),
+                          np.ascontiguousarray(cand_tilt, np.float64), float(slack), *args, *bvh)
+
+
+@numba.njit(parallel=True, cache=True)
+def _pose_penetration(tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r,
+                      node_lo, node_hi, node_child, node_range, tris):
+    k = tip.shape[0]
+    nseg = seg_r.shape[1]
+    ring = np.zeros(k)
+    segs = np.zeros((k, nseg))
+    for i in prange(k):
+        stack = np.empty(STACK_SIZE, np.int32)
+        t = tool[i]
+        ux = axis[i, 0]
+        uy = axis[i, 1]
+        uz = axis[i, 2]
+        # two unit vectors normal to the axis
+        if abs(ux) < 0.9:
+            ex, ey, ez = 0.0, -uz, uy
+        else:
+            ex, ey, ez = uz, 0.0, -ux
+        en = math.sqrt(ex * ex + ey * ey + ez * ez)
+        ex /= en
+        ey /= en
+        ez /= en
+        gx = uy * ez - uz * ey
+        gy = uz * ex - ux * ez
+        gz = ux * ey - uy * ex
+        cx = tip[i, 0] + ring_t[t] * ux
+        cy = tip[i, 1] + ring_t[t] * uy
+        cz = tip[i, 2] + ring_t[t] * uz
+        r = ring_r[t]
+        if r > 0.0:
+            for j in range(ring_n[t]):
+                phi = 2.0 * math.pi * j / ring_n[t]
+                rx = ring_rho[t] * (math.cos(phi) * ex + math.sin(phi) * gx)
+                ry = ring_rho[t] * (math.cos(phi) * ey + math.sin(phi) * gy)
+                rz = ring_rho[t] * (math.cos(phi) * ez + math.sin(phi) * gz)
+                d2 = _point(cx + rx, cy + ry, cz + rz, r * r, 0.0,
+                            node_lo, node_hi, node_child, node_range, tris, stack)
+                ring[i] = max(ring[i], r - math.sqrt(d2))
+        for s in range(nseg):
+            r = seg_r[t, s]
+            if r <= 0.0:
+                break
+            t0 = seg_t0[t, s]
+            t1 = seg_t1[t, s]
+            d2 = _cyl(tip[i, 0], tip[i, 1], tip[i, 2], ux, uy, uz, t0, t1, r * r, 0.0,
+                      node_lo, node_hi, node_child, node_range, tris, stack)
+            if d2 >= r * r:
+                continue
+            radial = r - math.sqrt(d2)
+            # axial depth: how far the bottom of the cylinder must rise to clear (bisection)
+            lo = t0
+            hi = t1
+            if _cyl(tip[i, 0], tip[i, 1], tip[i, 2], ux, uy, uz, hi - 1e-9, t1, r * r, r * r,
+                    node_lo, node_hi, node_child, node_range, tris, stack) < r * r:
+                segs[i, s] = radial
+                continue
+            for _ in range(30):
+                mid = 0.5 * (lo + hi)
+                if _cyl(tip[i, 0], tip[i, 1], tip[i, 2], ux, uy, uz, mid, t1, r * r, r * r,
+                        node_lo, node_hi, node_child, node_range, tris, stack) < r * r:
+                    lo = mid
+                else:
+                    hi = mid
+            segs[i, s] = min(radial, hi - t0)
+    return ring, segs
+
+
+def pose_penetration(tip, axis, tool, rings, segs, bvh):
+    """How deep each tool pose enters the mesh, mm (0 where clear).
+
+    ``tip, axis (k, 3)``; ``tool (k,)`` index into the per-tool arrays; ``rings`` is
+    ``(ring_t, ring_rho, ring_r, ring_n)`` (T,): spheres of radius ring_r centred on a circle of
+    radius ring_rho at ring_t along the axis (a ball: rho 0, n 1); ``segs`` is
+    ``(seg_t0, seg_t1, seg_r)`` (T, K) cylinders. Returns ``ring (k,)`` and ``segs (k, K)``:
+    the depth of the deepest point inside each part (radial for spheres; the smaller of the
+    radial and axial depths for cylinders).
+    """
+    return _pose_penetration(np.ascontiguousarray(tip, np.float64), np.ascontiguousarray(axis, np.float64),
+                             np.ascontiguousarray(tool, np.int32), *rings, *segs, *bvh)

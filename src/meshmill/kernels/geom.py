@@ -1,0 +1,375 @@
+"""Geometric device functions, written once and compiled for every backend.
+
+``build(jit)`` returns a namespace of scalar functions. ``jit`` is ``numba.njit(...)`` for the CPU
+(called from ``prange`` loops in :mod:`meshmill.kernels.cpu`) or ``numba.cuda.jit(device=True)`` for
+CUDA. The functions take plain scalars and arrays only, allocate nothing (callers hand in the
+traversal ``stack``, an int32 array of ``STACK_SIZE``) and return scalars.
+
+Mesh arrays (see :mod:`meshmill.geometry.bvh`), all in BVH order, millimetres:
+
+- ``tris (m, 9) float64``: the three vertices of every triangle, x0 y0 z0 x1 y1 z1 x2 y2 z2;
+- ``node_lo, node_hi (k, 3) float64``: node boxes;
+- ``node_child (k, 2) int32``: left and right child, -1 for a leaf;
+- ``node_range (k, 2) int32``: first triangle and triangle count of a leaf.
+
+Distances are returned squared. A tool body is a union of coaxial cylinders given by their axial
+ranges ``[t0, t1]`` and radii along the unit axis ``u`` from the tool tip.
+"""
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+STACK_SIZE = 128
+INF = 1.0e300
+
+
+def build(jit):
+    """Compile the device functions with ``jit`` and return them in a namespace."""
+
+    @jit
+    def point_triangle_dist2(px, py, pz, tris, t):
+        """Squared distance from point p to triangle t (exact, Voronoi-region walk)."""
+        ax = tris[t, 0]
+        ay = tris[t, 1]
+        az = tris[t, 2]
+        abx = tris[t, 3] - ax
+        aby = tris[t, 4] - ay
+        abz = tris[t, 5] - az
+        acx = tris[t, 6] - ax
+        acy = tris[t, 7] - ay
+        acz = tris[t, 8] - az
+        apx = px - ax
+        apy = py - ay
+        apz = pz - az
+        d1 = abx * apx + aby * apy + abz * apz
+        d2 = acx * apx + acy * apy + acz * apz
+        if d1 <= 0.0 and d2 <= 0.0:
+            return apx * apx + apy * apy + apz * apz
+        bpx = apx - abx
+        bpy = apy - aby
+        bpz = apz - abz
+        d3 = abx * bpx + aby * bpy + abz * bpz
+        d4 = acx * bpx + acy * bpy + acz * bpz
+        if d3 >= 0.0 and d4 <= d3:
+            return bpx * bpx + bpy * bpy + bpz * bpz
+        vc = d1 * d4 - d3 * d2
+        if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+            v = d1 / (d1 - d3)
+            qx = apx - v * abx
+            qy = apy - v * aby
+            qz = apz - v * abz
+            return qx * qx + qy * qy + qz * qz
+        cpx = apx - acx
+        cpy = apy - acy
+        cpz = apz - acz
+        d5 = abx * cpx + aby * cpy + abz * cpz
+        d6 = acx * cpx + acy * cpy + acz * cpz
+        if d6 >= 0.0 and d5 <= d6:
+            return cpx * cpx + cpy * cpy + cpz * cpz
+        vb = d5 * d2 - d1 * d6
+        if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+            w = d2 / (d2 - d6)
+            qx = apx - w * acx
+            qy = apy - w * acy
+            qz = apz - w * acz
+            return qx * qx + qy * qy + qz * qz
+        va = d3 * d6 - d5 * d4
+        if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+            w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+            qx = bpx - w * (acx - abx)
+            qy = bpy - w * (acy - aby)
+            qz = bpz - w * (acz - abz)
+            return qx * qx + qy * qy + qz * qz
+        denom = 1.0 / (va + vb + vc)
+        v = vb * denom
+        w = vc * denom
+        qx = apx - abx * v - acx * w
+        qy = apy - aby * v - acy * w
+        qz = apz - abz * v - acz * w
+        return qx * qx + qy * qy + qz * qz
+
+    @jit
+    def segment_line_dist2(p0x, p0y, p0z, p1x, p1y, p1z, ax, ay, az, ux, uy, uz):
+        """Squared distance from segment p0-p1 to the infinite line through a along unit u."""
+        wx = p0x - ax
+        wy = p0y - ay
+        wz = p0z - az
+        h = wx * ux + wy * uy + wz * uz
+        wx -= h * ux
+        wy -= h * uy
+        wz -= h * uz
+        dx = p1x - p0x
+        dy = p1y - p0y
+        dz = p1z - p0z
+        h = dx * ux + dy * uy + dz * uz
+        dx -= h * ux
+        dy -= h * uy
+        dz -= h * uz
+        dd = dx * dx + dy * dy + dz * dz
+        s = 0.0
+        if dd > 0.0:
+            s = -(wx * dx + wy * dy + wz * dz) / dd
+            if s < 0.0:
+                s = 0.0
+            elif s > 1.0:
+                s = 1.0
+        rx = wx + s * dx
+        ry = wy + s * dy
+        rz = wz + s * dz
+        return rx * rx + ry * ry + rz * rz
+
+    @jit
+    def triangle_axis_dist2(tris, t, ax, ay, az, ux, uy, uz, t0, t1):
+        """Squared distance from the line a + s·u to the part of triangle t with t0 <= s <= t1.
+
+        Exact: the minimum lies where the line pierces the clipped triangle (0), on a triangle
+        edge clipped to the slab, or on the cut of a slab plane through the triangle. Returns INF
+        when the triangle misses the slab.
+        """
+        h0 = (tris[t, 0] - ax) * ux + (tris[t, 1] - ay) * uy + (tris[t, 2] - az) * uz
+        h1 = (tris[t, 3] - ax) * ux + (tris[t, 4] - ay) * uy + (tris[t, 5] - az) * uz
+        h2 = (tris[t, 6] - ax) * ux + (tris[t, 7] - ay) * uy + (tris[t, 8] - az) * uz
+        if h0 < t0 and h1 < t0 and h2 < t0:
+            return INF
+        if h0 > t1 and h1 > t1 and h2 > t1:
+            return INF
+        # does the line pierce the triangle inside the slab?
+        e1x = tris[t, 3] - tris[t, 0]
+        e1y = tris[t, 4] - tris[t, 1]
+        e1z = tris[t, 5] - tris[t, 2]
+        e2x = tris[t, 6] - tris[t, 0]
+        e2y = tris[t, 7] - tris[t, 1]
+        e2z = tris[t, 8] - tris[t, 2]
+        pvx = uy * e2z - uz * e2y
+        pvy = uz * e2x - ux * e2z
+        pvz = ux * e2y - uy * e2x
+        det = e1x * pvx + e1y * pvy + e1z * pvz
+        if det != 0.0:
+            inv = 1.0 / det
+            tvx = ax - tris[t, 0]
+            tvy = ay - tris[t, 1]
+            tvz = az - tris[t, 2]
+            bu = (tvx * pvx + tvy * pvy + tvz * pvz) * inv
+            if bu >= 0.0 and bu <= 1.0:
+                qvx = tvy * e1z - tvz * e1y
+                qvy = tvz * e1x - tvx * e1z
+                qvz = tvx * e1y - tvy * e1x
+                bv = (ux * qvx + uy * qvy + uz * qvz) * inv
+                if bv >= 0.0 and bu + bv <= 1.0:
+                    s = (e2x * qvx + e2y * qvy + e2z * qvz) * inv
+                    if s >= t0 and s <= t1:
+                        return 0.0
+        best = INF
+        for k in range(3):
+            i = 3 * k
+            j = 3 * ((k + 1) % 3)
+            px = tris[t, i]
+            py = tris[t, i + 1]
+            pz = tris[t, i + 2]
+            qx = tris[t, j]
+            qy = tris[t, j + 1]
+            qz = tris[t, j + 2]
+            hp = (px - ax) * ux + (py - ay) * uy + (pz - az) * uz
+            hq = (qx - ax) * ux + (qy - ay) * uy + (qz - az) * uz
+            # edge clipped to the slab: s in [slo, shi]
+            slo = 0.0
+            shi = 1.0
+            dh = hq - hp
+            if dh == 0.0:
+                if hp < t0 or hp > t1:
+                    slo = 1.0
+                    shi = 0.0
+            else:
+                sa = (t0 - hp) / dh
+                sb = (t1 - hp) / dh
+                if sa > sb:
+                    sa, sb = sb, sa
+                if sa > slo:
+                    slo = sa
+                if sb < shi:
+                    shi = sb
+            if slo <= shi:
+                d = segment_line_dist2(px + slo * (qx - px), py + slo * (qy - py), pz + slo * (qz - pz),
+                                       px + shi * (qx - px), py + shi * (qy - py), pz + shi * (qz - pz),
+                                       ax, ay, az, ux, uy, uz)
+                if d < best:
+                    best = d
+        # cuts of the two slab planes through the triangle
+        for c in range(2):
+            tc = t0 if c == 0 else t1
+            n = 0
+            c0x = 0.0
+            c0y = 0.0
+            c0z = 0.0
+            c1x = 0.0
+            c1y = 0.0
+            c1z = 0.0
+            for k in range(3):
+                i = 3 * k
+                j = 3 * ((k + 1) % 3)
+                hp = h0 if k == 0 else (h1 if k == 1 else h2)
+                hq = h1 if k == 0 else (h2 if k == 1 else h0)
+                if (hp - tc) * (hq - tc) < 0.0:
+                    s = (tc - hp) / (hq - hp)
+                    x = tris[t, i] + s * (tris[t, j] - tris[t, i])
+                    y = tris[t, i + 1] + s * (tris[t, j + 1] - tris[t, i + 1])
+                    z = tris[t, i + 2] + s * (tris[t, j + 2] - tris[t, i + 2])
+                    if n == 0:
+                        c0x = x
+                        c0y = y
+                        c0z = z
+                    else:
+                        c1x = x
+                        c1y = y
+                        c1z = z
+                    n += 1
+            if n == 2:
+                d = segment_line_dist2(c0x, c0y, c0z, c1x, c1y, c1z, ax, ay, az, ux, uy, uz)
+                if d < best:
+                    best = d
+        return best
+
+    @jit
+    def box_point_dist2(node_lo, node_hi, n, px, py, pz):
+        d = 0.0
+        for k in range(3):
+            p = px if k == 0 else (py if k == 1 else pz)
+            if p < node_lo[n, k]:
+                d += (node_lo[n, k] - p) ** 2
+            elif p > node_hi[n, k]:
+                d += (p - node_hi[n, k]) ** 2
+        return d
+
+    @jit
+    def mesh_point_dist2(px, py, pz, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack):
+        """Squared distance from p to the mesh, capped at cap2.
+
+        Returns early with a value below stop2 as soon as one is found (an overlap test);
+        stop2 = 0 gives the exact minimum.
+        """
+        best = cap2
+        stack[0] = 0
+        sp = 1
+        while sp > 0:
+            sp -= 1
+            n = stack[sp]
+            if box_point_dist2(node_lo, node_hi, n, px, py, pz) >= best:
+                continue
+            left = node_child[n, 0]
+            if left < 0:
+                first = node_range[n, 0]
+                for k in range(first, first + node_range[n, 1]):
+                    d = point_triangle_dist2(px, py, pz, tris, k)
+                    if d < best:
+                        best = d
+                        if best < stop2:
+                            return best
+            else:
+                right = node_child[n, 1]
+                dl = box_point_dist2(node_lo, node_hi, left, px, py, pz)
+                dr = box_point_dist2(node_lo, node_hi, right, px, py, pz)
+                if dl < dr:
+                    stack[sp] = right
+                    stack[sp + 1] = left
+                else:
+                    stack[sp] = left
+                    stack[sp + 1] = right
+                sp += 2
+        return best
+
+    @jit
+    def box_may_touch_cylinder(node_lo, node_hi, n, p0x, p0y, p0z, p1x, p1y, p1z, ux, uy, uz, r):
+        """False only when box n certainly misses the capsule of radius r around segment p0-p1."""
+        ex = r * math.sqrt(max(0.0, 1.0 - ux * ux))
+        ey = r * math.sqrt(max(0.0, 1.0 - uy * uy))
+        ez = r * math.sqrt(max(0.0, 1.0 - uz * uz))
+        if node_lo[n, 0] > max(p0x, p1x) + ex or node_hi[n, 0] < min(p0x, p1x) - ex:
+            return False
+        if node_lo[n, 1] > max(p0y, p1y) + ey or node_hi[n, 1] < min(p0y, p1y) - ey:
+            return False
+        if node_lo[n, 2] > max(p0z, p1z) + ez or node_hi[n, 2] < min(p0z, p1z) - ez:
+            return False
+        # bounding sphere of the box against the segment
+        cx = 0.5 * (node_lo[n, 0] + node_hi[n, 0])
+        cy = 0.5 * (node_lo[n, 1] + node_hi[n, 1])
+        cz = 0.5 * (node_lo[n, 2] + node_hi[n, 2])
+        hx = 0.5 * (node_hi[n, 0] - node_lo[n, 0])
+        hy = 0.5 * (node_hi[n, 1] - node_lo[n, 1])
+        hz = 0.5 * (node_hi[n, 2] - node_lo[n, 2])
+        dx = p1x - p0x
+        dy = p1y - p0y
+        dz = p1z - p0z
+        dd = dx * dx + dy * dy + dz * dz
+        s = 0.0
+        if dd > 0.0:
+            s = ((cx - p0x) * dx + (cy - p0y) * dy + (cz - p0z) * dz) / dd
+            s = min(1.0, max(0.0, s))
+        qx = cx - p0x - s * dx
+        qy = cy - p0y - s * dy
+        qz = cz - p0z - s * dz
+        reach = r + math.sqrt(hx * hx + hy * hy + hz * hz)
+        return qx * qx + qy * qy + qz * qz <= reach * reach
+
+    @jit
+    def mesh_cylinder_dist2(ax, ay, az, ux, uy, uz, t0, t1, cap2, stop2,
+                            node_lo, node_hi, node_child, node_range, tris, stack):
+        """Smallest squared distance from the axis a + s·u to the mesh within t0 <= s <= t1.
+
+        A flat-ended cylinder of radius r on that range overlaps the mesh iff this is < r².
+        Capped at cap2; returns early below stop2 (stop2 = 0: exact minimum).
+        """
+        best = cap2
+        p0x = ax + t0 * ux
+        p0y = ay + t0 * uy
+        p0z = az + t0 * uz
+        p1x = ax + t1 * ux
+        p1y = ay + t1 * uy
+        p1z = az + t1 * uz
+        stack[0] = 0
+        sp = 1
+        while sp > 0:
+            sp -= 1
+            n = stack[sp]
+            if not box_may_touch_cylinder(node_lo, node_hi, n, p0x, p0y, p0z, p1x, p1y, p1z,
+                                          ux, uy, uz, math.sqrt(best)):
+                continue
+            left = node_child[n, 0]
+            if left < 0:
+                first = node_range[n, 0]
+                for k in range(first, first + node_range[n, 1]):
+                    d = triangle_axis_dist2(tris, k, ax, ay, az, ux, uy, uz, t0, t1)
+                    if d < best:
+                        best = d
+                        if best < stop2:
+                            return best
+            else:
+                stack[sp] = node_child[n, 1]
+                stack[sp + 1] = left
+                sp += 2
+        return best
+
+    @jit
+    def body_clear(tx, ty, tz, ux, uy, uz, seg_t0, seg_t1, seg_r, tool,
+                   node_lo, node_hi, node_child, node_range, tris, stack):
+        """True when no cylinder of tool body ``tool`` (rows of seg_*; radius <= 0 ends the list)
+        placed with its tip at t and unit axis u overlaps the mesh."""
+        for k in range(seg_r.shape[1]):
+            r = seg_r[tool, k]
+            if r <= 0.0:
+                break
+            r2 = r * r
+            d = mesh_cylinder_dist2(tx, ty, tz, ux, uy, uz, seg_t0[tool, k], seg_t1[tool, k], r2, r2,
+                                    node_lo, node_hi, node_child, node_range, tris, stack)
+            if d < r2:
+                return False
+        return True
+
+    return SimpleNamespace(
+        point_triangle_dist2=point_triangle_dist2,
+        segment_line_dist2=segment_line_dist2,
+        triangle_axis_dist2=triangle_axis_dist2,
+        mesh_point_dist2=mesh_point_dist2,
+        mesh_cylinder_dist2=mesh_cylinder_dist2,
+        body_clear=body_clear,
+    )

@@ -1,0 +1,355 @@
+"""5-axis Z-constant finishing with ball-end tools (the method of seed 004, exact).
+
+1. Contours: planes from the top down every ``step_down``; CC points with outward normals
+   (:mod:`meshmill.geometry.slicing`).
+2. Gouge-free tool: per CC point the largest ball of the table whose sphere at CE = CC + R·n does not
+   enter the mesh by more than ``tol`` (exact point-to-triangle distances through the BVH); each
+   contour takes the smallest of its points' tools. A contour with a point that no tool fits is
+   reported and not cut.
+3. Collision-free axis: candidates tilted by alpha toward the feed direction and beta toward the
+   outward side, in order of increasing tilt up to ``max_tilt``; a point keeps its predecessor's
+   choice when that is free and no more than one step more tilted. The flutes must not gouge and the
+   shank and holder keep ``clearance``. Points without a free axis are left out with a lift.
+4. Passes with lead-in/out along the outward side and retracts along the tool axis (or vertically)
+   to the safe plane, ordered by contour or grouped by tool.
+5. The finished path is verified (:mod:`meshmill.ops.verify`); moves that fail are repaired by
+   splitting passes or changing the link, and whatever cannot be repaired is left out. The path
+   written is the verified one.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry.bvh import build_bvh
+from ..geometry.mesh import Mesh
+from ..geometry.slicing import slice_contours, z_levels
+from ..kernels import cpu
+from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE
+from ..tools.table import pack_cylinders
+from ..toolpath.model import Toolpath
+from .verify import DEFAULT_STEP, verify_toolpath
+
+REPAIR_ROUNDS = 4
+MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
+
+
+@dataclass
+class FinishParams:
+    step_down: float
+    sample: float = 0.5
+    max_tilt: float = 60.0  # degrees from +Z
+    tilt_step: float = 5.0  # degrees
+    order: str = "contour"  # contour | tool
+    safe_z: float | None = None
+    tol: float = GOUGE_TOL
+    clearance: float = HOLDER_CLEARANCE
+    lead: float = 2.0  # mm, lead-in/out along the outward side
+
+    def check(self):
+        for name in ("step_down", "sample", "tilt_step"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise InputError(f"--{name.replace('_', '-')} must be a positive number, got {v}")
+        if not 0.0 <= self.max_tilt < 90.0:
+            raise InputError(f"--max-tilt must be in [0, 90) degrees, got {self.max_tilt}")
+        if self.order not in ("contour", "tool"):
+            raise InputError(f"--order must be 'contour' or 'tool', got {self.order!r}")
+        if self.tol < 0 or self.clearance < 0 or self.lead < 0:
+            raise InputError("--tolerance, --clearance and --lead must not be negative")
+
+
+def tilt_candidates(max_tilt_deg: float, step_deg: float):
+    """Candidate (alpha, beta) in rad, ordered by tilt from +Z in rings of one step, then by a
+    preference for tilting sideways (beta) over tilting along the feed, so that neighbouring points
+    pick the same candidate; ``(c, 2)`` and their tilts ``(c,)``."""
+    n = int(math.floor(max_tilt_deg / step_deg + 1e-9))
+    steps = np.arange(-n, n + 1) * math.radians(step_deg)
+    a, b = np.meshgrid(steps, steps[steps >= 0], indexing="ij")
+    a, b = a.ravel(), b.ravel()
+    tilt = np.arccos(np.clip(np.cos(a) * np.cos(b), -1, 1))
+    keep = tilt <= math.radians(max_tilt_deg) + 1e-9
+    a, b, tilt = a[keep], b[keep], tilt[keep]
+    ring = np.ceil(tilt / math.radians(step_deg) - 1e-6)
+    order = np.lexsort((a < 0, np.round(tilt, 9), np.abs(a), ring))
+    return np.stack([a[order], b[order]], axis=1), tilt[order]
+
+
+def _axes(cand, idx, feed, side):
+    """World axes ``(k, 3)`` of candidate ``idx (k,)`` in the local frames."""
+    al = cand[idx, 0][:, None]
+    be = cand[idx, 1][:, None]
+    up = np.array([0.0, 0.0, 1.0])
+    u = np.sin(al) * feed + np.cos(al) * (np.cos(be) * up + np.sin(be) * side)
+    return u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+def _runs(ok: np.ndarray, closed: bool):
+    """Index runs of consecutive True in ``ok`` (cyclic when closed; a full loop ends where it began)."""
+    n = len(ok)
+    if closed and ok.all():
+        return [np.r_[np.arange(n), 0]]
+    if closed:
+        start = int(np.nonzero(~ok)[0][0]) + 1
+        order = (np.arange(n) + start) % n
+    else:
+        order = np.arange(n)
+    runs, cur = [], []
+    for i in order:
+        if ok[i]:
+            cur.append(i)
+        elif cur:
+            runs.append(np.array(cur))
+            cur = []
+    if cur:
+        runs.append(np.array(cur))
+    return runs
+
+
+class _PathBuilder:
+    """Turns passes into moves and maps verification problems back onto passes."""
+
+    def __init__(self, tip, axis, side, safe_z, lead):
+        self.tip, self.axis, self.side, self.safe_z, self.lead = tip, axis, side, safe_z, lead
+
+    def _up(self, p, u, vertical):
+        if vertical or u[2] < 1e-6:
+            return np.array([p[0], p[1], self.safe_z])
+        return p + (self.safe_z - p[2]) / u[2] * u
+
+    def build(self, passes):
+        tips, axes, rapid, tools, owner, role = [], [], [], [], [], []
+
+        def add(p, u, is_rapid, tool, k, r):
+            tips.append(p)
+            axes.append(u)
+            rapid.append(is_rapid)
+            tools.append(tool)
+            owner.append(k)
+            role.append(r)
+
+        for k, ps in enumerate(passes):
+            idx, tool = ps["idx"], ps["tool"]
+            t0, u0 = self.tip[idx[0]], self.axis[idx[0]]
+            t1, u1 = self.tip[idx[-1]], self.axis[idx[-1]]
+            start = t0 + (self.lead * self.side[idx[0]] if ps["lead_in"] else 0.0)
+            end = t1 + (self.lead * self.side[idx[-1]] if ps["lead_out"] else 0.0)
+            add(self._up(start, u0, ps["vertical_in"]), u0, True, tool, k, "link_in")
+            add(start, u0, True, tool, k, "link_in")
+            if ps["lead_in"]:
+                add(t0, u0, False, tool, k, "lead_in")
+            for j in range(1, len(idx)):
+                add(self.tip[idx[j]], self.axis[idx[j]], False, tool, k, j)
+            if ps["lead_out"]:
+                add(end, u1, False, tool, k, "lead_out")
+            add(self._up(end, u1, ps["vertical_out"]), u1, True, tool, k, "link_out")
+        tp = Toolpath(np.array(tips).reshape(-1, 3), np.array(axes).reshape(-1, 3), np.array(rapid, bool),
+                      np.array(tools, np.int64))
+        return tp, owner, role
+
+
+def _repair(passes, problem_moves, owner, role):
+    """New pass list after fixing the passes that own the problem moves; returns (passes, dropped)."""
+    fixes = {}
+    for m in problem_moves:
+        fixes.setdefault(owner[m], []).append(role[m])
+    out, dropped = [], []
+    for k, ps in enumerate(passes):
+        if k not in fixes:
+            out.append(ps)
+            continue
+        ps = dict(ps)
+        cuts = sorted(r for r in fixes[k] if isinstance(r, int))
+        for r in fixes[k]:
+            if r == "link_in":
+                if ps["vertical_in"]:
+                    ps["drop"] = True
+                ps["vertical_in"] = True
+            elif r == "link_out":
+                if ps["vertical_out"]:
+                    ps["drop"] = True
+                ps["vertical_out"] = True
+            elif r == "lead_in":
+                ps["lead_in"] = False
+            elif r == "lead_out":
+                ps["lead_out"] = False
+        if ps.get("drop"):
+            dropped.append(ps)
+            continue
+        # split at cutting moves that failed: the move from point j-1 to j is not cut
+        pieces, begin = [], 0
+        for j in cuts:
+            pieces.append(ps["idx"][begin:j])
+            begin = j
+        pieces.append(ps["idx"][begin:])
+        for i, piece in enumerate(pieces):
+            if len(piece) < 2:
+                dropped.append(dict(ps, idx=piece))
+                continue
+            new = dict(ps, idx=piece)
+            if i > 0:
+                new.update(lead_in=True, vertical_in=False)
+            if i < len(pieces) - 1:
+                new.update(lead_out=True, vertical_out=False)
+            out.append(new)
+    return out, dropped
+
+
+def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
+    """Run the operation; returns ``(toolpath, summary, detail)``.
+
+    ``tools``: the whole tool table (ball tools are used); ``progress(stage)`` is called as each
+    stage starts. ``detail`` holds per-point arrays for reports and tests.
+    """
+    params.check()
+    say = progress or (lambda stage: None)
+    seconds = {}
+    t_all = time.perf_counter()
+    balls = sorted((t for t in tools if t.type == "ball"), key=lambda t: (-t.radius, t.number))
+    if not balls:
+        raise InputError("the tool table has no ball tool: finish needs ball-end tools")
+    radii = np.array([t.radius for t in balls])
+    zmin, zmax = mesh.bounds[:, 2]
+    lowest_ball = radii.max() * (1.0 - math.cos(math.radians(params.max_tilt)))
+    if params.safe_z is None:
+        safe_z = zmax + 5.0 + lowest_ball
+    else:
+        safe_z = params.safe_z
+        if safe_z <= zmax + lowest_ball:
+            raise InputError(f"--safe-z {safe_z:g} is too low: it must be above {zmax + lowest_ball:.3f} mm "
+                             "(part top plus what a tilted ball hangs below its tip)")
+    levels = z_levels(zmin, zmax, params.step_down)
+    if len(levels) == 0:
+        raise InputError(f"--step-down {params.step_down:g} is larger than the part height {zmax - zmin:g} mm: no contour")
+
+    say("index")
+    t = time.perf_counter()
+    bvh = build_bvh(mesh.vertices, mesh.faces)
+    seconds["index"] = time.perf_counter() - t
+
+    say("contours")
+    t = time.perf_counter()
+    arc_step = min(params.sample / radii.max(), MAX_ARC_STEP)
+    con = slice_contours(mesh, levels, params.sample, arc_step)
+    seconds["contours"] = time.perf_counter() - t
+    npts = len(con.points)
+    contour_of = np.repeat(np.arange(len(con)), np.diff(con.offsets))
+
+    say("tools")
+    t = time.perf_counter()
+    best = cpu.largest_ball(con.points, con.normals, radii, params.tol, bvh.arrays)
+    fits = best >= 0
+    all_fit = np.logical_and.reduceat(fits, con.offsets[:-1]) if npts else np.zeros(0, bool)
+    contour_tool = np.maximum.reduceat(best, con.offsets[:-1]) if npts else np.zeros(0, np.int64)
+    contour_tool = np.where(all_fit, contour_tool, -1)
+    point_tool = contour_tool[contour_of]
+    seconds["tools"] = time.perf_counter() - t
+
+    say("axes")
+    t = time.perf_counter()
+    side = np.cross(con.feed, [0.0, 0.0, 1.0])
+    ce = con.points + radii[np.maximum(point_tool, 0)][:, None] * con.normals
+    cand, cand_tilt = tilt_candidates(params.max_tilt, params.tilt_step)
+    body, _ = pack_cylinders(balls, params.tol, params.clearance)
+    choice = cpu.axis_search(ce, con.feed, side, point_tool, cand, cand_tilt, math.radians(params.tilt_step) + 1e-9,
+                             radii, body, con.offsets, bvh.arrays)
+    has_axis = choice >= 0
+    axis = np.zeros_like(ce)
+    axis[has_axis] = _axes(cand, choice[has_axis], con.feed[has_axis], side[has_axis])
+    tip = ce - radii[np.maximum(point_tool, 0)][:, None] * axis
+    seconds["axes"] = time.perf_counter() - t
+
+    say("path")
+    t = time.perf_counter()
+    table_index = {tool.number: i for i, tool in enumerate(tools)}
+    passes = []
+    for c in range(len(con)):
+        if contour_tool[c] < 0:
+            continue
+        a, b = con.offsets[c], con.offsets[c + 1]
+        for run in _runs(has_axis[a:b], bool(con.closed[c])):
+            if len(run) < 2:
+                continue
+            passes.append(dict(contour=c, tool=table_index[balls[contour_tool[c]].number], rank=int(contour_tool[c]),
+                               idx=run + a, lead_in=params.lead > 0, lead_out=params.lead > 0,
+                               vertical_in=False, vertical_out=False))
+    if params.order == "tool":
+        passes.sort(key=lambda p: (p["rank"], p["contour"]))
+    builder = _PathBuilder(tip, axis, side, safe_z, params.lead)
+    seconds["path"] = time.perf_counter() - t
+
+    say("verify")
+    t = time.perf_counter()
+    dropped = []
+    for rnd in range(REPAIR_ROUNDS + 1):
+        tp, owner, role = builder.build(passes)
+        report = verify_toolpath(bvh, tp, tools, params.tol, min(DEFAULT_STEP, params.sample))
+        if report["ok"] or not passes:
+            break
+        if rnd == REPAIR_ROUNDS:  # give up on what still fails
+            bad = {owner[m] for m in report["problem_moves"]}
+            dropped += [p for k, p in enumerate(passes) if k in bad]
+            passes = [p for k, p in enumerate(passes) if k not in bad]
+            tp, owner, role = builder.build(passes)
+            report = verify_toolpath(bvh, tp, tools, params.tol, min(DEFAULT_STEP, params.sample))
+            break
+        passes, lost = _repair(passes, report["problem_moves"], owner, role)
+        dropped += lost
+    report.pop("problem_moves")
+    report["repair_rounds"] = rnd
+    seconds["verify"] = time.perf_counter() - t
+    seconds["total"] = time.perf_counter() - t_all
+
+    cut = np.zeros(npts, bool)
+    for ps in passes:
+        cut[ps["idx"]] = True
+    machinable = contour_tool >= 0
+    tools_used = {}
+    for ps in passes:
+        name = tools[ps["tool"]].name
+        entry = tools_used.setdefault(name, {"passes": 0, "cc_points": 0, "contours": set()})
+        entry["passes"] += 1
+        entry["cc_points"] += int(len(np.unique(ps["idx"])))
+        entry["contours"].add(ps["contour"])
+    for entry in tools_used.values():
+        entry["contours"] = len(entry["contours"])
+    tilt = np.degrees(np.arccos(np.clip(axis[cut, 2], -1, 1))) if cut.any() else np.zeros(0)
+    summary = {
+        "operation": "finish",
+        "step_down": params.step_down,
+        "sample": params.sample,
+        "max_tilt": params.max_tilt,
+        "tilt_step": params.tilt_step,
+        "order": params.order,
+        "safe_z": safe_z,
+        "tolerance": params.tol,
+        "clearance": params.clearance,
+        "levels": int(len(levels)),
+        "contours": int(len(con)),
+        "machinable_contours": int(machinable.sum()),
+        "unmachinable_contours": [
+            {"z": float(con.z[c]), "cc_points": int(con.offsets[c + 1] - con.offsets[c]),
+             "points_without_tool": int((~fits[con.offsets[c]:con.offsets[c + 1]]).sum())}
+            for c in np.nonzero(~machinable)[0]
+        ],
+        "cc_points": int(npts),
+        "points_without_tool": int((~fits).sum()),
+        "points_left_out": int((point_tool >= 0).sum() - cut[point_tool >= 0].sum()),
+        "points_cut": int(cut.sum()),
+        "points_tilted": int((tilt > 1e-6).sum()),
+        "max_tilt_used": float(tilt.max()) if len(tilt) else 0.0,
+        "passes": len(passes),
+        "passes_dropped": len(dropped),
+        "moves": int(len(tp)),
+        "cutting_length": tp.cutting_length(),
+        "tools_used": tools_used,
+        "verify": report,
+        "seconds": {k: round(v, 4) for k, v in seconds.items()},
+    }
+    detail = dict(contours=con, best=best, contour_tool=contour_tool, point_tool=point_tool, choice=choice,
+                  axis=axis, tip=tip, ce=ce, cut=cut, balls=balls, bvh=bvh)
+    return tp, summary, detail

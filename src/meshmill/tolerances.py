@@ -1,0 +1,18 @@
+"""Every named tolerance of the package, in mm unless said otherwise."""
+
+# A tool may touch the part; entering it deeper than this is a gouge (finish and verify default).
+# 10 µm is the usual finishing tolerance; it must also cover the mesh's own chordal error where
+# a ball sits against a concave crease of the facets.
+GOUGE_TOL = 0.01
+
+# Shank and holder keep at least this distance from the part when finish chooses a tool axis.
+HOLDER_CLEARANCE = 0.5
+
+# Triangles with an area below this (mm²) are degenerate and dropped on load.
+DEGENERATE_AREA = 1e-12
+
+# Vertices closer than this are welded into one on load (exact duplicates in STL files).
+WELD_DIGITS = 9
+
+# Two CC points closer than this along a contour are the same place (arc points at an edge).
+SAME_POINT = 1e-9

@@ -1,0 +1,153 @@
+"""APT cutter-location (CL) files: one statement a line.
+
+Written: ``PARTNO``, ``UNITS/MM``, ``MULTAX/ON``, ``CUTTER/diameter, corner_radius`` and
+``LOADTL/n`` at each tool change (n: the tool's 1-based position in the table), ``RAPID`` before
+each rapid ``GOTO``, ``GOTO/x, y, z, i, j, k`` (tool tip and unit tool axis), ``FINI``.
+
+Read: the same, plus what other CAM systems write: ``$$`` comments, ``$`` continuation lines,
+``GOTO/x, y, z`` without an axis (vertical), ``CUTTER/`` with up to seven parameters, and
+statements we do not need (``FEDRAT``, ``SPINDL``, ``COOLNT``, ...), which are skipped.
+``ROTABL`` and ``TLAXIS`` are skipped with a warning.
+"""
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from ..errors import InputError
+from .model import Toolpath
+
+IGNORED_WITH_WARNING = ("ROTABL", "TLAXIS", "INDIRV", "TLON", "TLLFT", "TLRGT")
+
+
+def write_apt(path, toolpath: Toolpath, tools, partno="meshmill") -> None:
+    """Write ``toolpath`` (tool indices into ``tools``) as an APT CL file."""
+    lines = [f"PARTNO/{partno}", "UNITS/MM", "MULTAX/ON"]
+    current = -1
+    for i in range(len(toolpath)):
+        t = int(toolpath.tool[i])
+        if t != current:
+            lines.append(tools[t].apt_cutter())
+            lines.append(f"LOADTL/{tools[t].number}")
+            current = t
+        if toolpath.rapid[i]:
+            lines.append("RAPID")
+        x, y, z = toolpath.tip[i]
+        a, b, c = toolpath.axis[i]
+        lines.append(f"GOTO/{x:.6f}, {y:.6f}, {z:.6f}, {a:.9f}, {b:.9f}, {c:.9f}")
+    lines.append("FINI")
+    with open(path, "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+
+
+def _statements(text):
+    """Yield ``(line_number, statement)`` with comments removed and continuations joined."""
+    pending = ""
+    start = 0
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line or line.startswith("$$"):
+            continue
+        if "$$" in line:
+            line = line[: line.index("$$")].strip()
+        if not pending:
+            start = number
+        if line.endswith("$"):
+            pending += line[:-1]
+            continue
+        yield start, pending + line
+        pending = ""
+    if pending:
+        yield start, pending
+
+
+def _numbers(args, where):
+    out = []
+    for a in args.split(","):
+        a = a.strip()
+        if not a:
+            continue
+        try:
+            v = float(a)
+        except ValueError:
+            raise InputError(f"{where}: expected numbers, got '{a}'") from None
+        if not math.isfinite(v):
+            raise InputError(f"{where}: NaN or infinite value")
+        out.append(v)
+    return out
+
+
+def _tool_for_cutter(values, tools, where):
+    d = values[0]
+    r = values[1] if len(values) > 1 else 0.0
+    for i, tool in enumerate(tools):
+        if abs(tool.diameter - d) <= 1e-6 and abs(tool.corner_radius - r) <= 1e-6:
+            return i
+    raise InputError(f"{where}: CUTTER/{d:g}, {r:g} matches no tool in the table")
+
+
+def read_apt(path, tools) -> tuple[Toolpath, list[str]]:
+    """Read an APT CL file; moves refer to ``tools`` by ``LOADTL/n`` or, failing that, by
+    matching ``CUTTER/`` diameter and corner radius. Returns the tool path and warnings."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise InputError(f"{path}: no such CL file")
+    try:
+        with open(path, encoding="utf-8", errors="strict") as fh:
+            text = fh.read()
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text APT CL file") from None
+    name = os.path.basename(path)
+    tips, axes, rapid, tool_idx, lines = [], [], [], [], []
+    warnings = []
+    skipped = {}
+    current = -1
+    cutter = None
+    next_rapid = False
+    for number, stmt in _statements(text):
+        where = f"{name}:{number}"
+        word, _, args = stmt.partition("/")
+        word = word.strip().upper()
+        if word == "GOTO":
+            v = _numbers(args, where)
+            if len(v) not in (3, 6):
+                raise InputError(f"{where}: GOTO needs x, y, z or x, y, z, i, j, k")
+            if current < 0:
+                if cutter is None:
+                    raise InputError(f"{where}: GOTO before any CUTTER/ or LOADTL/")
+                current = _tool_for_cutter(cutter, tools, where)
+            axis = v[3:] if len(v) == 6 else [0.0, 0.0, 1.0]
+            n = math.sqrt(sum(a * a for a in axis))
+            if n < 1e-9:
+                raise InputError(f"{where}: zero-length tool axis")
+            tips.append(v[:3])
+            axes.append([a / n for a in axis])
+            rapid.append(next_rapid)
+            tool_idx.append(current)
+            lines.append(number)
+            next_rapid = False
+        elif word == "RAPID":
+            next_rapid = True
+        elif word == "CUTTER":
+            cutter = _numbers(args, where)
+            if not cutter or cutter[0] <= 0:
+                raise InputError(f"{where}: CUTTER needs a positive diameter")
+            current = -1
+        elif word == "LOADTL":
+            v = _numbers(args, where)
+            if not v or int(v[0]) != v[0] or not 1 <= int(v[0]) <= len(tools):
+                raise InputError(f"{where}: LOADTL/{args.strip()} is not a tool of the table (1..{len(tools)})")
+            current = int(v[0]) - 1
+        elif word == "FINI":
+            break
+        elif word in IGNORED_WITH_WARNING:
+            skipped[word] = skipped.get(word, 0) + 1
+    for word, count in skipped.items():
+        warnings.append(f"{name}: ignored {count} {word} statement(s)")
+    if not tips:
+        raise InputError(f"{path}: no GOTO moves")
+    tp = Toolpath(tip=np.array(tips, np.float64), axis=np.array(axes, np.float64), rapid=np.array(rapid, bool),
+                  tool=np.array(tool_idx, np.int64), line=np.array(lines, np.int64))
+    return tp, warnings

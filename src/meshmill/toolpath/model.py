@@ -1,0 +1,45 @@
+"""The tool-path model shared by every operation: a sequence of moves."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class Toolpath:
+    """Moves in order. ``tip (k, 3)`` tool tip (mm), ``axis (k, 3)`` unit tool axis (tip to
+    spindle), ``rapid (k,) bool``, ``tool (k,) int`` 0-based index into the tool table;
+    ``line (k,) int`` source line of each move when read from a file (0 otherwise)."""
+
+    tip: np.ndarray
+    axis: np.ndarray
+    rapid: np.ndarray
+    tool: np.ndarray
+    line: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.line is None:
+            self.line = np.zeros(len(self.tip), np.int64)
+
+    def __len__(self):
+        return len(self.tip)
+
+    @staticmethod
+    def concatenate(parts: list["Toolpath"]) -> "Toolpath":
+        if not parts:
+            return Toolpath(np.empty((0, 3)), np.empty((0, 3)), np.empty(0, bool), np.empty(0, np.int64))
+        return Toolpath(
+            tip=np.concatenate([p.tip for p in parts]),
+            axis=np.concatenate([p.axis for p in parts]),
+            rapid=np.concatenate([p.rapid for p in parts]),
+            tool=np.concatenate([p.tool for p in parts]),
+            line=np.concatenate([p.line for p in parts]),
+        )
+
+    def cutting_length(self) -> float:
+        """Length of the feed moves, mm."""
+        if len(self) < 2:
+            return 0.0
+        seg = np.linalg.norm(np.diff(self.tip, axis=0), axis=1)
+        return float(seg[~self.rapid[1:]].sum())

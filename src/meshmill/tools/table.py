@@ -1,0 +1,178 @@
+"""Cutters with shank and holder, read from a TOML tool table.
+
+Every tool is modelled along its axis from the tip (t = 0), in mm:
+
+- cutting part: the ball/torus end (a ring of spheres), then the flutes up to ``flute_length``;
+- shank: radius ``shank_diameter/2`` from ``flute_length`` to ``gauge_length`` (tip to holder face);
+- holder (optional): radius ``holder_diameter/2`` from ``gauge_length`` for ``holder_length``.
+"""
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+TYPES = ("ball", "flat", "bull")
+RING_POINTS = 36  # spheres along the torus of a bull-nose cutter in verification
+
+
+@dataclass(frozen=True)
+class Tool:
+    """One cutter of the table; ``number`` is its 1-based position (APT ``LOADTL/number``)."""
+
+    name: str
+    type: str
+    diameter: float
+    corner_radius: float
+    flute_length: float
+    gauge_length: float
+    shank_diameter: float
+    holder_diameter: float = 0.0
+    holder_length: float = 0.0
+    number: int = 1
+
+    @property
+    def radius(self) -> float:
+        return 0.5 * self.diameter
+
+    def cylinders(self):
+        """``[(t0, t1, radius, cutting)]`` coaxial cylinders of the tool, from the tip up."""
+        R, rc = self.radius, self.corner_radius
+        out = []
+        if self.type == "ball":
+            out.append((R, self.flute_length, R, True))
+        elif self.type == "flat":
+            out.append((0.0, self.flute_length, R, True))
+        else:
+            out.append((0.0, rc, R - rc, True))
+            out.append((rc, self.flute_length, R, True))
+        if self.gauge_length > self.flute_length:
+            out.append((self.flute_length, self.gauge_length, 0.5 * self.shank_diameter, False))
+        if self.holder_diameter > 0.0:
+            out.append((self.gauge_length, self.gauge_length + self.holder_length, 0.5 * self.holder_diameter, False))
+        return out
+
+    def ring(self):
+        """``(t, rho, r, n)``: the rounded end as n spheres of radius r on a circle of radius rho
+        at height t (ball: one sphere; flat: none, r = 0)."""
+        R, rc = self.radius, self.corner_radius
+        if self.type == "ball":
+            return R, 0.0, R, 1
+        if self.type == "flat":
+            return 0.0, 0.0, 0.0, 0
+        return rc, R - rc, rc, RING_POINTS
+
+    @property
+    def reach(self) -> float:
+        """Length of the modelled tool from its tip, mm."""
+        return self.gauge_length + (self.holder_length if self.holder_diameter > 0 else 0.0)
+
+    def apt_cutter(self) -> str:
+        return f"CUTTER/{self.diameter:.6f}, {self.corner_radius:.6f}"
+
+
+def pack_rings(tools):
+    """Per-tool ring arrays ``(t, rho, r, n)`` for :func:`meshmill.kernels.cpu.pose_penetration`."""
+    rings = [tool.ring() for tool in tools]
+    return (np.array([r[0] for r in rings], np.float64), np.array([r[1] for r in rings], np.float64),
+            np.array([r[2] for r in rings], np.float64), np.array([r[3] for r in rings], np.int64))
+
+
+def pack_cylinders(tools, tol=0.0, clearance=0.0):
+    """Per-tool cylinder arrays ``(t0, t1, r)`` (T, K) and ``cutting (T, K) bool``.
+
+    Cutting cylinders shrink by ``tol`` (and a cylinder starting at the tip starts ``tol`` higher,
+    so that a flat bottom may rest on a facet); shank and holder grow by ``clearance``. Unused slots
+    have radius 0.
+    """
+    cyl = [tool.cylinders() for tool in tools]
+    k = max(len(c) for c in cyl)
+    t0 = np.zeros((len(tools), k))
+    t1 = np.zeros((len(tools), k))
+    r = np.zeros((len(tools), k))
+    cutting = np.zeros((len(tools), k), bool)
+    for i, parts in enumerate(cyl):
+        for j, (a, b, rad, cut) in enumerate(parts):
+            t0[i, j] = a + (tol if (cut and a == 0.0) else 0.0)
+            t1[i, j] = b
+            r[i, j] = rad - tol if cut else rad + clearance
+            cutting[i, j] = cut
+    return (t0, t1, r), cutting
+
+
+def _number(entry, key, where, default=None, required=True):
+    if key not in entry:
+        if required and default is None:
+            raise InputError(f"{where}: missing key '{key}'")
+        return default
+    value = entry[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise InputError(f"{where}: '{key}' must be a number (mm), got {value!r}")
+    return float(value)
+
+
+def tool_from_entry(entry: dict, number: int, where: str) -> Tool:
+    """Check one ``[[tools]]`` table into a :class:`Tool` (raises :class:`InputError`)."""
+    name = str(entry.get("name", f"T{number}"))
+    where = f"{where}: tool {number} ('{name}')"
+    kind = entry.get("type")
+    if kind not in TYPES:
+        raise InputError(f"{where}: 'type' must be one of {', '.join(TYPES)}, got {kind!r}")
+    d = _number(entry, "diameter", where)
+    if d <= 0:
+        raise InputError(f"{where}: diameter must be > 0 mm")
+    R = 0.5 * d
+    if kind == "ball":
+        rc = _number(entry, "corner_radius", where, default=R)
+        if abs(rc - R) > 1e-9 * max(1.0, R):
+            raise InputError(f"{where}: a ball tool's corner_radius must be diameter/2 = {R:g}")
+        rc = R
+    elif kind == "flat":
+        rc = _number(entry, "corner_radius", where, default=0.0)
+        if rc != 0.0:
+            raise InputError(f"{where}: a flat tool's corner_radius must be 0")
+    else:
+        rc = _number(entry, "corner_radius", where)
+        if not 0.0 < rc < R:
+            raise InputError(f"{where}: a bull tool needs 0 < corner_radius < diameter/2 = {R:g}")
+    flute = _number(entry, "flute_length", where)
+    gauge = _number(entry, "gauge_length", where)
+    if flute < rc or flute <= 0:
+        raise InputError(f"{where}: flute_length must be at least the corner radius and > 0")
+    if gauge < flute:
+        raise InputError(f"{where}: gauge_length ({gauge:g}) must be at least flute_length ({flute:g})")
+    shank = _number(entry, "shank_diameter", where, default=d)
+    if shank <= 0:
+        raise InputError(f"{where}: shank_diameter must be > 0 mm")
+    holder_d = _number(entry, "holder_diameter", where, default=0.0, required=False)
+    holder_l = _number(entry, "holder_length", where, default=holder_d, required=False)
+    if holder_d < 0 or holder_l < 0 or (holder_d > 0 and holder_l <= 0):
+        raise InputError(f"{where}: holder_diameter and holder_length must be > 0 mm")
+    return Tool(name=name, type=kind, diameter=d, corner_radius=rc, flute_length=flute, gauge_length=gauge,
+                shank_diameter=shank, holder_diameter=holder_d, holder_length=holder_l if holder_d > 0 else 0.0,
+                number=number)
+
+
+def load_tools(path) -> list[Tool]:
+    """Read a TOML tool table (``[[tools]]`` entries) into tools numbered from 1."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise InputError(f"{path}: no such tool table")
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not a valid TOML tool table ({exc})") from None
+    entries = data.get("tools")
+    if not isinstance(entries, list) or not entries:
+        raise InputError(f"{path}: no [[tools]] entries")
+    tools = [tool_from_entry(e, i + 1, path) for i, e in enumerate(entries)]
+    names = [t.name for t in tools]
+    if len(set(names)) != len(names):
+        raise InputError(f"{path}: tool names must be unique")
+    return tools
