@@ -1,0 +1,74 @@
+import numpy as np
+import pytest
+
+TOOLS_TOML = """
+[[tools]]
+name = "B20"
+type = "ball"
+diameter = 20.0
+flute_length = 25.0
+gauge_length = 60.0
+holder_diameter = 40.0
+holder_length = 40.0
+
+[[tools]]
+name = "B10"
+type = "ball"
+diameter = 10.0
+corner_radius = 5.0
+flute_length = 20.0
+gauge_length = 50.0
+holder_diameter = 32.0
+holder_length = 40.0
+
+[[tools]]
+name = "B6"
+type = "ball"
+diameter = 6.0
+flute_length = 12.0
+gauge_length = 45.0
+holder_diameter = 32.0
+holder_length = 40.0
+
+[[tools]]
+name = "B2"
+type = "ball"
+diameter = 2.0
+flute_length = 5.0
+gauge_length = 35.0
+shank_diameter = 6.0
+holder_diameter = 32.0
+holder_length = 40.0
+"""
+
+
+@pytest.fixture
+def tools_file(tmp_path):
+    p = tmp_path / "tools.toml"
+    p.write_text(TOOLS_TOML)
+    return p
+
+
+@pytest.fixture
+def tools(tools_file):
+    from meshmill.tools.table import load_tools
+
+    return load_tools(tools_file)
+
+
+def brute_point_triangle_dist(p, tris):
+    """Independent reference: distance from p (3,) to each triangle (m, 3, 3)."""
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    h = np.einsum("ij,ij->i", p - a, n)
+    q = p - h[:, None] * n
+    inside = np.ones(len(tris), bool)
+    for u, v in ((a, b), (b, c), (c, a)):
+        inside &= np.einsum("ij,ij->i", np.cross(v - u, q - u), n) >= 0
+    best = np.where(inside, np.abs(h), np.inf)
+    for u, v in ((a, b), (b, c), (c, a)):
+        d = v - u
+        s = np.clip(np.einsum("ij,ij->i", p - u, d) / np.einsum("ij,ij->i", d, d), 0, 1)
+        best = np.minimum(best, np.linalg.norm(p - (u + s[:, None] * d), axis=1))
+    return best

@@ -1,0 +1,71 @@
+"""The command line: outputs, exit codes and one-line errors."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+from meshmill.cli import main
+from meshmill.geometry.shapes import overhang_column
+
+
+@pytest.fixture
+def part(tmp_path):
+    m = overhang_column()
+    p = tmp_path / "part.stl"
+    trimesh.Trimesh(m.vertices, m.faces, process=False).export(p)
+    return p
+
+
+def test_finish_then_verify(tmp_path, part, tools_file, capsys):
+    out = tmp_path / "out"
+    rc = main(["finish", str(part), "--tools", str(tools_file), "--step-down", "2", "--out", str(out), "--quiet"])
+    assert rc == 0
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("contours", "machinable_contours", "cc_points", "points_left_out", "tools_used", "seconds"):
+        assert key in summary
+    assert summary["verify"]["ok"] and summary["seconds"]["total"] > 0
+    cl = (out / "toolpath.cl").read_text().splitlines()
+    assert cl[-1] == "FINI" and any(l.startswith("LOADTL/") for l in cl) and "RAPID" in cl
+    rc = main(["verify", str(part), str(out / "toolpath.cl"), "--tools", str(tools_file)])
+    assert rc == 0 and "OK" in capsys.readouterr().out
+
+
+def test_verify_finds_a_gouge(tmp_path, part, tools_file, capsys):
+    (tmp_path / "g.cl").write_text("LOADTL/2\nGOTO/0, 0, 34.5, 0, 0, 1\nGOTO/1, 0, 34.5, 0, 0, 1\nFINI\n")
+    rc = main(["verify", str(part), str(tmp_path / "g.cl"), "--tools", str(tools_file)])
+    out = capsys.readouterr().out
+    assert rc == 1 and "PROBLEMS" in out and "gouge" in out and "line 2" in out
+
+
+def _one_line_error(capsys, argv):
+    rc = main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2
+    assert len(err) == 1 and err[0].startswith("meshmill: error:")
+    return err[0]
+
+
+def test_bad_inputs_give_one_line_and_exit_2(tmp_path, part, tools_file, capsys):
+    t = str(tools_file)
+    assert "no such file" in _one_line_error(capsys, ["finish", str(tmp_path / "missing.stl"), "--tools", t, "--step-down", "1"])
+    (tmp_path / "empty.stl").write_bytes(b"")
+    assert "empty" in _one_line_error(capsys, ["finish", str(tmp_path / "empty.stl"), "--tools", t, "--step-down", "1"])
+    (tmp_path / "junk.stl").write_text("this is no mesh at all")
+    _one_line_error(capsys, ["finish", str(tmp_path / "junk.stl"), "--tools", t, "--step-down", "1"])
+    m = trimesh.Trimesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, np.nan]]), [[0, 1, 2]], process=False)
+    m.export(tmp_path / "nan.stl")
+    assert "NaN" in _one_line_error(capsys, ["finish", str(tmp_path / "nan.stl"), "--tools", t, "--step-down", "1"])
+    assert "tool table" in _one_line_error(capsys, ["finish", str(part), "--tools", str(tmp_path / "no.toml"), "--step-down", "1"])
+    assert "larger than the part" in _one_line_error(capsys, ["finish", str(part), "--tools", t, "--step-down", "500"])
+    assert "step" in _one_line_error(capsys, ["finish", str(part), "--tools", t, "--step-down", "-1"])
+    assert "no such CL file" in _one_line_error(capsys, ["verify", str(part), str(tmp_path / "x.cl"), "--tools", t])
+    _one_line_error(capsys, ["finish", str(part), "--tools", t])  # missing --step-down
+
+
+def test_entry_point_exit_code(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "meshmill", "finish", str(tmp_path / "nope.stl"), "--tools", "x.toml",
+                        "--step-down", "1"], capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr

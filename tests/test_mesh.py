@@ -1,0 +1,99 @@
+"""Mesh input: formats, cleaning and bad files."""
+import struct
+
+import numpy as np
+import pytest
+import trimesh
+
+from meshmill.errors import InputError
+from meshmill.geometry.mesh import load_mesh, mesh_from_arrays
+from meshmill.geometry.shapes import box, sphere
+
+PARTS = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared" / "parts"
+
+
+def _export(mesh, path):
+    trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(path)
+    return path
+
+
+@pytest.mark.parametrize("ext", ["stl", "obj", "ply"])
+def test_formats_load_the_same_solid(tmp_path, ext):
+    s = sphere(5.0, 12, 24)
+    m = load_mesh(_export(s, tmp_path / f"s.{ext}"))
+    assert m.closed and len(m.faces) == len(s.faces)
+    np.testing.assert_allclose(m.bounds, s.bounds, atol=1e-5)
+
+
+def test_ascii_stl(tmp_path):
+    p = tmp_path / "a.stl"
+    p.write_bytes(trimesh.exchange.stl.export_stl_ascii(trimesh.Trimesh(box([0, 0, 0], [1, 2, 3]).vertices,
+                                                                         box([0, 0, 0], [1, 2, 3]).faces)).encode())
+    m = load_mesh(p)
+    assert len(m.faces) == 12 and m.closed
+
+
+@pytest.mark.skipif(not (PARTS / "ktoolcav.stl").exists(), reason="shared parts not present")
+def test_binary_stl_whose_header_starts_with_solid():
+    assert (PARTS / "ktoolcav.stl").read_bytes()[:5] == b"solid"
+    m = load_mesh(PARTS / "ktoolcav.stl")
+    assert len(m.faces) == 4090 and m.closed
+
+
+def test_degenerate_triangles_are_dropped_and_counted():
+    b = box([0, 0, 0], [1, 1, 1])
+    V = np.vstack([b.vertices, [[5, 5, 5], [6, 6, 6], [7, 7, 7]]])
+    F = np.vstack([b.faces, [[8, 9, 10], [0, 0, 1]]])
+    m = mesh_from_arrays(V, F)
+    assert m.dropped_degenerate == 2 and len(m.faces) == 12 and m.closed
+    assert any("degenerate" in w for w in m.warnings)
+
+
+def test_inward_winding_is_flipped():
+    b = box([0, 0, 0], [1, 1, 1])
+    m = mesh_from_arrays(b.vertices, b.faces[:, ::-1])
+    assert m.flipped
+    assert np.allclose(m.face_normals, b.face_normals)
+
+
+def test_open_mesh_warns():
+    b = box([0, 0, 0], [1, 1, 1])
+    m = mesh_from_arrays(b.vertices, b.faces[2:])
+    assert not m.closed and any("open" in w for w in m.warnings)
+
+
+def test_unwelded_stl_triangles_are_welded(tmp_path):
+    s = sphere(5.0, 8, 16)
+    soup = s.vertices[s.faces].reshape(-1, 3)
+    m = mesh_from_arrays(soup, np.arange(len(soup)).reshape(-1, 3))
+    assert m.closed and len(m.vertices) == len(s.vertices)
+
+
+@pytest.mark.parametrize("content, message", [
+    (None, "no such file"),
+    (b"", "empty"),
+    (b"hello, this is not a mesh\n", "not"),
+    (b"solid x\nendsolid x\n", "no triangles"),
+])
+def test_bad_files(tmp_path, content, message):
+    p = tmp_path / "bad.stl"
+    if content is not None:
+        p.write_bytes(content)
+    with pytest.raises(InputError, match=message):
+        load_mesh(p)
+
+
+def test_nan_coordinates(tmp_path):
+    tri = np.array([[0, 0, 0], [1, 0, 0], [0, float("nan"), 0]], np.float32)
+    data = b"\0" * 80 + struct.pack("<I", 1) + struct.pack("<3f", 0, 0, 1) + tri.tobytes() + b"\0\0"
+    p = tmp_path / "nan.stl"
+    p.write_bytes(data)
+    with pytest.raises(InputError, match="NaN"):
+        load_mesh(p)
+
+
+def test_unsupported_extension(tmp_path):
+    p = tmp_path / "part.step"
+    p.write_text("ISO-10303-21;")
+    with pytest.raises(InputError, match="unsupported"):
+        load_mesh(p)

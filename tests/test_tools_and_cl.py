@@ -1,0 +1,76 @@
+"""Tool tables and APT CL files."""
+import numpy as np
+import pytest
+
+from meshmill.errors import InputError
+from meshmill.toolpath.cldata import read_apt, write_apt
+from meshmill.toolpath.model import Toolpath
+from meshmill.tools.table import load_tools
+
+
+def test_tool_table_defaults(tools):
+    b10 = tools[1]
+    assert b10.number == 2 and b10.corner_radius == 5.0 and b10.shank_diameter == 10.0
+    assert tools[3].shank_diameter == 6.0 and tools[3].holder_length == 40.0
+    kinds = [c[3] for c in tools[0].cylinders()]
+    assert kinds == [True, False, False]  # flutes, shank, holder
+
+
+@pytest.mark.parametrize("body, message", [
+    ("", "no \\[\\[tools\\]\\]"),
+    ("[[tools]]\nname='x'\ntype='drill'\ndiameter=3\nflute_length=5\ngauge_length=9\n", "type"),
+    ("[[tools]]\ntype='ball'\ndiameter=-3\nflute_length=5\ngauge_length=9\n", "diameter"),
+    ("[[tools]]\ntype='ball'\ndiameter=6\ncorner_radius=2\nflute_length=5\ngauge_length=9\n", "corner_radius"),
+    ("[[tools]]\ntype='bull'\ndiameter=6\nflute_length=5\ngauge_length=9\n", "corner_radius"),
+    ("[[tools]]\ntype='ball'\ndiameter=6\nflute_length=5\n", "gauge_length"),
+    ("[[tools]]\ntype='ball'\ndiameter=6\nflute_length=10\ngauge_length=5\n", "gauge_length"),
+    ("[[tools]]\ntype='ball'\ndiameter='six'\nflute_length=10\ngauge_length=5\n", "number"),
+    ("[[tools\n", "not a valid TOML"),
+])
+def test_bad_tool_tables(tmp_path, body, message):
+    p = tmp_path / "t.toml"
+    p.write_text(body)
+    with pytest.raises(InputError, match=message):
+        load_tools(p)
+
+
+def test_cl_round_trip(tmp_path, tools):
+    rng = np.random.default_rng(1)
+    axis = rng.normal(size=(6, 3))
+    axis[:, 2] = np.abs(axis[:, 2])
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    tp = Toolpath(rng.uniform(-50, 50, (6, 3)), axis, np.array([1, 0, 0, 1, 0, 0], bool), np.array([0, 0, 0, 2, 2, 2]))
+    write_apt(tmp_path / "p.cl", tp, tools)
+    text = (tmp_path / "p.cl").read_text().splitlines()
+    assert text[-1] == "FINI" and "CUTTER/20.000000, 10.000000" in text and "LOADTL/3" in text
+    back, warnings = read_apt(tmp_path / "p.cl", tools)
+    assert not warnings
+    np.testing.assert_allclose(back.tip, tp.tip, atol=1e-6)
+    np.testing.assert_allclose(back.axis, tp.axis, atol=1e-8)
+    assert (back.rapid == tp.rapid).all() and (back.tool == tp.tool).all()
+
+
+def test_cl_from_another_cam_system(tmp_path, tools):
+    (tmp_path / "cam.cl").write_text(
+        "$$ made elsewhere\nPARTNO/TEST\nCUTTER/10, 5\nFEDRAT/1200\nROTABL/90\nRAPID\nGOTO/0, 0, 50\n"
+        "GOTO/1.0, 2.0, $\n 3.0\nGOTO/1, 2, 3, 0, 0, 2\nFINI\n")
+    tp, warnings = read_apt(tmp_path / "cam.cl", tools)
+    assert len(tp) == 3 and (tp.tool == 1).all() and list(tp.rapid) == [True, False, False]
+    np.testing.assert_allclose(tp.tip[1], [1, 2, 3])
+    np.testing.assert_allclose(tp.axis[2], [0, 0, 1])
+    assert tp.line[1] == 8 and any("ROTABL" in w for w in warnings)
+
+
+@pytest.mark.parametrize("body, message", [
+    ("GOTO/1,2,3\n", "before any CUTTER"),
+    ("CUTTER/7, 0\nGOTO/1,2,3\n", "matches no tool"),
+    ("LOADTL/9\n", "not a tool of the table"),
+    ("LOADTL/1\nGOTO/1,2\n", "GOTO needs"),
+    ("LOADTL/1\nGOTO/1,2,nan\n", "NaN"),
+    ("LOADTL/1\nGOTO/1,2,x\n", "expected numbers"),
+    ("PARTNO/X\nFINI\n", "no GOTO"),
+])
+def test_bad_cl_files(tmp_path, tools, body, message):
+    (tmp_path / "bad.cl").write_text(body)
+    with pytest.raises(InputError, match=message):
+        read_apt(tmp_path / "bad.cl", tools)
