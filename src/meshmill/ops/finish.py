@@ -277,6 +277,11 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
             passes.append(dict(contour=c, tool=table_index[balls[contour_tool[c]].number], rank=int(contour_tool[c]),
                                idx=run + a, lead_in=params.lead > 0, lead_out=params.lead > 0,
                                vertical_in=False, vertical_out=False))
+    if not passes:
+        smallest = min(radii)
+        raise InputError(f"nothing to cut: of {len(con)} contour(s), {int((contour_tool >= 0).sum())} fit a ball of "
+                         f"the table (smallest R {smallest:g} mm) and none has a collision-free axis within "
+                         f"--max-tilt {params.max_tilt:g}; add smaller or longer tools")
     if params.order == "tool":
         passes.sort(key=lambda p: (p["rank"], p["contour"]))
     builder = _PathBuilder(tip, axis, side, safe_z, params.lead)

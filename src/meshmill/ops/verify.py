@@ -40,6 +40,9 @@ class Problem:
 def sample_moves(tp: Toolpath, tools, step: float):
     """Poses along the path: ``tip, axis (s, 3)``, ``tool, move (s,)``, ``rapid (s,) bool``."""
     k = len(tp)
+    if k == 0:
+        e3, e = np.empty((0, 3)), np.empty(0, np.int64)
+        return e3, e3, e, e, np.empty(0, bool)
     reach = np.array([t.reach for t in tools])[tp.tool]
     dtip = np.zeros(k)
     dang = np.zeros(k)
@@ -84,6 +87,10 @@ def verify_toolpath(bvh, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: floa
     moves that gouge, collide or rapid into the part, and the ``worst`` cases."""
     tip, axis, tool, move, rapid = sample_moves(tp, tools, step)
     segs, cutting = pack_cylinders(tools)
+    if len(tip) == 0:
+        return {"moves": 0, "poses_checked": 0, "step": float(step), "tolerance": float(tol), "gouging_moves": 0,
+                "colliding_moves": 0, "rapid_moves_touching": 0, "max_gouge": 0.0, "max_collision": 0.0,
+                "ok": True, "worst": [], "problem_moves": []}
     ring_depth, seg_depth = cpu.pose_penetration(tip, axis, tool, pack_rings(tools), segs, bvh.arrays)
     cut_mask = cutting[tool]
     seg_cut = np.where(cut_mask, seg_depth, 0.0)
