@@ -11,7 +11,8 @@ from meshmill.geometry.shapes import sphere
 from meshmill.kernels import cpu
 from meshmill.kernels.geom import STACK_SIZE
 
-coord = st.floats(-10, 10, allow_nan=False, allow_infinity=False)
+# half the coordinates on a coarse grid, so that vertices, edges and slab planes coincide exactly
+coord = st.one_of(st.floats(-10, 10, allow_nan=False, allow_infinity=False), st.integers(-3, 3).map(float))
 point = st.tuples(coord, coord, coord)
 
 
@@ -123,3 +124,10 @@ def test_early_exit_reports_an_overlap():
     # one 4 mm outside does not: the query returns the cap
     d2 = cpu.dev.mesh_point_dist2(14.5, 0.0, 0.0, 9.0, 9.0, *bvh.arrays, stack)
     assert d2 == 9.0
+
+
+def test_slab_plane_through_a_vertex():
+    # found by hypothesis: the slab's lower plane passes exactly through vertex b
+    tri = np.array([[0, 0, 0, 0, 1, 1, 1, 2, 0]], np.float64)
+    d2 = cpu.dev.triangle_axis_dist2(tri, 0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0)
+    assert abs(d2 - 0.2) < 1e-15

@@ -195,7 +195,8 @@ def build(jit):
                                        ax, ay, az, ux, uy, uz)
                 if d < best:
                     best = d
-        # cuts of the two slab planes through the triangle
+        # cuts of the two slab planes through the triangle (a vertex on the plane counts: it is
+        # found from both of its edges, so up to three points, any two spanning the cut)
         for c in range(2):
             tc = t0 if c == 0 else t1
             n = 0
@@ -205,27 +206,35 @@ def build(jit):
             c1x = 0.0
             c1y = 0.0
             c1z = 0.0
+            c2x = 0.0
+            c2y = 0.0
+            c2z = 0.0
             for k in range(3):
                 i = 3 * k
                 j = 3 * ((k + 1) % 3)
                 hp = h0 if k == 0 else (h1 if k == 1 else h2)
                 hq = h1 if k == 0 else (h2 if k == 1 else h0)
-                if (hp - tc) * (hq - tc) < 0.0:
+                if hp != hq and min(hp, hq) <= tc and tc <= max(hp, hq):
                     s = (tc - hp) / (hq - hp)
                     x = tris[t, i] + s * (tris[t, j] - tris[t, i])
                     y = tris[t, i + 1] + s * (tris[t, j + 1] - tris[t, i + 1])
                     z = tris[t, i + 2] + s * (tris[t, j + 2] - tris[t, i + 2])
                     if n == 0:
-                        c0x = x
-                        c0y = y
-                        c0z = z
+                        c0x, c0y, c0z = x, y, z
+                    elif n == 1:
+                        c1x, c1y, c1z = x, y, z
                     else:
-                        c1x = x
-                        c1y = y
-                        c1z = z
+                        c2x, c2y, c2z = x, y, z
                     n += 1
-            if n == 2:
+            if n >= 2:
                 d = segment_line_dist2(c0x, c0y, c0z, c1x, c1y, c1z, ax, ay, az, ux, uy, uz)
+                if d < best:
+                    best = d
+            if n == 3:
+                d = segment_line_dist2(c1x, c1y, c1z, c2x, c2y, c2z, ax, ay, az, ux, uy, uz)
+                if d < best:
+                    best = d
+                d = segment_line_dist2(c0x, c0y, c0z, c2x, c2y, c2z, ax, ay, az, ux, uy, uz)
                 if d < best:
                     best = d
         return best
