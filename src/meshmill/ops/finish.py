@@ -323,6 +323,9 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
     for entry in tools_used.values():
         entry["contours"] = len(entry["contours"])
     tilt = np.degrees(np.arccos(np.clip(axis[cut, 2], -1, 1))) if cut.any() else np.zeros(0)
+    feed_move = ~tp.rapid[1:] & (tp.tool[1:] == tp.tool[:-1])
+    turn = np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1])[feed_move]
+    max_turn = float(np.degrees(np.arccos(np.clip(turn.min(), -1, 1)))) if len(turn) else 0.0
     summary = {
         "operation": "finish",
         "step_down": params.step_down,
@@ -347,6 +350,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
         "points_cut": int(cut.sum()),
         "points_tilted": int((tilt > 1e-6).sum()),
         "max_tilt_used": float(tilt.max()) if len(tilt) else 0.0,
+        "max_axis_change": max_turn,
         "passes": len(passes),
         "passes_dropped": len(dropped),
         "moves": int(len(tp)),
