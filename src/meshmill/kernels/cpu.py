@@ -15,6 +15,7 @@ from .geom import INF, STACK_SIZE, build
 
 dev = build(numba.njit(fastmath=False, cache=True))
 _point = dev.mesh_point_dist2
+_ball = dev.largest_clear_ball
 _cyl = dev.mesh_cylinder_dist2
 _body_clear = dev.body_clear
 
@@ -38,17 +39,11 @@ def mesh_distances(points, bvh, cap=INF):
 
 @numba.njit(parallel=True, cache=True)
 def _largest_ball(cc, nrm, radii, tol, node_lo, node_hi, node_child, node_range, tris):
-    out = np.full(cc.shape[0], -1, np.int32)
+    out = np.empty(cc.shape[0], np.int32)
     for i in prange(cc.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
-        for t in range(radii.shape[0]):
-            r = radii[t]
-            lim = (r - tol) * (r - tol)
-            d2 = _point(cc[i, 0] + r * nrm[i, 0], cc[i, 1] + r * nrm[i, 1], cc[i, 2] + r * nrm[i, 2],
-                        lim, lim, node_lo, node_hi, node_child, node_range, tris, stack)
-            if d2 >= lim:
-                out[i] = t
-                break
+        out[i] = _ball(cc[i, 0], cc[i, 1], cc[i, 2], nrm[i, 0], nrm[i, 1], nrm[i, 2], radii, tol,
+                       node_lo, node_hi, node_child, node_range, tris, stack)
     return out
 
 

@@ -16,6 +16,7 @@ from .geom import STACK_SIZE, build
 
 dev = build(cuda.jit(device=True))
 _point = dev.mesh_point_dist2
+_ball = dev.largest_clear_ball
 THREADS = 128
 
 
@@ -33,15 +34,8 @@ def _largest_ball(cc, nrm, radii, tol, node_lo, node_hi, node_child, node_range,
     i = cuda.grid(1)
     if i < cc.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
-        out[i] = -1
-        for t in range(radii.shape[0]):
-            r = radii[t]
-            lim = (r - tol) * (r - tol)
-            d2 = _point(cc[i, 0] + r * nrm[i, 0], cc[i, 1] + r * nrm[i, 1], cc[i, 2] + r * nrm[i, 2],
-                        lim, lim, node_lo, node_hi, node_child, node_range, tris, stack)
-            if d2 >= lim:
-                out[i] = t
-                break
+        out[i] = _ball(cc[i, 0], cc[i, 1], cc[i, 2], nrm[i, 0], nrm[i, 1], nrm[i, 2], radii, tol,
+                       node_lo, node_hi, node_child, node_range, tris, stack)
 
 
 def _blocks(n):

@@ -288,6 +288,20 @@ def build(jit):
         return best
 
     @jit
+    def largest_clear_ball(cx, cy, cz, nx, ny, nz, radii, tol, node_lo, node_hi, node_child, node_range, tris,
+                           stack):
+        """Index of the first radius in ``radii`` (sorted decreasing) whose ball tangent at c with
+        outward normal n (centre c + R·n) stays out of the mesh by more than -tol; -1 if none."""
+        for t in range(radii.shape[0]):
+            r = radii[t]
+            lim = (r - tol) * (r - tol)
+            d2 = mesh_point_dist2(cx + r * nx, cy + r * ny, cz + r * nz, lim, lim,
+                                  node_lo, node_hi, node_child, node_range, tris, stack)
+            if d2 >= lim:
+                return t
+        return -1
+
+    @jit
     def box_may_touch_cylinder(node_lo, node_hi, n, p0x, p0y, p0z, p1x, p1y, p1z, ux, uy, uz, r):
         """False only when box n certainly misses the capsule of radius r around segment p0-p1."""
         ex = r * math.sqrt(max(0.0, 1.0 - ux * ux))
@@ -379,6 +393,7 @@ def build(jit):
         segment_line_dist2=segment_line_dist2,
         triangle_axis_dist2=triangle_axis_dist2,
         mesh_point_dist2=mesh_point_dist2,
+        largest_clear_ball=largest_clear_ball,
         mesh_cylinder_dist2=mesh_cylinder_dist2,
         body_clear=body_clear,
     )
