@@ -69,3 +69,29 @@ def test_entry_point_exit_code(tmp_path):
     r = subprocess.run([sys.executable, "-m", "meshmill", "finish", str(tmp_path / "nope.stl"), "--tools", "x.toml",
                         "--step-down", "1"], capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+
+
+def test_more_bad_inputs(tmp_path, part, tools_file, capsys):
+    t = str(tools_file)
+    for opt in (["--safe-z", "nan"], ["--clearance", "nan"], ["--tolerance", "inf"], ["--sample", "1e-9"]):
+        _one_line_error(capsys, ["finish", str(part), "--tools", t, "--step-down", "2", *opt])
+    (tmp_path / "c.cl").write_text("LOADTL/1\nGOTO/1e308, 0, 100\n")
+    assert "out of range" in _one_line_error(capsys, ["verify", str(part), str(tmp_path / "c.cl"), "--tools", t])
+    (tmp_path / "ok.cl").write_text("LOADTL/1\nGOTO/0, 0, 100\n")
+    _one_line_error(capsys, ["verify", str(part), str(tmp_path / "ok.cl"), "--tools", t, "--tolerance", "nan"])
+    _one_line_error(capsys, ["verify", str(part), str(tmp_path / "ok.cl"), "--tools", t, "--step", "nan"])
+    _one_line_error(capsys, ["verify", str(part), str(tmp_path / "ok.cl"), "--tools", t, "--out", str(tmp_path)])
+    _one_line_error(capsys, ["verify", str(part), str(tmp_path), "--tools", t])
+    _one_line_error(capsys, ["finish", str(part), "--tools", str(tmp_path), "--step-down", "2"])
+    (tmp_path / "list.toml").write_text("tools = [1, 2]\n")
+    _one_line_error(capsys, ["finish", str(part), "--tools", str(tmp_path / "list.toml"), "--step-down", "2"])
+
+
+def test_latin1_ascii_stl(tmp_path):
+    from meshmill.geometry.mesh import load_mesh
+
+    body = "solid caf\xe9\n" + "".join(
+        f"facet normal 0 0 1\nouter loop\nvertex {a}\nvertex {b}\nvertex {c}\nendloop\nendfacet\n"
+        for a, b, c in [("0 0 0", "1 0 0", "0 1 0"), ("1 0 0", "1 1 0", "0 1 0")]) + "endsolid caf\xe9\n"
+    (tmp_path / "l.stl").write_bytes(body.encode("latin-1"))
+    assert len(load_mesh(tmp_path / "l.stl").faces) == 2

@@ -131,3 +131,24 @@ def test_slab_plane_through_a_vertex():
     tri = np.array([[0, 0, 0, 0, 1, 1, 1, 2, 0]], np.float64)
     d2 = cpu.dev.triangle_axis_dist2(tri, 0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0)
     assert abs(d2 - 0.2) < 1e-15
+
+
+def test_sliver_triangle_distance():
+    # found in review: a 1e-11 mm high sliver; the nearest feature is edge AB at 3.262 mm
+    tri = np.array([[0, 0, 0, 100, 0, 0, 37.3, 1e-11, 0]], np.float64)
+    p = (66.013, 0.006, -3.262)
+    d = math.sqrt(cpu.dev.point_triangle_dist2(*p, tri, 0))
+    assert abs(d - math.hypot(0.006, 3.262)) < 1e-9
+    collinear = np.array([[0, 0, 0, 1, 0, 0, 2, 0, 0]], np.float64)
+    assert cpu.dev.point_triangle_dist2(0.5, 1.0, 0.0, collinear, 0) == 1.0
+
+
+def test_axis_in_the_plane_of_the_triangle():
+    # found in review: rounding noise in det made the pierce test report 0 for an in-plane axis
+    rng = np.random.default_rng(5)
+    tri = np.array([[0, 0, 0], [10, 0, 0], [10, 0, 10]], np.float64)
+    base, u = np.array([2.0, 0, 5.0]), np.array([0, 0, 1.0])
+    for _ in range(2000):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        d2 = cpu.dev.triangle_axis_dist2((tri @ q.T).reshape(1, 9), 0, *(q @ base), *(q @ u), 0.0, 30.0)
+        assert abs(d2 - 9.0) < 1e-9

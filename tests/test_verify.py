@@ -84,3 +84,11 @@ def test_bull_nose_and_flat_are_checked(tools):
     assert ok["ok"]  # resting flat on the top face is no gouge
     bad = verify_toolpath(bvh, _path([[10, 10, 9.7], [12, 10, 9.7]], tool=1), [bull, flat])
     assert not bad["ok"] and abs(bad["max_gouge"] - 0.3) < 1e-6
+
+
+def test_move_after_a_tool_change_is_checked_along_its_way(tools):
+    bvh = build_bvh(*(lambda m: (m.vertices, m.faces))(box([0, 0, 0], [20, 20, 10])))
+    tp = Toolpath(np.array([[-15.0, 10, 5], [35.0, 10, 5]]), np.tile(UP, (2, 1)), np.array([True, False]),
+                  np.array([0, 1]))
+    r = verify_toolpath(bvh, tp, tools)
+    assert r["gouging_moves"] == 1 and r["poses_checked"] > 50

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -44,9 +45,12 @@ def _load_part(args, path):
 
 
 def _write_json(path, data):
-    with open(path, "w") as fh:
-        json.dump(data, fh, indent=2, default=float)
-        fh.write("\n")
+    try:
+        with open(path, "w") as fh:
+            json.dump(data, fh, indent=2, default=float)
+            fh.write("\n")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write ({exc.strerror})") from None
 
 
 def _out_dir(path):
@@ -95,8 +99,10 @@ def cmd_verify(args):
     from .tools.table import load_tools
     from .toolpath.cldata import read_apt
 
-    if args.step <= 0 or args.tolerance < 0:
-        raise InputError("--step must be > 0 and --tolerance >= 0")
+    if not (math.isfinite(args.step) and args.step >= 1e-4):
+        raise InputError(f"--step must be a finite number of at least 0.0001 mm, got {args.step}")
+    if not (math.isfinite(args.tolerance) and args.tolerance >= 0):
+        raise InputError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
     tools = load_tools(args.tools)
     mesh = _load_part(args, args.part)
     tp, warnings = read_apt(args.toolpath, tools)

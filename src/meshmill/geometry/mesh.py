@@ -10,6 +10,7 @@ import os
 import warnings
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from ..errors import InputError
@@ -100,19 +101,83 @@ def mesh_from_arrays(vertices, faces, name="mesh") -> Mesh:
     return mesh
 
 
+@numba.njit(cache=True)
+def _winding_parity(n_faces, pair_a, pair_b, pair_same):
+    """Flip flags (n_faces,) that make neighbouring faces traverse their shared edge in opposite
+    directions, and a component label per face (breadth-first over manifold edges)."""
+    adj_start = np.zeros(n_faces + 1, np.int64)
+    for k in range(pair_a.shape[0]):
+        adj_start[pair_a[k] + 1] += 1
+        adj_start[pair_b[k] + 1] += 1
+    for i in range(n_faces):
+        adj_start[i + 1] += adj_start[i]
+    fill = adj_start[:-1].copy()
+    adj = np.empty(adj_start[-1], np.int64)
+    same = np.empty(adj_start[-1], np.bool_)
+    for k in range(pair_a.shape[0]):
+        a, b = pair_a[k], pair_b[k]
+        adj[fill[a]] = b
+        same[fill[a]] = pair_same[k]
+        fill[a] += 1
+        adj[fill[b]] = a
+        same[fill[b]] = pair_same[k]
+        fill[b] += 1
+    flip = np.zeros(n_faces, np.bool_)
+    comp = np.full(n_faces, -1, np.int64)
+    queue = np.empty(n_faces, np.int64)
+    ncomp = 0
+    for seed in range(n_faces):
+        if comp[seed] >= 0:
+            continue
+        comp[seed] = ncomp
+        head, tail = 0, 1
+        queue[0] = seed
+        while head < tail:
+            f = queue[head]
+            head += 1
+            for j in range(adj_start[f], adj_start[f + 1]):
+                g = adj[j]
+                if comp[g] < 0:
+                    comp[g] = ncomp
+                    flip[g] = flip[f] ^ same[j]
+                    queue[tail] = g
+                    tail += 1
+        ncomp += 1
+    return flip, comp
+
+
 def _orient_outward(mesh: Mesh, name: str) -> None:
-    """Flip the winding when the normals point into the material (closed: negative volume;
-    open surface: normals facing down on the whole)."""
-    tri = mesh.vertices[mesh.faces]
+    """Make the winding consistent across shared edges, then point every connected piece's normals
+    out of the material: by its signed volume when it is closed or nearly so (its projected area
+    cancels out), else (an open surface) so that its normals face up on the whole."""
+    F = mesh.faces.astype(np.int64)
+    nv = len(mesh.vertices)
+    directed = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    key = np.minimum(directed[:, 0], directed[:, 1]) * nv + np.maximum(directed[:, 0], directed[:, 1])
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    first = np.r_[True, ks[1:] != ks[:-1]]
+    run = np.diff(np.r_[np.nonzero(first)[0], len(ks)])
+    two = np.nonzero(first)[0][run == 2]  # manifold edges: exactly two faces
+    ea, eb = order[two], order[two + 1]
+    pair_same = directed[ea, 0] == directed[eb, 0]
+    flip, comp = _winding_parity(len(F), ea // 3, eb // 3, pair_same)
+    tri = mesh.vertices[F]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    if mesh.closed:
-        flip = np.einsum("ij,ij->", tri[:, 0], cross) < 0.0  # 6 × signed volume
-    else:
-        flip = cross[:, 2].sum() < 0.0
-    if flip:
-        mesh.faces = mesh.faces[:, ::-1].copy()
+    sign = np.where(flip, -1.0, 1.0)
+    ncomp = comp.max() + 1
+    vol = np.bincount(comp, sign * np.einsum("ij,ij->i", tri[:, 0], cross), ncomp)
+    up = np.bincount(comp, sign * cross[:, 2], ncomp)
+    size = np.bincount(comp, np.linalg.norm(cross, axis=1), ncomp)
+    closedish = np.abs(up) <= 1e-6 * size
+    comp_flip = np.where(closedish, vol < 0.0, up < 0.0)
+    flip ^= comp_flip[comp]
+    if flip.any():
+        F[flip] = F[flip][:, ::-1]
+        mesh.faces = F.astype(np.int32)
         mesh.flipped = True
-        mesh.warnings.append(f"{name}: faces were wound inward; flipped them")
+        mesh.warnings.append(f"{name}: {int(flip.sum())} face(s) were wound inward or against their "
+                             "neighbours; flipped them")
 
 
 def load_mesh(path) -> Mesh:

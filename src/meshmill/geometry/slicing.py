@@ -13,7 +13,8 @@ identity of the mesh edge they share, never by comparing coordinates.
 Normals make the ball tangent to the faceted surface: a CC point inside a facet takes the facet
 normal; at a convex edge the normal turns from one facet's to the next in steps (several CC points
 at one place, so that the ball centre moves along the exact offset of the edge); at a concave edge
-the point takes the bisector.
+the point takes the bisector and the ball centre moves out along it by R / cos(θ/2) (θ the turn
+between the facets), to where the ball touches both facets instead of entering them.
 """
 from __future__ import annotations
 
@@ -23,8 +24,12 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ..errors import InputError
 from ..tolerances import SAME_POINT
 from .mesh import Mesh
+
+MAX_POINTS = 50_000_000  # CC points (or triangle cuts) in one run: about 5 GB of arrays
+MIN_HALF_COS = 0.1  # cap of the centre's reach in a crease sharper than about 170 degrees
 
 
 @dataclass
@@ -32,12 +37,14 @@ class Contours:
     """CC points of all contours, concatenated.
 
     ``points, normals, feed (k, 3)``: CC point (mm), unit outward normal, unit horizontal feed
-    direction; ``offsets (c + 1,)``: contour i holds points offsets[i]:offsets[i+1];
+    direction; ``reach (k,)``: a ball of radius R sits at centre ``point + R·reach·normal``
+    (1, or 1/cos(θ/2) in a concave crease); ``offsets (c + 1,)``: contour i holds points offsets[i]:offsets[i+1];
     ``closed (c,) bool``; ``z (c,)`` the contour's plane height (mm)."""
 
     points: np.ndarray
     normals: np.ndarray
     feed: np.ndarray
+    reach: np.ndarray
     offsets: np.ndarray
     closed: np.ndarray
     z: np.ndarray
@@ -124,7 +131,7 @@ def _chain(nxt, has_prev):
 
 @numba.njit(cache=True)
 def _emit(fill, V, F, FN, tri_of, start_edge, p0, p1, order, offsets, closed, sample, arc_step,
-          out_p, out_n):
+          out_p, out_n, out_r):
     """Walk the chains and write CC points (when fill) or only count them; returns counts."""
     nchain = offsets.shape[0] - 1
     counts = np.zeros(nchain, np.int64)
@@ -187,6 +194,7 @@ def _emit(fill, V, F, FN, tri_of, start_edge, p0, p1, order, offsets, closed, sa
                             out_n[k, 0] = bx / bn
                             out_n[k, 1] = by / bn
                             out_n[k, 2] = bz / bn
+                            out_r[k] = 1.0 / max(math.sqrt(0.5 * (1.0 + cosang)), MIN_HALF_COS)
                     k += 1
                 else:
                     ang = math.acos(cosang)
@@ -286,10 +294,13 @@ def slice_contours(mesh: Mesh, levels: np.ndarray, sample: float, arc_step: floa
     lo = np.searchsorted(asc, tz.min(axis=1), side="right")
     hi = np.searchsorted(asc, tz.max(axis=1), side="right")
     cnt = hi - lo
+    if cnt.sum() > MAX_POINTS:
+        raise InputError(f"{int(cnt.sum())} triangle cuts: too many for one run (at most {MAX_POINTS}); "
+                         "use a larger step-down")
     tri_idx = np.repeat(np.arange(len(F)), cnt)
     lvl_idx = (np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(lo, cnt))
     if len(V) ** 2 * max(1, len(asc)) >= 2 ** 62:
-        raise ValueError("mesh too large for the edge keys")
+        raise InputError("mesh and plane count too large for one run")
     sk, ek, start_edge, p0, p1 = _segments(V, F, tri_idx, lvl_idx.astype(np.int64), asc)
     srt = np.argsort(sk, kind="stable")
     pos = np.searchsorted(sk[srt], ek)
@@ -308,14 +319,18 @@ def slice_contours(mesh: Mesh, levels: np.ndarray, sample: float, arc_step: floa
     chain_lvl = chain_lvl[chain_key]
     args = (V, F, FN, tri_idx, start_edge, p0, p1, order, offsets, closed, float(sample), float(arc_step))
     empty = np.empty((0, 3))
-    counts = _emit(False, *args, empty, empty)
+    counts = _emit(False, *args, empty, empty, np.empty(0))
     total = int(counts.sum())
+    if total > MAX_POINTS:
+        raise InputError(f"{total} CC points: too many for one run (at most {MAX_POINTS}); "
+                         "use a larger step-down or sample")
     out_p = np.empty((total, 3))
     out_n = np.empty((total, 3))
-    _emit(True, *args, out_p, out_n)
+    out_r = np.ones(total)
+    _emit(True, *args, out_p, out_n, out_r)
     pt_offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     feed = _feed_directions(out_p, pt_offsets, closed)
     keep = counts > 0
-    return Contours(points=out_p, normals=out_n, feed=feed, offsets=pt_offsets if keep.all() else
+    return Contours(points=out_p, normals=out_n, feed=feed, reach=out_r, offsets=pt_offsets if keep.all() else
                     np.concatenate([[0], np.cumsum(counts[keep])]).astype(np.int64),
                     closed=closed[keep], z=asc[chain_lvl][keep])

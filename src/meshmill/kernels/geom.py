@@ -28,66 +28,71 @@ def build(jit):
     """Compile the device functions with ``jit`` and return them in a namespace."""
 
     @jit
+    def point_segment_dist2(px, py, pz, ax, ay, az, bx, by, bz):
+        """Squared distance from point p to segment a-b."""
+        dx = bx - ax
+        dy = by - ay
+        dz = bz - az
+        wx = px - ax
+        wy = py - ay
+        wz = pz - az
+        dd = dx * dx + dy * dy + dz * dz
+        s = 0.0
+        if dd > 0.0:
+            s = (wx * dx + wy * dy + wz * dz) / dd
+            s = min(1.0, max(0.0, s))
+        wx -= s * dx
+        wy -= s * dy
+        wz -= s * dz
+        return wx * wx + wy * wy + wz * wz
+
+    @jit
     def point_triangle_dist2(px, py, pz, tris, t):
-        """Squared distance from point p to triangle t (exact, Voronoi-region walk)."""
+        """Squared distance from point p to triangle t.
+
+        The plane distance where p projects inside the triangle, else the smallest edge distance.
+        Robust on slivers: a wrong inside/outside call near an edge costs at most the sliver's
+        width, and the plane distance never exceeds the true one.
+        """
         ax = tris[t, 0]
         ay = tris[t, 1]
         az = tris[t, 2]
-        abx = tris[t, 3] - ax
-        aby = tris[t, 4] - ay
-        abz = tris[t, 5] - az
-        acx = tris[t, 6] - ax
-        acy = tris[t, 7] - ay
-        acz = tris[t, 8] - az
-        apx = px - ax
-        apy = py - ay
-        apz = pz - az
-        d1 = abx * apx + aby * apy + abz * apz
-        d2 = acx * apx + acy * apy + acz * apz
-        if d1 <= 0.0 and d2 <= 0.0:
-            return apx * apx + apy * apy + apz * apz
-        bpx = apx - abx
-        bpy = apy - aby
-        bpz = apz - abz
-        d3 = abx * bpx + aby * bpy + abz * bpz
-        d4 = acx * bpx + acy * bpy + acz * bpz
-        if d3 >= 0.0 and d4 <= d3:
-            return bpx * bpx + bpy * bpy + bpz * bpz
-        vc = d1 * d4 - d3 * d2
-        if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-            v = d1 / (d1 - d3)
-            qx = apx - v * abx
-            qy = apy - v * aby
-            qz = apz - v * abz
-            return qx * qx + qy * qy + qz * qz
-        cpx = apx - acx
-        cpy = apy - acy
-        cpz = apz - acz
-        d5 = abx * cpx + aby * cpy + abz * cpz
-        d6 = acx * cpx + acy * cpy + acz * cpz
-        if d6 >= 0.0 and d5 <= d6:
-            return cpx * cpx + cpy * cpy + cpz * cpz
-        vb = d5 * d2 - d1 * d6
-        if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-            w = d2 / (d2 - d6)
-            qx = apx - w * acx
-            qy = apy - w * acy
-            qz = apz - w * acz
-            return qx * qx + qy * qy + qz * qz
-        va = d3 * d6 - d5 * d4
-        if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-            w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-            qx = bpx - w * (acx - abx)
-            qy = bpy - w * (acy - aby)
-            qz = bpz - w * (acz - abz)
-            return qx * qx + qy * qy + qz * qz
-        denom = 1.0 / (va + vb + vc)
-        v = vb * denom
-        w = vc * denom
-        qx = apx - abx * v - acx * w
-        qy = apy - aby * v - acy * w
-        qz = apz - abz * v - acz * w
-        return qx * qx + qy * qy + qz * qz
+        bx = tris[t, 3]
+        by = tris[t, 4]
+        bz = tris[t, 5]
+        cx = tris[t, 6]
+        cy = tris[t, 7]
+        cz = tris[t, 8]
+        abx = bx - ax
+        aby = by - ay
+        abz = bz - az
+        acx = cx - ax
+        acy = cy - ay
+        acz = cz - az
+        nx = aby * acz - abz * acy
+        ny = abz * acx - abx * acz
+        nz = abx * acy - aby * acx
+        nn = nx * nx + ny * ny + nz * nz
+        if nn > 0.0:
+            # p on the inner side of each edge (edge × (p - edge start)) · n >= 0
+            ex = (aby * (pz - az) - abz * (py - ay)) * nx + (abz * (px - ax) - abx * (pz - az)) * ny \
+                + (abx * (py - ay) - aby * (px - ax)) * nz
+            bcx = cx - bx
+            bcy = cy - by
+            bcz = cz - bz
+            fx = (bcy * (pz - bz) - bcz * (py - by)) * nx + (bcz * (px - bx) - bcx * (pz - bz)) * ny \
+                + (bcx * (py - by) - bcy * (px - bx)) * nz
+            cax = ax - cx
+            cay = ay - cy
+            caz = az - cz
+            gx = (cay * (pz - cz) - caz * (py - cy)) * nx + (caz * (px - cx) - cax * (pz - cz)) * ny \
+                + (cax * (py - cy) - cay * (px - cx)) * nz
+            if ex >= 0.0 and fx >= 0.0 and gx >= 0.0:
+                h = (px - ax) * nx + (py - ay) * ny + (pz - az) * nz
+                return h * h / nn
+        d = point_segment_dist2(px, py, pz, ax, ay, az, bx, by, bz)
+        d = min(d, point_segment_dist2(px, py, pz, bx, by, bz, cx, cy, cz))
+        return min(d, point_segment_dist2(px, py, pz, cx, cy, cz, ax, ay, az))
 
     @jit
     def segment_line_dist2(p0x, p0y, p0z, p1x, p1y, p1z, ax, ay, az, ux, uy, uz):
@@ -145,7 +150,10 @@ def build(jit):
         pvy = uz * e2x - ux * e2z
         pvz = ux * e2y - uy * e2x
         det = e1x * pvx + e1y * pvy + e1z * pvz
-        if det != 0.0:
+        # skip when the axis lies (to rounding) in the triangle's plane: the edge and cut terms
+        # below are then exact, and det would be noise
+        scale = math.sqrt((e1x * e1x + e1y * e1y + e1z * e1z) * (e2x * e2x + e2y * e2y + e2z * e2z))
+        if abs(det) > 1e-9 * scale:
             inv = 1.0 / det
             tvx = ax - tris[t, 0]
             tvy = ay - tris[t, 1]

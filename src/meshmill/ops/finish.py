@@ -34,7 +34,11 @@ from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
 from .verify import DEFAULT_STEP, verify_toolpath
 
-REPAIR_ROUNDS = 4
+REPAIR_ROUNDS = 6
+# Ways into and out of a pass, tried in this order: (lead along the outward side, vertical retract
+# instead of one along the tool axis).
+LINKS = ((True, False), (True, True), (False, False), (False, True))
+NO_LEAD = 2
 MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
 
 
@@ -51,10 +55,17 @@ class FinishParams:
     lead: float = 2.0  # mm, lead-in/out along the outward side
 
     def check(self):
-        for name in ("step_down", "sample", "tilt_step"):
+        for name in ("step_down", "sample", "tilt_step", "max_tilt", "tol", "clearance", "lead", "safe_z"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InputError(f"--{name.replace('_', '-')} must be a positive number, got {v}")
+            if v is None and name == "safe_z":
+                continue
+            flag = "--" + {"tol": "tolerance"}.get(name, name).replace("_", "-")
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise InputError(f"{flag} must be a finite number, got {v}")
+            if name in ("step_down", "sample", "tilt_step") and v <= 0:
+                raise InputError(f"{flag} must be a positive number, got {v}")
+        if self.step_down < 1e-4 or self.sample < 1e-4:
+            raise InputError("--step-down and --sample must be at least 0.0001 mm")
         if not 0.0 <= self.max_tilt < 90.0:
             raise InputError(f"--max-tilt must be in [0, 90) degrees, got {self.max_tilt}")
         if self.order not in ("contour", "tool"):
@@ -136,67 +147,91 @@ class _PathBuilder:
             idx, tool = ps["idx"], ps["tool"]
             t0, u0 = self.tip[idx[0]], self.axis[idx[0]]
             t1, u1 = self.tip[idx[-1]], self.axis[idx[-1]]
-            start = t0 + (self.lead * self.side[idx[0]] if ps["lead_in"] else 0.0)
-            end = t1 + (self.lead * self.side[idx[-1]] if ps["lead_out"] else 0.0)
-            add(self._up(start, u0, ps["vertical_in"]), u0, True, tool, k, "link_in")
+            lead_in, vertical_in = LINKS[ps["entry"]]
+            lead_out, vertical_out = LINKS[ps["exit"]]
+            start = t0 + (self.lead * self.side[idx[0]] if lead_in else 0.0)
+            end = t1 + (self.lead * self.side[idx[-1]] if lead_out else 0.0)
+            add(self._up(start, u0, vertical_in), u0, True, tool, k, "link_in")
             add(start, u0, True, tool, k, "link_in")
-            if ps["lead_in"]:
+            if lead_in:
                 add(t0, u0, False, tool, k, "lead_in")
             for j in range(1, len(idx)):
                 add(self.tip[idx[j]], self.axis[idx[j]], False, tool, k, j)
-            if ps["lead_out"]:
+            if lead_out:
                 add(end, u1, False, tool, k, "lead_out")
-            add(self._up(end, u1, ps["vertical_out"]), u1, True, tool, k, "link_out")
+            add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
         tp = Toolpath(np.array(tips).reshape(-1, 3), np.array(axes).reshape(-1, 3), np.array(rapid, bool),
                       np.array(tools, np.int64))
         return tp, owner, role
 
 
 def _repair(passes, problem_moves, owner, role):
-    """New pass list after fixing the passes that own the problem moves; returns (passes, dropped)."""
+    """New pass list after fixing the passes that own the problem moves; returns (passes, dropped).
+
+    A failing entry or exit tries the next of :data:`LINKS` (a failing lead jumps to the first
+    option without one); when none is left the pass is dropped. A failing cutting move splits its
+    pass, and pieces of a single point are left out.
+    """
     fixes = {}
     for m in problem_moves:
-        fixes.setdefault(owner[m], []).append(role[m])
-    out, dropped = [], []
+        fixes.setdefault(owner[m], set()).add(role[m])
+    out, dropped = [], 0
     for k, ps in enumerate(passes):
         if k not in fixes:
             out.append(ps)
             continue
         ps = dict(ps)
-        cuts = sorted(r for r in fixes[k] if isinstance(r, int))
-        for r in fixes[k]:
-            if r == "link_in":
-                if ps["vertical_in"]:
-                    ps["drop"] = True
-                ps["vertical_in"] = True
-            elif r == "link_out":
-                if ps["vertical_out"]:
-                    ps["drop"] = True
-                ps["vertical_out"] = True
-            elif r == "lead_in":
-                ps["lead_in"] = False
-            elif r == "lead_out":
-                ps["lead_out"] = False
-        if ps.get("drop"):
-            dropped.append(ps)
+        roles = fixes[k]
+        if "lead_in" in roles:
+            ps["entry"] = NO_LEAD
+        elif "link_in" in roles:
+            ps["entry"] += 1
+        if "lead_out" in roles:
+            ps["exit"] = NO_LEAD
+        elif "link_out" in roles:
+            ps["exit"] += 1
+        if ps["entry"] >= len(LINKS) or ps["exit"] >= len(LINKS):
+            dropped += 1
             continue
         # split at cutting moves that failed: the move from point j-1 to j is not cut
-        pieces, begin = [], 0
-        for j in cuts:
-            pieces.append(ps["idx"][begin:j])
-            begin = j
-        pieces.append(ps["idx"][begin:])
+        cuts = sorted(r for r in roles if isinstance(r, int))
+        bounds = [0, *cuts, len(ps["idx"])]
+        pieces = [ps["idx"][a:b] for a, b in zip(bounds[:-1], bounds[1:])]
         for i, piece in enumerate(pieces):
             if len(piece) < 2:
-                dropped.append(dict(ps, idx=piece))
                 continue
             new = dict(ps, idx=piece)
             if i > 0:
-                new.update(lead_in=True, vertical_in=False)
+                new["entry"] = ps["first_link"]
             if i < len(pieces) - 1:
-                new.update(lead_out=True, vertical_out=False)
+                new["exit"] = ps["first_link"]
             out.append(new)
     return out, dropped
+
+
+def _contour_tools(best, offsets, contour_of, points, centre_dir, radii, tol, bvh):
+    """Per contour the smallest of its points' largest balls (-1 if a point fits none), re-checked
+    at every point: in a concave crease a smaller ball sits nearer the crease, so gouge-freeness is
+    not strictly monotone in R there, and a contour moves to a smaller ball until all its points fit."""
+    if len(best) == 0:
+        return np.zeros(0, np.int64)
+    all_fit = np.logical_and.reduceat(best >= 0, offsets[:-1])
+    tool = np.where(all_fit, np.maximum.reduceat(best, offsets[:-1]), -1).astype(np.int64)
+    for _ in range(len(radii)):
+        pt = tool[contour_of]
+        changed = False
+        for t in np.unique(tool[tool >= 0]):
+            sel = np.nonzero(pt == t)[0]
+            res = cpu.largest_ball(points[sel], centre_dir[sel], radii[t:], tol, bvh.arrays)
+            worst = np.full(len(tool), 0, np.int64)
+            np.maximum.at(worst, contour_of[sel], np.where(res < 0, len(radii), res))
+            bad = (tool == t) & (worst > 0)
+            if bad.any():
+                changed = True
+                tool[bad] = np.where(t + worst[bad] < len(radii), t + worst[bad], -1)
+        if not changed:
+            break
+    return tool
 
 
 def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
@@ -241,18 +276,17 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
 
     say("tools")
     t = time.perf_counter()
-    best = cpu.largest_ball(con.points, con.normals, radii, params.tol, bvh.arrays)
+    centre_dir = con.normals * con.reach[:, None]  # ball centre = CC + R·centre_dir
+    best = cpu.largest_ball(con.points, centre_dir, radii, params.tol, bvh.arrays)
     fits = best >= 0
-    all_fit = np.logical_and.reduceat(fits, con.offsets[:-1]) if npts else np.zeros(0, bool)
-    contour_tool = np.maximum.reduceat(best, con.offsets[:-1]) if npts else np.zeros(0, np.int64)
-    contour_tool = np.where(all_fit, contour_tool, -1)
+    contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tol, bvh)
     point_tool = contour_tool[contour_of]
     seconds["tools"] = time.perf_counter() - t
 
     say("axes")
     t = time.perf_counter()
     side = np.cross(con.feed, [0.0, 0.0, 1.0])
-    ce = con.points + radii[np.maximum(point_tool, 0)][:, None] * con.normals
+    ce = con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir
     cand, cand_tilt = tilt_candidates(params.max_tilt, params.tilt_step)
     body, _ = pack_cylinders(balls, params.tol, params.clearance)
     choice = cpu.axis_search(ce, con.feed, side, point_tool, cand, cand_tilt, math.radians(params.tilt_step) + 1e-9,
@@ -274,9 +308,9 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
         for run in _runs(has_axis[a:b], bool(con.closed[c])):
             if len(run) < 2:
                 continue
+            link = 0 if params.lead > 0 else NO_LEAD
             passes.append(dict(contour=c, tool=table_index[balls[contour_tool[c]].number], rank=int(contour_tool[c]),
-                               idx=run + a, lead_in=params.lead > 0, lead_out=params.lead > 0,
-                               vertical_in=False, vertical_out=False))
+                               idx=run + a, entry=link, exit=link, first_link=link))
     if not passes:
         smallest = min(radii)
         raise InputError(f"nothing to cut: of {len(con)} contour(s), {int((contour_tool >= 0).sum())} fit a ball of "
@@ -289,7 +323,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
 
     say("verify")
     t = time.perf_counter()
-    dropped = []
+    dropped = 0
     for rnd in range(REPAIR_ROUNDS + 1):
         tp, owner, role = builder.build(passes)
         report = verify_toolpath(bvh, tp, tools, params.tol, min(DEFAULT_STEP, params.sample))
@@ -297,7 +331,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
             break
         if rnd == REPAIR_ROUNDS:  # give up on what still fails
             bad = {owner[m] for m in report["problem_moves"]}
-            dropped += [p for k, p in enumerate(passes) if k in bad]
+            dropped += len(bad)
             passes = [p for k, p in enumerate(passes) if k not in bad]
             tp, owner, role = builder.build(passes)
             report = verify_toolpath(bvh, tp, tools, params.tol, min(DEFAULT_STEP, params.sample))
@@ -306,6 +340,9 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
         dropped += lost
     report.pop("problem_moves")
     report["repair_rounds"] = rnd
+    if not passes:
+        raise InputError("nothing left to cut: every pass failed verification (try --lead 0, a larger --max-tilt "
+                         "or other tools)")
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
 
@@ -352,7 +389,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
         "max_tilt_used": float(tilt.max()) if len(tilt) else 0.0,
         "max_axis_change": max_turn,
         "passes": len(passes),
-        "passes_dropped": len(dropped),
+        "passes_dropped": dropped,
         "moves": int(len(tp)),
         "cutting_length": tp.cutting_length(),
         "tools_used": tools_used,

@@ -51,10 +51,7 @@ def sample_moves(tp: Toolpath, tools, step: float):
         cosang = np.clip(np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1]), -1.0, 1.0)
         dang[1:] = np.arccos(cosang) * reach[1:]
     n = np.maximum(1, np.ceil(np.maximum(dtip, dang) / step)).astype(np.int64)
-    n[0] = 1
-    same_tool = np.ones(k, bool)
-    same_tool[1:] = tp.tool[1:] == tp.tool[:-1]
-    n[~same_tool] = 1
+    n[0] = 1  # a move after a tool change is checked along its way with the new tool
     move = np.repeat(np.arange(k), n)
     first = np.cumsum(n) - n
     j = np.arange(n.sum()) - np.repeat(first, n) + 1

@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import InputError
 from .model import Toolpath
 
+MAX_COORDINATE = 1e6  # mm: a kilometre is no machine's travel
 IGNORED_WITH_WARNING = ("ROTABL", "TLAXIS", "INDIRV", "TLON", "TLLFT", "TLRGT")
 
 
@@ -75,6 +76,8 @@ def _numbers(args, where):
             raise InputError(f"{where}: expected numbers, got '{a}'") from None
         if not math.isfinite(v):
             raise InputError(f"{where}: NaN or infinite value")
+        if abs(v) > MAX_COORDINATE:
+            raise InputError(f"{where}: value {v:g} is out of range (|v| <= {MAX_COORDINATE:g} mm)")
         out.append(v)
     return out
 
@@ -99,6 +102,8 @@ def read_apt(path, tools) -> tuple[Toolpath, list[str]]:
             text = fh.read()
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a text APT CL file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
     name = os.path.basename(path)
     tips, axes, rapid, tool_idx, lines = [], [], [], [], []
     warnings = []

@@ -168,9 +168,13 @@ def load_tools(path) -> list[Tool]:
             data = tomllib.load(fh)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"{path}: not a valid TOML tool table ({exc})") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the tool table ({exc.strerror})") from None
     entries = data.get("tools")
     if not isinstance(entries, list) or not entries:
         raise InputError(f"{path}: no [[tools]] entries")
+    if not all(isinstance(e, dict) for e in entries):
+        raise InputError(f"{path}: every tools entry must be a table ([[tools]] with keys)")
     tools = [tool_from_entry(e, i + 1, path) for i, e in enumerate(entries)]
     names = [t.name for t in tools]
     if len(set(names)) != len(names):
