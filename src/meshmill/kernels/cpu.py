@@ -11,9 +11,12 @@ import numba
 import numpy as np
 from numba import prange
 
+from . import cutters
 from .geom import INF, STACK_SIZE, build
 
 dev = build(numba.njit(fastmath=False, cache=True))
+cut = cutters.build(numba.njit(fastmath=False, cache=True))
+_drop = cut.mesh_drop
 _point = dev.mesh_point_dist2
 _ball = dev.largest_clear_ball
 _cyl = dev.mesh_cylinder_dist2
@@ -207,3 +210,23 @@ def pose_penetration(tip, axis, tool, rings, segs, bvh):
     """
     return _pose_penetration(np.ascontiguousarray(tip, np.float64), np.ascontiguousarray(axis, np.float64),
                              np.ascontiguousarray(tool, np.int32), *rings, *segs, *bvh)
+
+
+@numba.njit(parallel=True, cache=True)
+def _drop_cutter(xy, R, r, floor, node_lo, node_hi, node_child, node_range, tris):
+    k = xy.shape[0]
+    z = np.empty(k)
+    cc = np.empty((k, 3))
+    for i in prange(k):
+        stack = np.empty(STACK_SIZE, np.int32)
+        z[i], cc[i, 0], cc[i, 1], cc[i, 2] = _drop(xy[i, 0], xy[i, 1], R, r, floor,
+                                                   node_lo, node_hi, node_child, node_range, tris, stack)
+    return z, cc
+
+
+def drop_cutter(xy, radius, corner_radius, floor, bvh):
+    """Drop a vertical cutter (radius, corner radius: flat 0, ball = radius) at each of
+    ``xy (k, 2)``: tip heights ``(k,)`` (at least ``floor``) and contact points ``(k, 3)`` (NaN
+    where nothing is touched above the floor)."""
+    return _drop_cutter(np.ascontiguousarray(xy, np.float64), float(radius), float(corner_radius), float(floor),
+                        *bvh)

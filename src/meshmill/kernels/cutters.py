@@ -1,0 +1,203 @@
+"""Drop-cutter device functions for vertical flat, ball and bull-nose (torus) cutters, written once
+for every backend (see :mod:`meshmill.kernels.geom` for the conventions).
+
+A cutter is given by its radius ``R`` and corner radius ``r`` (flat: r = 0, ball: r = R, bull:
+0 < r < R). Its lower surface rises ``h(rho)`` above the tip at distance ``rho`` from the axis:
+0 on the flat bottom (rho <= R - r), then the torus arc ``r - sqrt(r² - (rho - R + r)²)``.
+
+Dropping the cutter at (x, y) onto a triangle gives the highest tip z at which it touches:
+the best of the vertex contacts (``z_v - h(rho_v)``), the facet contact (the torus point whose
+normal is the facet's, when it falls inside the triangle), and the edge contacts: along an edge the
+tip height ``g(w) = z(w) - h(rho(w))`` is concave in the edge parameter w (a linear height minus a
+convex function of a convex distance), so its maximum over the reachable part of the edge is an
+end point or the single root of ``g'`` (closed form for a ball, bisection to machine precision for
+a torus). This replaces the offset-ellipse solve of other programs with an exact 1-D maximisation.
+"""
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+NEG = -1.0e300
+BISECTIONS = 60
+
+
+def build(jit):
+    """Compile the drop-cutter device functions with ``jit``."""
+
+    @jit
+    def profile(rho, R, r):
+        """Height of the cutter's lower surface above its tip at distance rho from the axis."""
+        a = R - r
+        if rho <= a:
+            return 0.0
+        q = rho - a
+        v = r * r - q * q
+        return r - math.sqrt(v) if v > 0.0 else r
+
+    @jit
+    def profile_slope(rho, R, r):
+        a = R - r
+        if rho <= a:
+            return 0.0
+        q = rho - a
+        v = r * r - q * q
+        return q / math.sqrt(v) if v > 0.0 else 1.0e300
+
+    @jit
+    def edge_drop(px, py, pz, qx, qy, qz, x, y, R, r):
+        """Highest tip z touching segment p-q (NEG if out of reach) and the contact parameter t."""
+        ex = qx - px
+        ey = qy - py
+        L = math.sqrt(ex * ex + ey * ey)
+        if L <= 1e-12 * (1.0 + abs(px) + abs(py)):
+            return NEG, 0.0  # vertical edge: its top vertex is the contact
+        ex /= L
+        ey /= L
+        uc = (x - px) * ex + (y - py) * ey
+        d = abs((x - px) * ey - (y - py) * ex)
+        if d > R:
+            return NEG, 0.0
+        s = math.sqrt(max(0.0, R * R - d * d))
+        wa = max(-s, -uc)
+        wb = min(s, L - uc)
+        if wa > wb:
+            return NEG, 0.0
+        m = (qz - pz) / L
+        ra = math.sqrt(d * d + wa * wa)
+        rb = math.sqrt(d * d + wb * wb)
+        ga = m - (profile_slope(ra, R, r) * wa / ra if ra > 0.0 else 0.0)
+        gb = m - (profile_slope(rb, R, r) * wb / rb if rb > 0.0 else 0.0)
+        if ga <= 0.0:
+            w = wa
+        elif gb >= 0.0:
+            w = wb
+        elif r == R:
+            w = m * s / math.sqrt(1.0 + m * m)  # ball: closed form
+            w = min(wb, max(wa, w))
+        else:
+            lo = wa
+            hi = wb
+            for _ in range(BISECTIONS):
+                mid = 0.5 * (lo + hi)
+                rm = math.sqrt(d * d + mid * mid)
+                gm = m - (profile_slope(rm, R, r) * mid / rm if rm > 0.0 else 0.0)
+                if gm > 0.0:
+                    lo = mid
+                else:
+                    hi = mid
+            w = 0.5 * (lo + hi)
+        rho = min(R, math.sqrt(d * d + w * w))
+        u = uc + w
+        return pz + m * u - profile(rho, R, r), u / L
+
+    @jit
+    def triangle_drop(tris, t, x, y, R, r):
+        """Highest tip z of the cutter at (x, y) touching triangle t, and the contact point."""
+        best = NEG
+        cx = 0.0
+        cy = 0.0
+        cz = 0.0
+        for k in range(3):
+            vx = tris[t, 3 * k]
+            vy = tris[t, 3 * k + 1]
+            vz = tris[t, 3 * k + 2]
+            rho = math.sqrt((vx - x) ** 2 + (vy - y) ** 2)
+            if rho <= R:
+                z = vz - profile(rho, R, r)
+                if z > best:
+                    best = z
+                    cx, cy, cz = vx, vy, vz
+        for k in range(3):
+            j = (k + 1) % 3
+            px = tris[t, 3 * k]
+            py = tris[t, 3 * k + 1]
+            pz = tris[t, 3 * k + 2]
+            qx = tris[t, 3 * j]
+            qy = tris[t, 3 * j + 1]
+            qz = tris[t, 3 * j + 2]
+            z, f = edge_drop(px, py, pz, qx, qy, qz, x, y, R, r)
+            if z > best:
+                best = z
+                cx = px + f * (qx - px)
+                cy = py + f * (qy - py)
+                cz = pz + f * (qz - pz)
+        # facet: the cutter point whose normal is the facet's upward normal
+        ax = tris[t, 0]
+        ay = tris[t, 1]
+        az = tris[t, 2]
+        abx = tris[t, 3] - ax
+        aby = tris[t, 4] - ay
+        abz = tris[t, 5] - az
+        acx = tris[t, 6] - ax
+        acy = tris[t, 7] - ay
+        acz = tris[t, 8] - az
+        nx = aby * acz - abz * acy
+        ny = abz * acx - abx * acz
+        nz = abx * acy - aby * acx
+        if nz < 0.0:
+            nx, ny, nz = -nx, -ny, -nz
+        nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if nz > 1e-12 * nn:
+            nx /= nn
+            ny /= nn
+            nz /= nn
+            nh = math.sqrt(nx * nx + ny * ny)
+            px = x
+            py = y
+            if nh > 0.0:
+                px -= (R - r) * nx / nh + r * nx
+                py -= (R - r) * ny / nh + r * ny
+            # inside the triangle's projection (2-D barycentric, counter-clockwise or not)
+            det = abx * acy - aby * acx
+            wx = px - ax
+            wy = py - ay
+            b1 = (wx * acy - wy * acx) / det
+            b2 = (abx * wy - aby * wx) / det
+            if b1 >= 0.0 and b2 >= 0.0 and b1 + b2 <= 1.0:
+                zp = az + b1 * abz + b2 * acz
+                z = zp - r * (1.0 - nz)
+                if z > best:
+                    best = z
+                    cx, cy, cz = px, py, zp
+        return best, cx, cy, cz
+
+    @jit
+    def mesh_drop(x, y, R, r, floor, node_lo, node_hi, node_child, node_range, tris, stack):
+        """Drop the cutter at (x, y) onto the mesh: the highest touching tip z (at least floor) and
+        the contact point (NaN when the floor wins)."""
+        best = floor
+        cx = math.nan
+        cy = math.nan
+        cz = math.nan
+        stack[0] = 0
+        sp = 1
+        while sp > 0:
+            sp -= 1
+            n = stack[sp]
+            if node_hi[n, 2] <= best:
+                continue
+            dx = max(node_lo[n, 0] - x, 0.0, x - node_hi[n, 0])
+            dy = max(node_lo[n, 1] - y, 0.0, y - node_hi[n, 1])
+            if dx * dx + dy * dy > R * R:
+                continue
+            left = node_child[n, 0]
+            if left < 0:
+                first = node_range[n, 0]
+                for k in range(first, first + node_range[n, 1]):
+                    z, px, py, pz = triangle_drop(tris, k, x, y, R, r)
+                    if z > best:
+                        best = z
+                        cx, cy, cz = px, py, pz
+            else:
+                right = node_child[n, 1]
+                if node_hi[left, 2] > node_hi[right, 2]:  # higher child first
+                    stack[sp] = right
+                    stack[sp + 1] = left
+                else:
+                    stack[sp] = left
+                    stack[sp + 1] = right
+                sp += 2
+        return best, cx, cy, cz
+
+    return SimpleNamespace(profile=profile, edge_drop=edge_drop, triangle_drop=triangle_drop, mesh_drop=mesh_drop)
