@@ -1,0 +1,26 @@
+"""Hot loops: device functions written once (geom, cutters) and their backends (cpu, cuda).
+
+numba's on-disk cache checks only the source file of each cached function, not the device
+functions it calls from other files, so a changed ``geom.py`` would leave stale machine code behind
+``cpu.py``. The cache therefore lives in a folder named after a hash of this package's sources
+(unless ``NUMBA_CACHE_DIR`` is set).
+"""
+import hashlib
+import os
+
+import numba
+
+
+def _cache_dir():
+    here = os.path.dirname(os.path.abspath(__file__))
+    digest = hashlib.sha256()
+    for name in sorted(os.listdir(here)):
+        if name.endswith(".py"):
+            with open(os.path.join(here, name), "rb") as fh:
+                digest.update(name.encode() + fh.read())
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "meshmill", "numba-" + digest.hexdigest()[:16])
+
+
+if not os.environ.get("NUMBA_CACHE_DIR"):
+    numba.config.CACHE_DIR = _cache_dir()

@@ -10,8 +10,8 @@ the best of the vertex contacts (``z_v - h(rho_v)``), the facet contact (the tor
 normal is the facet's, when it falls inside the triangle), and the edge contacts: along an edge the
 tip height ``g(w) = z(w) - h(rho(w))`` is concave in the edge parameter w (a linear height minus a
 convex function of a convex distance), so its maximum over the reachable part of the edge is an
-end point or the single root of ``g'`` (closed form for a ball, bisection to machine precision for
-a torus). This replaces the offset-ellipse solve of other programs with an exact 1-D maximisation.
+end point or the single root of ``g'`` (closed form for a ball, safeguarded Newton to machine
+precision for a torus). This replaces the offset-ellipse solve of other programs with an exact 1-D maximisation.
 """
 from __future__ import annotations
 
@@ -76,17 +76,38 @@ def build(jit):
             w = m * s / math.sqrt(1.0 + m * m)  # ball: closed form
             w = min(wb, max(wa, w))
         else:
+            # torus: safeguarded Newton on the decreasing g' within the bracket [lo, hi]
             lo = wa
             hi = wb
+            w = min(hi, max(lo, m * s / math.sqrt(1.0 + m * m)))  # start from the ball's answer
+            a = R - r
             for _ in range(BISECTIONS):
-                mid = 0.5 * (lo + hi)
-                rm = math.sqrt(d * d + mid * mid)
-                gm = m - (profile_slope(rm, R, r) * mid / rm if rm > 0.0 else 0.0)
-                if gm > 0.0:
-                    lo = mid
+                rm = math.sqrt(d * d + w * w)
+                q = rm - a
+                v = r * r - q * q
+                if rm <= a or v <= 0.0 or rm == 0.0:
+                    gm = m if rm <= a else -math.copysign(1.0e300, w)
+                    step_ok = False
+                    gpp = 0.0
                 else:
-                    hi = mid
-            w = 0.5 * (lo + hi)
+                    sv = math.sqrt(v)
+                    h1 = q / sv
+                    h2 = r * r / (v * sv)
+                    gm = m - h1 * w / rm
+                    gpp = -(h2 * (w / rm) ** 2 + h1 * d * d / (rm * rm * rm))
+                    step_ok = gpp < 0.0
+                if gm > 0.0:
+                    lo = w
+                else:
+                    hi = w
+                nw = w - gm / gpp if step_ok else 0.5 * (lo + hi)
+                if not (lo < nw < hi):
+                    nw = 0.5 * (lo + hi)
+                # g is flat at its maximum: 1e-10 mm in w is far below 1e-12 mm in height
+                if abs(nw - w) <= 1e-10 * (R + abs(w)) or hi - lo <= 1e-10 * (R + abs(w)):
+                    w = nw
+                    break
+                w = nw
         rho = min(R, math.sqrt(d * d + w * w))
         u = uc + w
         return pz + m * u - profile(rho, R, r), u / L
