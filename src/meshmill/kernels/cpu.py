@@ -230,3 +230,49 @@ def drop_cutter(xy, radius, corner_radius, floor, bvh):
     where nothing is touched above the floor)."""
     return _drop_cutter(np.ascontiguousarray(xy, np.float64), float(radius), float(corner_radius), float(floor),
                         *bvh)
+
+
+@numba.njit(parallel=True, cache=True)
+def _touch_points(pa, pb, fa, fb, z, R, r, floor, touch, width, rounds, node_lo, node_hi, node_child, node_range,
+                  tris):
+    out = pb.copy()
+    for i in prange(pa.shape[0]):
+        stack = np.empty(STACK_SIZE, np.int32)
+        ax, ay, bx, by = pa[i, 0], pa[i, 1], pb[i, 0], pb[i, 1]
+        fai, fbi = fa[i], fb[i]
+        ga, gb = fai, fbi
+        side = 0
+        for it in range(rounds):
+            if fbi >= -touch or (bx - ax) ** 2 + (by - ay) ** 2 <= width * width:
+                break
+            # secant and bisection steps alternate: fast where the height is smooth, and the
+            # bracket still halves where it jumps (the cutter reaching a vertical wall)
+            w = 0.5 if it % 2 else min(0.98, max(0.02, ga / (ga - gb)))
+            px = ax + w * (bx - ax)
+            py = ay + w * (by - ay)
+            f = _drop(px, py, R, r, floor, node_lo, node_hi, node_child, node_range, tris, stack)[0] - z
+            if f > 0.0:
+                ax, ay, fai, ga = px, py, f, f
+                if side == 1:
+                    gb *= 0.5
+                side = 1
+            else:
+                bx, by, fbi, gb = px, py, f, f
+                if side == -1:
+                    ga *= 0.5
+                side = -1
+        out[i, 0] = bx
+        out[i, 1] = by
+    return out
+
+
+def touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_radius, floor, bvh,
+                 touch=1e-6, width=1e-5, rounds=80):
+    """Where the drop-cutter height crosses ``z`` between each inside point (height above z by
+    ``f_inside > 0``) and outside point (``f_outside <= 0``): bracketed search that keeps the
+    outside end, so the result never gouges; it stops when the height is within ``touch`` mm of z
+    or the bracket is ``width`` mm short (a vertical wall). ``(k, 2)``."""
+    return _touch_points(np.ascontiguousarray(inside_xy, np.float64), np.ascontiguousarray(outside_xy, np.float64),
+                         np.ascontiguousarray(f_inside, np.float64), np.ascontiguousarray(f_outside, np.float64),
+                         float(z), float(radius), float(corner_radius), float(floor), float(touch), float(width),
+                         int(rounds), *bvh)
