@@ -93,6 +93,51 @@ def cmd_finish(args):
     return 0 if v["ok"] else 1
 
 
+def _three_axis(args, run):
+    """Shared tail of raster and waterline: load, run, write toolpath.cl and summary.json."""
+    from .tools.table import load_tools
+    from .toolpath.cldata import write_apt
+
+    t0 = time.perf_counter()
+    tools = load_tools(args.tools)
+    mesh = _load_part(args, args.part)
+    load_s = time.perf_counter() - t0
+    out = _out_dir(args.out)
+    tp, summary = run(mesh, tools)
+    summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
+    summary["seconds"]["load"] = round(load_s, 4)
+    summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
+    write_apt(os.path.join(out, "toolpath.cl"), tp, tools, partno=os.path.basename(args.part))
+    _write_json(os.path.join(out, "summary.json"), summary)
+    v = summary["verify"]
+    _say(args, f"{summary['cl_points']} CL points, {summary['moves']} moves; verify: {'OK' if v['ok'] else 'PROBLEMS'} "
+               f"(max gouge {v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
+    _say(args, f"wrote {os.path.join(out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s")
+    return 0 if v["ok"] else 1
+
+
+def cmd_raster(args):
+    from .ops.raster import RasterParams, raster
+
+    params = RasterParams(stepover=args.stepover, scallop=args.scallop, angle=args.angle, sample=args.sample,
+                          tol=args.tolerance)
+    params.check()
+    return _three_axis(args, lambda mesh, tools: raster(mesh, tools, args.tool, params, progress=_progress(args)))
+
+
+def cmd_waterline(args):
+    from .ops.waterline import WaterlineParams, waterline
+
+    params = WaterlineParams(step_down=args.step_down, sample=args.sample, tol=args.tolerance)
+    params.check()
+
+    def run(mesh, tools):
+        tp, summary, _ = waterline(mesh, tools, args.tool, params, progress=_progress(args))
+        return tp, summary
+
+    return _three_axis(args, run)
+
+
 def cmd_verify(args):
     from .geometry.bvh import build_bvh
     from .ops.verify import verify_toolpath
@@ -145,6 +190,31 @@ def build_parser():
     f.add_argument("--out", default="out", help="output folder (out)")
     f.add_argument("--quiet", action="store_true", help="print nothing but errors")
     f.set_defaults(func=cmd_finish)
+
+    r = sub.add_parser("raster", help="3-axis zigzag finishing (flat, ball or bull-nose)")
+    r.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
+    r.add_argument("--tools", required=True, help="TOML tool table")
+    r.add_argument("--tool", required=True, help="name of the tool in the table")
+    g = r.add_mutually_exclusive_group(required=True)
+    g.add_argument("--stepover", type=float, help="distance between passes, mm")
+    g.add_argument("--scallop", type=float, help="scallop height that sets the stepover, mm")
+    r.add_argument("--angle", type=float, default=0.0, help="machining direction from X, degrees (0)")
+    r.add_argument("--sample", type=float, default=0.5, help="largest distance between CL points along a pass, mm (0.5)")
+    r.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge and chord tolerance, mm ({GOUGE_TOL})")
+    r.add_argument("--out", default="out", help="output folder (out)")
+    r.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    r.set_defaults(func=cmd_raster)
+
+    w = sub.add_parser("waterline", help="3-axis Z-level loops (flat, ball or bull-nose)")
+    w.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
+    w.add_argument("--tools", required=True, help="TOML tool table")
+    w.add_argument("--tool", required=True, help="name of the tool in the table")
+    w.add_argument("--step-down", type=float, required=True, help="distance between Z levels, mm")
+    w.add_argument("--sample", type=float, default=0.5, help="grid spacing of the loop search, mm (0.5)")
+    w.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge and chord tolerance, mm ({GOUGE_TOL})")
+    w.add_argument("--out", default="out", help="output folder (out)")
+    w.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    w.set_defaults(func=cmd_waterline)
 
     v = sub.add_parser("verify", help="check an APT CL file for gouges and collisions")
     v.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")

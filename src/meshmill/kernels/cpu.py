@@ -16,7 +16,7 @@ from .geom import INF, STACK_SIZE, build
 
 dev = build(numba.njit(fastmath=False, cache=True))
 cut = cutters.build(numba.njit(fastmath=False, cache=True))
-_drop = cut.mesh_drop
+_drop = cut.tool_drop
 _point = dev.mesh_point_dist2
 _ball = dev.largest_clear_ball
 _cyl = dev.mesh_cylinder_dist2
@@ -213,28 +213,33 @@ def pose_penetration(tip, axis, tool, rings, segs, bvh):
 
 
 @numba.njit(parallel=True, cache=True)
-def _drop_cutter(xy, R, r, floor, node_lo, node_hi, node_child, node_range, tris):
+def _drop_cutter(xy, R, r, body_r, body_t, floor, node_lo, node_hi, node_child, node_range, tris):
     k = xy.shape[0]
     z = np.empty(k)
     cc = np.empty((k, 3))
     for i in prange(k):
         stack = np.empty(STACK_SIZE, np.int32)
-        z[i], cc[i, 0], cc[i, 1], cc[i, 2] = _drop(xy[i, 0], xy[i, 1], R, r, floor,
+        z[i], cc[i, 0], cc[i, 1], cc[i, 2] = _drop(xy[i, 0], xy[i, 1], R, r, body_r, body_t, floor,
                                                    node_lo, node_hi, node_child, node_range, tris, stack)
     return z, cc
 
 
-def drop_cutter(xy, radius, corner_radius, floor, bvh):
+NO_BODY = (np.zeros(0), np.zeros(0))
+
+
+def drop_cutter(xy, radius, corner_radius, floor, bvh, body=NO_BODY):
     """Drop a vertical cutter (radius, corner radius: flat 0, ball = radius) at each of
     ``xy (k, 2)``: tip heights ``(k,)`` (at least ``floor``) and contact points ``(k, 3)`` (NaN
-    where nothing is touched above the floor)."""
-    return _drop_cutter(np.ascontiguousarray(xy, np.float64), float(radius), float(corner_radius), float(floor),
-                        *bvh)
+    where nothing is touched above the floor). ``body = (radii, heights)``: flat-bottomed
+    cylinders above the cutter (shank, holder) that must not touch either."""
+    return _drop_cutter(np.ascontiguousarray(xy, np.float64), float(radius), float(corner_radius),
+                        np.ascontiguousarray(body[0], np.float64), np.ascontiguousarray(body[1], np.float64),
+                        float(floor), *bvh)
 
 
 @numba.njit(parallel=True, cache=True)
-def _touch_points(pa, pb, fa, fb, z, R, r, floor, touch, width, rounds, node_lo, node_hi, node_child, node_range,
-                  tris):
+def _touch_points(pa, pb, fa, fb, z, R, r, body_r, body_t, floor, touch, width, rounds,
+                  node_lo, node_hi, node_child, node_range, tris):
     out = pb.copy()
     for i in prange(pa.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
@@ -250,7 +255,7 @@ def _touch_points(pa, pb, fa, fb, z, R, r, floor, touch, width, rounds, node_lo,
             w = 0.5 if it % 2 else min(0.98, max(0.02, ga / (ga - gb)))
             px = ax + w * (bx - ax)
             py = ay + w * (by - ay)
-            f = _drop(px, py, R, r, floor, node_lo, node_hi, node_child, node_range, tris, stack)[0] - z
+            f = _drop(px, py, R, r, body_r, body_t, floor, node_lo, node_hi, node_child, node_range, tris, stack)[0] - z
             if f > 0.0:
                 ax, ay, fai, ga = px, py, f, f
                 if side == 1:
@@ -267,12 +272,13 @@ def _touch_points(pa, pb, fa, fb, z, R, r, floor, touch, width, rounds, node_lo,
 
 
 def touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_radius, floor, bvh,
-                 touch=1e-6, width=1e-5, rounds=80):
+                 touch=1e-6, width=1e-5, rounds=80, body=NO_BODY):
     """Where the drop-cutter height crosses ``z`` between each inside point (height above z by
     ``f_inside > 0``) and outside point (``f_outside <= 0``): bracketed search that keeps the
     outside end, so the result never gouges; it stops when the height is within ``touch`` mm of z
     or the bracket is ``width`` mm short (a vertical wall). ``(k, 2)``."""
     return _touch_points(np.ascontiguousarray(inside_xy, np.float64), np.ascontiguousarray(outside_xy, np.float64),
                          np.ascontiguousarray(f_inside, np.float64), np.ascontiguousarray(f_outside, np.float64),
-                         float(z), float(radius), float(corner_radius), float(floor), float(touch), float(width),
+                         float(z), float(radius), float(corner_radius), np.ascontiguousarray(body[0], np.float64),
+                         np.ascontiguousarray(body[1], np.float64), float(floor), float(touch), float(width),
                          int(rounds), *bvh)

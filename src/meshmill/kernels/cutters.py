@@ -221,4 +221,20 @@ def build(jit):
                 sp += 2
         return best, cx, cy, cz
 
-    return SimpleNamespace(profile=profile, edge_drop=edge_drop, triangle_drop=triangle_drop, mesh_drop=mesh_drop)
+    @jit
+    def tool_drop(x, y, R, r, body_r, body_t, floor, node_lo, node_hi, node_child, node_range, tris, stack):
+        """As mesh_drop for the whole tool: the cutter, and above it the flat-bottomed cylinders of
+        radius body_r[k] starting body_t[k] above the tip (shank, holder; those no wider than the
+        cutter are covered by it)."""
+        best, cx, cy, cz = mesh_drop(x, y, R, r, floor, node_lo, node_hi, node_child, node_range, tris, stack)
+        for k in range(body_r.shape[0]):
+            if body_r[k] > R:
+                z, px, py, pz = mesh_drop(x, y, body_r[k], 0.0, best + body_t[k],
+                                          node_lo, node_hi, node_child, node_range, tris, stack)
+                if z - body_t[k] > best:
+                    best = z - body_t[k]
+                    cx, cy, cz = px, py, pz
+        return best, cx, cy, cz
+
+    return SimpleNamespace(profile=profile, edge_drop=edge_drop, triangle_drop=triangle_drop, mesh_drop=mesh_drop,
+                           tool_drop=tool_drop)

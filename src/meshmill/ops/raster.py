@@ -2,7 +2,8 @@
 
 Lines at ``angle`` from X cover the part's box widened by the cutter radius, ``stepover`` apart
 (or the stepover that leaves a scallop of ``scallop`` mm: sod = 2·sqrt(2·h·R_eff - h²), seed 002).
-Every line, and the link to the next one, is dropped onto the mesh with the exact drop-cutter at
+Every line, and the link to the next one, is dropped onto the mesh with the exact drop-cutter
+(cutter, shank and holder: :class:`meshmill.ops.dropcutter.ToolDrop`) at
 ``sample`` spacing, refined where the surface leaves the chord by more than half the tolerance,
 and simplified where points are collinear within half the tolerance. The tool tip never goes
 below the part's lowest point. The path is verified like any other.
@@ -18,13 +19,12 @@ import numpy as np
 from ..errors import InputError
 from ..geometry.bvh import build_bvh
 from ..geometry.mesh import Mesh
-from ..kernels import cpu
 from ..tolerances import GOUGE_TOL
 from ..toolpath.linking import link_passes, simplify_polyline
+from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool
 from .verify import verify_toolpath
 
 REFINE_ROUNDS = 6  # each halves the spacing where the chord leaves the surface
-SAFE_ABOVE = 5.0  # mm above the part's top for rapid moves
 
 
 @dataclass
@@ -95,19 +95,18 @@ def raster_lines(bounds, radius, stepover, angle_deg, sample):
     return pieces, n_lines, float((t1 - t0) / max(n_lines - 1, 1))
 
 
-def drop_refined(xy, radius, corner, floor, bvh, chord_tol, min_step):
-    """Drop the cutter along the polyline ``xy (k, 2)``, adding midpoints where the tip height
+def drop_refined(xy, drop: ToolDrop, chord_tol, min_step):
+    """Drop the tool along the polyline ``xy (k, 2)``, adding midpoints where the tip height
     leaves the chord by more than ``chord_tol``; returns tips ``(m, 3)``."""
-    z, _ = cpu.drop_cutter(xy, radius, corner, floor, bvh)
+    z = drop(xy)
     for _ in range(REFINE_ROUNDS):
         if len(xy) < 2:
             break
         mid = 0.5 * (xy[:-1] + xy[1:])
-        long_enough = np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step
-        idx = np.nonzero(long_enough)[0]
+        idx = np.nonzero(np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step)[0]
         if len(idx) == 0:
             break
-        zm, _ = cpu.drop_cutter(mid[idx], radius, corner, floor, bvh)
+        zm = drop(mid[idx])
         off = np.abs(zm - 0.5 * (z[idx] + z[idx + 1])) > chord_tol
         if not off.any():
             break
@@ -115,13 +114,6 @@ def drop_refined(xy, radius, corner, floor, bvh, chord_tol, min_step):
         xy = np.insert(xy, ins + 1, mid[ins], axis=0)
         z = np.insert(z, ins + 1, zm[off])
     return np.column_stack([xy, z])
-
-
-def pick_tool(tools, name):
-    for i, t in enumerate(tools):
-        if t.name == name:
-            return i, t
-    raise InputError(f"no tool named '{name}' in the table (have: {', '.join(t.name for t in tools)})")
 
 
 def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=None):
@@ -146,8 +138,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     t = time.perf_counter()
     pieces, n_lines, spacing = raster_lines(bounds, tool.radius, stepover, params.angle, params.sample)
     xy = np.concatenate(pieces)
-    tips = drop_refined(xy, tool.radius, tool.corner_radius, float(bounds[0, 2]), bvh.arrays, 0.5 * params.tol,
-                        params.sample / 64)
+    tips = drop_refined(xy, ToolDrop(tool, bvh, float(bounds[0, 2])), 0.5 * params.tol, params.sample / 64)
     dropped = len(tips)
     tips = simplify_polyline(tips, 0.5 * params.tol)
     seconds["drop"] = time.perf_counter() - t

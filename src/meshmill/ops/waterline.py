@@ -1,8 +1,8 @@
 """3-axis waterline (Z-level) finishing and roughing loops for flat, ball and bull-nose cutters.
 
-A cutter at tip height z and position (x, y) gouges exactly when the drop-cutter height there is
-above z, so the waterline loops at z are the level set ``drop(x, y) = z``. The drop-cutter heights
-are computed once on a grid over the part (``sample`` apart, widened by the cutter radius) and serve
+A tool at tip height z and position (x, y) gouges (or its shank or holder collides) exactly when
+the drop height of the whole tool there is above z, so the waterline loops at z are the level set ``drop(x, y) = z``. The drop-cutter heights
+are computed once on a grid over the part (``sample`` apart, widened by the tool's reach) and serve
 every level. Per level, marching squares (with the cell centre deciding the saddles) gives the
 crossings, which are moved onto the level set by a bracketed search with the exact drop-cutter:
 each loop point keeps ``drop <= z`` (no gouge) and its height is within 1e-6 mm of z, or (at a
@@ -24,15 +24,13 @@ from ..errors import InputError
 from ..geometry.bvh import build_bvh
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import z_levels
-from ..kernels import cpu
 from ..tolerances import GOUGE_TOL
 from ..toolpath.linking import link_passes, simplify_polyline
-from .raster import SAFE_ABOVE, pick_tool
+from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool
 from .verify import verify_toolpath
 
-SECANT_ROUNDS = 80
-TOUCH = 1e-6  # mm: a loop point's drop-cutter height is within this of its level ...
-WALL = 1e-5  # mm: ... or within this distance of where it jumps past it (a vertical wall)
+REFINE_ROUNDS = 8  # chord refinement rounds of a loop
+PROBES = np.array([0.5, 0.25, 0.75, 0.125, 0.375, 0.625, 0.875])  # where chords are checked
 
 
 @dataclass
@@ -120,33 +118,71 @@ def _edge_nodes(edge_ids, ny):
     return i, j, np.where(vertical, i, i + 1), np.where(vertical, j + 1, j)
 
 
-def _crossings(xs, ys, drop, z, edge_ids, radius, corner, floor, bvh):
-    """The point on each grid edge where the drop-cutter height reaches z, never above it; ``(k, 2)``."""
+def _crossings(xs, ys, heights, z, edge_ids, drop: ToolDrop):
+    """The point on each grid edge where the drop height reaches z, never above it; ``(k, 2)``."""
     i0, j0, i1, j1 = _edge_nodes(edge_ids, len(ys))
     pa = np.column_stack([xs[i0], ys[j0]])
     pb = np.column_stack([xs[i1], ys[j1]])
-    fa = drop[i0, j0] - z
-    fb = drop[i1, j1] - z
+    fa = heights[i0, j0] - z
+    fb = heights[i1, j1] - z
     swap = fa <= 0  # a: the inside end (f > 0), b: the outside end (f <= 0)
     pa[swap], pb[swap] = pb[swap].copy(), pa[swap].copy()
     fa[swap], fb[swap] = fb[swap].copy(), fa[swap].copy()
-    return cpu.touch_points(pa, pb, fa, fb, z, radius, corner, floor, bvh, TOUCH, WALL, SECANT_ROUNDS)
+    return drop.touch(pa, pb, fa, fb, z)
+
+
+def _chord_excess(loop, z, drop: ToolDrop):
+    """How far each chord of ``loop (k, 2)`` rises into the tool's drop height above z (probed at
+    eighths), ``(k-1,)``, and where: the worst probe ``(k-1, 2)``."""
+    a, b = loop[:-1], loop[1:]
+    probe = a[:, None, :] + PROBES[None, :, None] * (b - a)[:, None, :]
+    fp = (drop(probe.reshape(-1, 2)) - z).reshape(len(a), -1)
+    worst = np.argmax(fp, axis=1)
+    rows = np.arange(len(a))
+    return fp[rows, worst], probe[rows, worst]
+
+
+def _refine_loop(loop, z, chord_tol, reach, drop: ToolDrop):
+    """Passes ``[(m, 2)]`` along the clockwise ``loop (k, 2)``: where a chord rises into the drop
+    height by more than ``chord_tol``, a touch point is added, found outward (to the left) from the
+    chord's worst probe within ``reach``; chords that still do are left out (the pass is split)."""
+    for _ in range(REFINE_ROUNDS):
+        f, mid = _chord_excess(loop, z, drop)
+        bad = np.nonzero(f > chord_tol)[0]
+        if len(bad) == 0:
+            return [loop]
+        d = loop[bad + 1] - loop[bad]
+        length = np.linalg.norm(d, axis=1, keepdims=True)
+        left = np.column_stack([-d[:, 1], d[:, 0]]) / np.maximum(length, 1e-12)
+        outer = mid[bad] + left * np.maximum(length, reach)
+        fo = drop(outer) - z
+        ok = fo <= 0.0
+        if not ok.any():
+            break
+        bad, fo, outer = bad[ok], fo[ok], outer[ok]
+        loop = np.insert(loop, bad + 1, drop.touch(mid[bad], outer, f[bad], fo, z), axis=0)
+    f, _ = _chord_excess(loop, z, drop)
+    cuts = np.nonzero(f > chord_tol)[0]
+    pieces = np.split(loop, cuts + 1)
+    # piece i ends at the start of a bad chord; the next begins at its end
+    return [p for p in pieces if len(p) >= 2]
 
 
 def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progress=None):
-    """Run the operation; returns ``(toolpath, summary, loops)`` with ``loops`` a list of
-    ``(z, (k, 3) array)`` from the top level down."""
+    """Run the operation; returns ``(toolpath, summary, passes)`` with ``passes`` a list of
+    ``(z, (k, 3) array)`` from the top level down: closed loops (first point repeated at the end),
+    or pieces of loops where a stretch could not be cut without gouging."""
     params.check()
     say = progress or (lambda stage: None)
     index, tool = pick_tool(tools, tool_name)
-    R, rc = tool.radius, tool.corner_radius
+    reach = max(tool.radius, 0.5 * tool.shank_diameter, 0.5 * tool.holder_diameter)  # outside it: no contact
     bounds = mesh.bounds
     levels = z_levels(bounds[0, 2], bounds[1, 2], params.step_down)
     if len(levels) == 0:
         raise InputError(f"--step-down {params.step_down:g} is larger than the part height "
                          f"{bounds[1, 2] - bounds[0, 2]:g} mm: no level")
-    lo = bounds[0, :2] - R - 2 * params.sample
-    hi = bounds[1, :2] + R + 2 * params.sample
+    lo = bounds[0, :2] - reach - 2 * params.sample
+    hi = bounds[1, :2] + reach + 2 * params.sample
     nx = int(math.ceil((hi[0] - lo[0]) / params.sample)) + 1
     ny = int(math.ceil((hi[1] - lo[1]) / params.sample)) + 1
     if nx * ny > 50_000_000:
@@ -162,8 +198,8 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     xs = lo[0] + (hi[0] - lo[0]) * np.arange(nx) / (nx - 1)
     ys = lo[1] + (hi[1] - lo[1]) * np.arange(ny) / (ny - 1)
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
-    floor = float(bounds[0, 2]) - 1.0
-    drop = cpu.drop_cutter(np.column_stack([gx.ravel(), gy.ravel()]), R, rc, floor, bvh.arrays)[0].reshape(nx, ny)
+    drop = ToolDrop(tool, bvh, float(bounds[0, 2]) - 1.0)
+    heights = drop(np.column_stack([gx.ravel(), gy.ravel()])).reshape(nx, ny)
     cx = 0.5 * (xs[:-1] + xs[1:])
     cy = 0.5 * (ys[:-1] + ys[1:])
     seconds["grid"] = time.perf_counter() - t
@@ -172,7 +208,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     loops = []
     centre_cache = {}
     for z in levels:
-        inside = drop > z
+        inside = heights > z
         mixed = (inside[:-1, :-1] != inside[1:, :-1]) | (inside[:-1, :-1] != inside[:-1, 1:]) | \
             (inside[:-1, :-1] != inside[1:, 1:])
         saddle = mixed & (inside[:-1, :-1] == inside[1:, 1:]) & (inside[1:, :-1] == inside[:-1, 1:]) & \
@@ -183,7 +219,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
             missing = [(a, b) for a, b in zip(si, sj) if (a, b) not in centre_cache]
             if missing:
                 pts = np.array([[cx[a], cy[b]] for a, b in missing])
-                zc = cpu.drop_cutter(pts, R, rc, floor, bvh.arrays)[0]
+                zc = drop(pts)
                 centre_cache.update(zip(missing, zc))
             centre_inside[si, sj] = np.array([centre_cache[(a, b)] for a, b in zip(si, sj)]) > z
         segs = _cell_segments(inside, centre_inside)
@@ -191,7 +227,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
             continue
         edge_loops = _chain_loops(segs)
         all_edges = np.concatenate(edge_loops)
-        pts = _crossings(xs, ys, drop, z, all_edges, R, rc, floor, bvh.arrays)
+        pts = _crossings(xs, ys, heights, z, all_edges, drop)
         start = 0
         for el in edge_loops:
             p = pts[start:start + len(el)]
@@ -199,8 +235,9 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
             if len(p) < 3:
                 continue
             loop = np.column_stack([p, np.full(len(p), z)])[::-1]  # clockwise: climb milling
-            loop = np.vstack([loop, loop[:1]])
-            loops.append((float(z), simplify_polyline(loop, 0.5 * params.tol)))
+            loop = simplify_polyline(np.vstack([loop, loop[:1]]), 0.25 * params.tol)
+            for piece in _refine_loop(loop[:, :2], z, 0.5 * params.tol, params.sample, drop):
+                loops.append((float(z), np.column_stack([piece, np.full(len(piece), z)])))
     seconds["levels"] = time.perf_counter() - t
     safe_z = float(bounds[1, 2] + SAFE_ABOVE)
     tp = link_passes([p for _, p in loops], index, safe_z)
@@ -218,7 +255,8 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
         "tolerance": params.tol,
         "safe_z": safe_z,
         "levels": int(len(levels)),
-        "loops": len(loops),
+        "passes": len(loops),
+        "closed_loops": int(sum(np.array_equal(p[0], p[-1]) for _, p in loops)),
         "grid": [nx, ny],
         "cl_points": int(sum(len(p) for _, p in loops)),
         "moves": int(len(tp)),
