@@ -132,7 +132,7 @@ def axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body
 
 
 @numba.njit(parallel=True, cache=True)
-def _pose_penetration(tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r,
+def _pose_penetration(tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
                       node_lo, node_hi, node_child, node_range, tris):
     k = tip.shape[0]
     nseg = seg_r.shape[1]
@@ -194,11 +194,11 @@ def _pose_penetration(tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0,
                     lo = mid
                 else:
                     hi = mid
-            segs[i, s] = min(radial, hi - t0)
+            segs[i, s] = min(radial, hi - seg_base[t, s])
     return ring, segs
 
 
-def pose_penetration(tip, axis, tool, rings, segs, bvh):
+def pose_penetration(tip, axis, tool, rings, segs, bvh, base=None):
     """How deep each tool pose enters the mesh, mm (0 where clear).
 
     ``tip, axis (k, 3)``; ``tool (k,)`` index into the per-tool arrays; ``rings`` is
@@ -206,10 +206,12 @@ def pose_penetration(tip, axis, tool, rings, segs, bvh):
     radius ring_rho at ring_t along the axis (a ball: rho 0, n 1); ``segs`` is
     ``(seg_t0, seg_t1, seg_r)`` (T, K) cylinders. Returns ``ring (k,)`` and ``segs (k, K)``:
     the depth of the deepest point inside each part (radial for spheres; the smaller of the
-    radial and axial depths for cylinders).
+    radial and axial depths for cylinders, the axial one measured from ``base (T, K)``, default
+    the cylinders' own bottoms).
     """
+    base = segs[0] if base is None else base
     return _pose_penetration(np.ascontiguousarray(tip, np.float64), np.ascontiguousarray(axis, np.float64),
-                             np.ascontiguousarray(tool, np.int32), *rings, *segs, *bvh)
+                             np.ascontiguousarray(tool, np.int32), *rings, *segs, np.ascontiguousarray(base), *bvh)
 
 
 @numba.njit(parallel=True, cache=True)
@@ -248,7 +250,8 @@ def _touch_points(pa, pb, fa, fb, z, R, r, body_r, body_t, floor, touch, width, 
         ga, gb = fai, fbi
         side = 0
         for it in range(rounds):
-            if fbi >= -touch or (bx - ax) ** 2 + (by - ay) ** 2 <= width * width:
+            # touching: just below z (exactly z is a flat facet at the level: go on to its edge)
+            if (-touch <= fbi < 0.0) or (bx - ax) ** 2 + (by - ay) ** 2 <= width * width:
                 break
             # secant and bisection steps alternate: fast where the height is smooth, and the
             # bracket still halves where it jumps (the cutter reaching a vertical wall)

@@ -20,9 +20,8 @@ from ..errors import InputError
 from ..geometry.bvh import build_bvh
 from ..geometry.mesh import Mesh
 from ..tolerances import GOUGE_TOL
-from ..toolpath.linking import link_passes, simplify_polyline
-from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool
-from .verify import verify_toolpath
+from ..toolpath.linking import simplify_polyline
+from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool, verified_path
 
 REFINE_ROUNDS = 6  # each halves the spacing where the chord leaves the surface
 
@@ -143,11 +142,9 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     tips = simplify_polyline(tips, 0.5 * params.tol)
     seconds["drop"] = time.perf_counter() - t
     safe_z = float(bounds[1, 2] + SAFE_ABOVE)
-    tp = link_passes([tips], index, safe_z)
     say("verify")
     t = time.perf_counter()
-    report = verify_toolpath(bvh, tp, tools, params.tol, params.sample)
-    report.pop("problem_moves")
+    tp, report, passes = verified_path([tips], index, tools, bvh, safe_z, params.tol, params.sample)
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
     summary = {
@@ -162,7 +159,8 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
         "safe_z": safe_z,
         "lines": n_lines,
         "cl_points_dropped": int(dropped),
-        "cl_points": int(len(tips)),
+        "cl_points": int(sum(len(p) for p in passes)),
+        "moves_left_out": report["moves_left_out"],
         "moves": int(len(tp)),
         "cutting_length": tp.cutting_length(),
         "verify": report,

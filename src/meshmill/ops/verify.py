@@ -83,12 +83,15 @@ def verify_toolpath(bvh, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: floa
     """Check ``tp`` against the mesh of ``bvh``; returns a JSON-ready report with the counts of
     moves that gouge, collide or rapid into the part, and the ``worst`` cases."""
     tip, axis, tool, move, rapid = sample_moves(tp, tools, step)
-    segs, cutting = pack_cylinders(tools)
+    (t0, t1, r), cutting = pack_cylinders(tools)
+    # a flat bottom resting exactly on a facet touches it: the slab of a cutting cylinder that
+    # starts at the tip starts tol above it
+    segs = (np.where(cutting & (t0 == 0.0), tol, t0), t1, r)
     if len(tip) == 0:
         return {"moves": 0, "poses_checked": 0, "step": float(step), "tolerance": float(tol), "gouging_moves": 0,
                 "colliding_moves": 0, "rapid_moves_touching": 0, "max_gouge": 0.0, "max_collision": 0.0,
                 "ok": True, "worst": [], "problem_moves": []}
-    ring_depth, seg_depth = cpu.pose_penetration(tip, axis, tool, pack_rings(tools), segs, bvh.arrays)
+    ring_depth, seg_depth = cpu.pose_penetration(tip, axis, tool, pack_rings(tools), segs, bvh.arrays, base=t0)
     cut_mask = cutting[tool]
     seg_cut = np.where(cut_mask, seg_depth, 0.0)
     seg_body = np.where(~cut_mask, seg_depth, 0.0)

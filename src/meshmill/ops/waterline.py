@@ -25,9 +25,8 @@ from ..geometry.bvh import build_bvh
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import z_levels
 from ..tolerances import GOUGE_TOL
-from ..toolpath.linking import link_passes, simplify_polyline
-from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool
-from .verify import verify_toolpath
+from ..toolpath.linking import simplify_polyline
+from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool, verified_path
 
 REFINE_ROUNDS = 8  # chord refinement rounds of a loop
 PROBES = np.array([0.5, 0.25, 0.75, 0.125, 0.375, 0.625, 0.875])  # where chords are checked
@@ -131,41 +130,62 @@ def _crossings(xs, ys, heights, z, edge_ids, drop: ToolDrop):
     return drop.touch(pa, pb, fa, fb, z)
 
 
-def _chord_excess(loop, z, drop: ToolDrop):
-    """How far each chord of ``loop (k, 2)`` rises into the tool's drop height above z (probed at
-    eighths), ``(k-1,)``, and where: the worst probe ``(k-1, 2)``."""
+def _chord_intrusion(loop, z, reach, drop: ToolDrop):
+    """How deep each chord of the clockwise ``loop (k, 2)`` runs into the material side of the level
+    set, ``(k-1,)`` mm, and the touch point that would fix it ``(k-1, 2)``. Probed at eighths; a probe
+    whose drop height is above z is inside by the smaller of that excess and its distance to the
+    level set outward (to the left of the chord), so a chord grazing a vertical wall counts by how
+    far it enters the wall, not by the wall's height. Chords that find no way out within ``reach``
+    come back as infinitely deep."""
     a, b = loop[:-1], loop[1:]
     probe = a[:, None, :] + PROBES[None, :, None] * (b - a)[:, None, :]
     fp = (drop(probe.reshape(-1, 2)) - z).reshape(len(a), -1)
     worst = np.argmax(fp, axis=1)
     rows = np.arange(len(a))
-    return fp[rows, worst], probe[rows, worst]
+    f, mid = fp[rows, worst], probe[rows, worst]
+    depth = np.maximum(f, 0.0)
+    touch = np.full_like(mid, np.nan)
+    idx = np.nonzero(f > 0.0)[0]
+    if len(idx):
+        d = b[idx] - a[idx]
+        length = np.linalg.norm(d, axis=1, keepdims=True)
+        left = np.column_stack([-d[:, 1], d[:, 0]]) / np.maximum(length, 1e-12)
+        # look for the outside a little way out first, then further
+        push = np.full((len(idx), 1), 0.25 * reach)
+        outer = mid[idx] + left * push
+        fo = drop(outer) - z
+        for _ in range(2):
+            far = np.nonzero(fo > 0.0)[0]
+            if len(far) == 0:
+                break
+            push[far] *= 4.0
+            outer[far] = mid[idx][far] + left[far] * push[far]
+            fo[far] = drop(outer[far]) - z
+        ok = fo <= 0.0
+        depth[idx[~ok]] = np.inf
+        j = idx[ok]
+        if len(j):
+            touch[j] = drop.touch(mid[j], outer[ok], f[j], fo[ok], z)
+            depth[j] = np.minimum(f[j], np.linalg.norm(touch[j] - mid[j], axis=1))
+    return depth, touch
 
 
 def _refine_loop(loop, z, chord_tol, reach, drop: ToolDrop):
-    """Passes ``[(m, 2)]`` along the clockwise ``loop (k, 2)``: where a chord rises into the drop
-    height by more than ``chord_tol``, a touch point is added, found outward (to the left) from the
-    chord's worst probe within ``reach``; chords that still do are left out (the pass is split)."""
+    """Passes ``[(m, 2)]`` along the clockwise ``loop (k, 2)``: where a chord runs into the material
+    by more than ``chord_tol``, its touch point is added; chords that still do after a few rounds
+    are left out (the pass is split there)."""
     for _ in range(REFINE_ROUNDS):
-        f, mid = _chord_excess(loop, z, drop)
-        bad = np.nonzero(f > chord_tol)[0]
+        depth, touch = _chord_intrusion(loop, z, reach, drop)
+        bad = np.nonzero((depth > chord_tol) & np.isfinite(depth))[0]
         if len(bad) == 0:
-            return [loop]
-        d = loop[bad + 1] - loop[bad]
-        length = np.linalg.norm(d, axis=1, keepdims=True)
-        left = np.column_stack([-d[:, 1], d[:, 0]]) / np.maximum(length, 1e-12)
-        outer = mid[bad] + left * np.maximum(length, reach)
-        fo = drop(outer) - z
-        ok = fo <= 0.0
-        if not ok.any():
             break
-        bad, fo, outer = bad[ok], fo[ok], outer[ok]
-        loop = np.insert(loop, bad + 1, drop.touch(mid[bad], outer, f[bad], fo, z), axis=0)
-    f, _ = _chord_excess(loop, z, drop)
-    cuts = np.nonzero(f > chord_tol)[0]
-    pieces = np.split(loop, cuts + 1)
+        loop = np.insert(loop, bad + 1, touch[bad], axis=0)
+    depth, _ = _chord_intrusion(loop, z, reach, drop)
+    cuts = np.nonzero(depth > chord_tol)[0]
+    if len(cuts) == 0:
+        return [loop]
     # piece i ends at the start of a bad chord; the next begins at its end
-    return [p for p in pieces if len(p) >= 2]
+    return [p for p in np.split(loop, cuts + 1) if len(p) >= 2]
 
 
 def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progress=None):
@@ -240,11 +260,10 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
                 loops.append((float(z), np.column_stack([piece, np.full(len(piece), z)])))
     seconds["levels"] = time.perf_counter() - t
     safe_z = float(bounds[1, 2] + SAFE_ABOVE)
-    tp = link_passes([p for _, p in loops], index, safe_z)
     say("verify")
     t = time.perf_counter()
-    report = verify_toolpath(bvh, tp, tools, params.tol, params.sample)
-    report.pop("problem_moves")
+    tp, report, kept = verified_path([p for _, p in loops], index, tools, bvh, safe_z, params.tol, params.sample)
+    loops = [(float(p[0, 2]), p) for p in kept]
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
     summary = {

@@ -1,0 +1,132 @@
+"""Drop-cutter for flat, ball and bull-nose cutters: analytic cases, brute force, OpenCAMLib."""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from meshmill.geometry.bvh import build_bvh
+from meshmill.geometry.mesh import load_mesh
+from meshmill.geometry.shapes import box, revolve, sphere
+from meshmill.kernels import cpu
+
+PARTS = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared" / "parts"
+CUTTERS = {"flat": (3.0, 0.0), "ball": (3.0, 3.0), "bull": (3.0, 1.0)}
+
+
+def _bvh(m):
+    return build_bvh(m.vertices, m.faces).arrays
+
+
+@pytest.mark.parametrize("kind", CUTTERS)
+def test_on_a_plane(kind):
+    R, r = CUTTERS[kind]
+    b = _bvh(box([0, 0, 0], [20, 20, 10]))
+    xy = np.array([[10, 10], [0, 0], [20, 5], [3, 17.5], [10, 0]], np.float64)  # corners and edges too
+    z, cc = cpu.drop_cutter(xy, R, r, -100, b)
+    assert np.all(z == 10.0)
+    assert np.all(cc[:, 2] == 10.0)
+
+
+def _profile(rho, R, r):
+    a = R - r
+    return 0.0 if rho <= a else r - math.sqrt(max(0.0, r * r - (rho - a) ** 2))
+
+
+@pytest.mark.parametrize("kind", CUTTERS)
+def test_beside_a_box_edge(kind):
+    R, r = CUTTERS[kind]
+    b = _bvh(box([0, 0, 0], [20, 20, 10]))
+    for e in np.linspace(0.1, 2.99, 9):  # axis e mm outside the face x = 20
+        z, _ = cpu.drop_cutter(np.array([[20 + e, 10.0]]), R, r, -100, b)
+        assert abs(z[0] - (10.0 - _profile(e, R, r))) < 1e-12
+
+
+def test_ball_on_a_sphere():
+    Rs, R = 20.0, 3.0
+    m = sphere(Rs, 96, 192)
+    b = _bvh(m)
+    xy = np.array([[0, 0], [5, 3], [-9, 4], [12, -7]], np.float64)
+    z, _ = cpu.drop_cutter(xy, R, R, -100, b)
+    exact = np.sqrt((Rs + R) ** 2 - (xy ** 2).sum(1)) - R
+    chord = Rs * (1 - math.cos(math.pi / 96))  # the facets lie inside the sphere by at most this
+    assert np.all(z <= exact + 1e-12) and np.all(z >= exact - chord)
+
+
+def test_ball_resting_on_the_rim_of_a_hole():
+    # a block with a round hole of radius 2 (48-gon): a ball of radius 3 rests on the rim's edges
+    n, rh, top = 48, 2.0, 10.0
+    prof_r = [0, 15, 15, rh, rh, 0]  # revolve: outer wall, top face, the hole's wall, its floor
+    prof_z = [0, 0, top, top, 4, 4]
+    m = revolve(prof_r, prof_z, n)
+    b = _bvh(m)
+    z, _ = cpu.drop_cutter(np.array([[0.0, 0.0]]), 3.0, 3.0, -100, b)
+    d = rh * math.cos(math.pi / n)  # the rim edges' distance from the axis
+    assert abs(z[0] - (top + math.sqrt(9.0 - d * d) - 3.0)) < 1e-12
+    z, _ = cpu.drop_cutter(np.array([[0.0, 0.0]]), 1.5, 1.5, -100, b)  # a small ball reaches the floor
+    assert z[0] == 4.0
+
+
+coord = st.one_of(st.floats(-4, 4, allow_nan=False), st.integers(-2, 2).map(float))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(coord, coord, coord), min_size=3, max_size=3), st.tuples(coord, coord),
+       st.sampled_from(list(CUTTERS)))
+def test_triangle_drop_against_dense_samples(pts, xy, kind):
+    R, r = CUTTERS[kind]
+    tri = np.array(pts, np.float64)
+    if np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0])) < 1e-2:
+        return
+    z, cx, cy, cz = cpu.cut.triangle_drop(tri.reshape(1, 9), 0, xy[0], xy[1], R, r)
+    n = 150
+    i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+    keep = i + j <= n
+    w1, w2 = i[keep] / n, j[keep] / n
+    p = tri[0] + w1[:, None] * (tri[1] - tri[0]) + w2[:, None] * (tri[2] - tri[0])
+    rho = np.hypot(p[:, 0] - xy[0], p[:, 1] - xy[1])
+    ok = rho <= R
+    if not ok.any():
+        assert z < -1e299 or z <= p[:, 2].max()
+        return
+    sampled = max(pz - _profile(rh, R, r) for pz, rh in zip(p[ok, 2], rho[ok]))
+    assert z >= sampled - 1e-9  # never below any point of the triangle: no gouge
+    span = np.ptp(tri, axis=0).max()
+    assert z <= sampled + 3 * span / n * 4  # and touches it: within the sampling's resolution
+    # the contact point is on the triangle and under the cutter at that height
+    assert abs(math.hypot(cx - xy[0], cy - xy[1])) <= R + 1e-9
+    assert abs(cz - _profile(math.hypot(cx - xy[0], cy - xy[1]), R, r) - z) < 1e-6
+
+
+ocl = pytest.importorskip("opencamlib", reason="OpenCAMLib is a test-only peer")
+
+
+@pytest.mark.parametrize("part", ["pycam-textbox", "beet_mm", "mount_rush", "sphere_on_plate"])
+def test_equals_opencamlib_batch_drop_cutter(part):
+    path = PARTS / f"{part}.stl"
+    if not path.exists():
+        pytest.skip("shared parts not present")
+    m = load_mesh(path)
+    b = _bvh(m)
+    surf = ocl.STLSurf()
+    ocl.STLReader(str(path), surf)
+    lo, hi = m.bounds
+    rng = np.random.default_rng(7)
+    xy = rng.uniform(lo[:2] - 1, hi[:2] + 1, (3000, 2))
+    # and points on the grid lines through vertices, where programs break
+    v = m.vertices[rng.choice(len(m.vertices), 500)]
+    xy = np.vstack([xy, v[:, :2], np.column_stack([v[:, 0], rng.uniform(lo[1], hi[1], 500)])])
+    floor = lo[2] - 10
+    for kind, cutter in [("flat", ocl.CylCutter(6, 30)), ("ball", ocl.BallCutter(6, 30)),
+                         ("bull", ocl.BullCutter(6, 1, 30))]:
+        R, r = CUTTERS[kind]
+        bdc = ocl.BatchDropCutter()
+        bdc.setSTL(surf)
+        bdc.setCutter(cutter)
+        for x, y in xy:
+            bdc.appendPoint(ocl.CLPoint(float(x), float(y), floor))
+        bdc.run()
+        theirs = np.array([p.z for p in bdc.getCLPoints()])
+        ours, _ = cpu.drop_cutter(xy, R, r, floor, b)
+        assert np.abs(ours - theirs).max() < 1e-3, kind
