@@ -79,7 +79,7 @@ def test_triangle_drop_against_dense_samples(pts, xy, kind):
     tri = np.array(pts, np.float64)
     if np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0])) < 1e-2:
         return
-    z, cx, cy, cz = cpu.cut.triangle_drop(tri.reshape(1, 9), 0, xy[0], xy[1], R, r)
+    z, cx, cy, cz = cpu.cut.triangle_drop(tri.reshape(1, 9), 0, xy[0], xy[1], R, r, -1e300)
     n = 150
     i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
     keep = i + j <= n

@@ -122,9 +122,10 @@ def test_waterline_near_opencamlib(cutters, part, frac):
     sampling = 0.2
     surf = ocl.STLSurf()
     ocl.STLReader(str(path), surf)
+    ball = ocl.BallCutter(6, 40)  # kept alive: OpenCAMLib holds a bare pointer to it
     wl = ocl.Waterline()
     wl.setSTL(surf)
-    wl.setCutter(ocl.BallCutter(6, 40))
+    wl.setCutter(ball)
     wl.setZ(z)
     wl.setSampling(sampling)
     wl.run()

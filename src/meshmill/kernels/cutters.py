@@ -113,37 +113,9 @@ def build(jit):
         return pz + m * u - profile(rho, R, r), u / L
 
     @jit
-    def triangle_drop(tris, t, x, y, R, r):
-        """Highest tip z of the cutter at (x, y) touching triangle t, and the contact point."""
-        best = NEG
-        cx = 0.0
-        cy = 0.0
-        cz = 0.0
-        for k in range(3):
-            vx = tris[t, 3 * k]
-            vy = tris[t, 3 * k + 1]
-            vz = tris[t, 3 * k + 2]
-            rho = math.sqrt((vx - x) ** 2 + (vy - y) ** 2)
-            if rho <= R:
-                z = vz - profile(rho, R, r)
-                if z > best:
-                    best = z
-                    cx, cy, cz = vx, vy, vz
-        for k in range(3):
-            j = (k + 1) % 3
-            px = tris[t, 3 * k]
-            py = tris[t, 3 * k + 1]
-            pz = tris[t, 3 * k + 2]
-            qx = tris[t, 3 * j]
-            qy = tris[t, 3 * j + 1]
-            qz = tris[t, 3 * j + 2]
-            z, f = edge_drop(px, py, pz, qx, qy, qz, x, y, R, r)
-            if z > best:
-                best = z
-                cx = px + f * (qx - px)
-                cy = py + f * (qy - py)
-                cz = pz + f * (qz - pz)
-        # facet: the cutter point whose normal is the facet's upward normal
+    def facet_drop(tris, t, x, y, R, r):
+        """Tip z of the facet contact of triangle t (NEG when it falls outside the triangle) and
+        the contact point: the cutter point whose normal is the facet's upward normal."""
         ax = tris[t, 0]
         ay = tris[t, 1]
         az = tris[t, 2]
@@ -159,29 +131,78 @@ def build(jit):
         if nz < 0.0:
             nx, ny, nz = -nx, -ny, -nz
         nn = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if nz > 1e-12 * nn:
-            nx /= nn
-            ny /= nn
-            nz /= nn
-            nh = math.sqrt(nx * nx + ny * ny)
-            px = x
-            py = y
-            if nh > 0.0:
-                px -= (R - r) * nx / nh + r * nx
-                py -= (R - r) * ny / nh + r * ny
-            # inside the triangle's projection (2-D barycentric, counter-clockwise or not)
-            det = abx * acy - aby * acx
-            wx = px - ax
-            wy = py - ay
-            b1 = (wx * acy - wy * acx) / det
-            b2 = (abx * wy - aby * wx) / det
-            if b1 >= 0.0 and b2 >= 0.0 and b1 + b2 <= 1.0:
-                zp = az + b1 * abz + b2 * acz
-                z = zp - r * (1.0 - nz)
-                if z > best:
-                    best = z
-                    cx, cy, cz = px, py, zp
-        return best, cx, cy, cz
+        if nz <= 1e-12 * nn:
+            return NEG, 0.0, 0.0, 0.0
+        nx /= nn
+        ny /= nn
+        nz /= nn
+        nh = math.sqrt(nx * nx + ny * ny)
+        px = x
+        py = y
+        if nh > 0.0:
+            px -= (R - r) * nx / nh + r * nx
+            py -= (R - r) * ny / nh + r * ny
+        # inside the triangle's projection (2-D barycentric, either winding)
+        det = abx * acy - aby * acx
+        wx = px - ax
+        wy = py - ay
+        b1 = (wx * acy - wy * acx) / det
+        b2 = (abx * wy - aby * wx) / det
+        if b1 >= 0.0 and b2 >= 0.0 and b1 + b2 <= 1.0:
+            zp = az + b1 * abz + b2 * acz
+            return zp - r * (1.0 - nz), px, py, zp
+        return NEG, 0.0, 0.0, 0.0
+
+    @jit
+    def triangle_drop(tris, t, x, y, R, r, best):
+        """Highest tip z of the cutter at (x, y) touching triangle t if above ``best`` (else NEG),
+        and the contact point. A contact never rises above the point touched, so a feature (the
+        triangle, an edge, a vertex) lower than best is skipped."""
+        zmax = max(tris[t, 2], tris[t, 5], tris[t, 8])
+        if zmax <= best:
+            return NEG, 0.0, 0.0, 0.0
+        if (min(tris[t, 0], tris[t, 3], tris[t, 6]) > x + R or max(tris[t, 0], tris[t, 3], tris[t, 6]) < x - R
+                or min(tris[t, 1], tris[t, 4], tris[t, 7]) > y + R or max(tris[t, 1], tris[t, 4], tris[t, 7]) < y - R):
+            return NEG, 0.0, 0.0, 0.0
+        top = best
+        cx = 0.0
+        cy = 0.0
+        cz = 0.0
+        z, px, py, pz = facet_drop(tris, t, x, y, R, r)
+        if z > top:
+            top = z
+            cx, cy, cz = px, py, pz
+        for k in range(3):
+            vz = tris[t, 3 * k + 2]
+            if vz <= top:
+                continue
+            vx = tris[t, 3 * k]
+            vy = tris[t, 3 * k + 1]
+            rho = math.sqrt((vx - x) ** 2 + (vy - y) ** 2)
+            if rho <= R:
+                z = vz - profile(rho, R, r)
+                if z > top:
+                    top = z
+                    cx, cy, cz = vx, vy, vz
+        for k in range(3):
+            j = (k + 1) % 3
+            pz = tris[t, 3 * k + 2]
+            qz = tris[t, 3 * j + 2]
+            if max(pz, qz) <= top:
+                continue
+            px = tris[t, 3 * k]
+            py = tris[t, 3 * k + 1]
+            qx = tris[t, 3 * j]
+            qy = tris[t, 3 * j + 1]
+            z, f = edge_drop(px, py, pz, qx, qy, qz, x, y, R, r)
+            if z > top:
+                top = z
+                cx = px + f * (qx - px)
+                cy = py + f * (qy - py)
+                cz = pz + f * (qz - pz)
+        if top > best:
+            return top, cx, cy, cz
+        return NEG, 0.0, 0.0, 0.0
 
     @jit
     def mesh_drop(x, y, R, r, floor, node_lo, node_hi, node_child, node_range, tris, stack):
@@ -206,7 +227,7 @@ def build(jit):
             if left < 0:
                 first = node_range[n, 0]
                 for k in range(first, first + node_range[n, 1]):
-                    z, px, py, pz = triangle_drop(tris, k, x, y, R, r)
+                    z, px, py, pz = triangle_drop(tris, k, x, y, R, r, best)
                     if z > best:
                         best = z
                         cx, cy, cz = px, py, pz

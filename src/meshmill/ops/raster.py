@@ -22,6 +22,7 @@ from ..geometry.mesh import Mesh
 from ..tolerances import GOUGE_TOL
 from ..toolpath.linking import simplify_polyline
 from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool, verified_path
+from .verify import DEFAULT_STEP
 
 REFINE_ROUNDS = 6  # each halves the spacing where the chord leaves the surface
 
@@ -144,7 +145,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     safe_z = float(bounds[1, 2] + SAFE_ABOVE)
     say("verify")
     t = time.perf_counter()
-    tp, report, passes = verified_path([tips], index, tools, bvh, safe_z, params.tol, params.sample)
+    tp, report, passes = verified_path([tips], index, tools, bvh, safe_z, params.tol, DEFAULT_STEP)
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
     summary = {

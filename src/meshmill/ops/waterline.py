@@ -2,8 +2,8 @@
 
 A tool at tip height z and position (x, y) gouges (or its shank or holder collides) exactly when
 the drop height of the whole tool there is above z, so the waterline loops at z are the level set ``drop(x, y) = z``. The drop-cutter heights
-are computed once on a grid over the part (``sample`` apart, widened by the tool's reach) and serve
-every level. Per level, marching squares (with the cell centre deciding the saddles) gives the
+are computed once on a grid over the part (``sample`` apart, like the fibres of other programs,
+widened by the tool's reach) and serve every level. Per level, marching squares (with the cell centre deciding the saddles) gives the
 crossings, which are moved onto the level set by a bracketed search with the exact drop-cutter:
 each loop point keeps ``drop <= z`` (no gouge) and its height is within 1e-6 mm of z, or (at a
 vertical wall, where the height jumps) it is within 1e-5 mm of the jump.
@@ -27,6 +27,7 @@ from ..geometry.slicing import z_levels
 from ..tolerances import GOUGE_TOL
 from ..toolpath.linking import simplify_polyline
 from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool, verified_path
+from .verify import DEFAULT_STEP
 
 REFINE_ROUNDS = 8  # chord refinement rounds of a loop
 PROBES = np.array([0.5, 0.25, 0.75, 0.125, 0.375, 0.625, 0.875])  # where chords are checked
@@ -130,14 +131,14 @@ def _crossings(xs, ys, heights, z, edge_ids, drop: ToolDrop):
     return drop.touch(pa, pb, fa, fb, z)
 
 
-def _chord_intrusion(loop, z, reach, drop: ToolDrop):
+def _chord_intrusion(loop, z, reach, drop: ToolDrop, pairs=False):
     """How deep each chord of the clockwise ``loop (k, 2)`` runs into the material side of the level
     set, ``(k-1,)`` mm, and the touch point that would fix it ``(k-1, 2)``. Probed at eighths; a probe
     whose drop height is above z is inside by the smaller of that excess and its distance to the
     level set outward (to the left of the chord), so a chord grazing a vertical wall counts by how
     far it enters the wall, not by the wall's height. Chords that find no way out within ``reach``
-    come back as infinitely deep."""
-    a, b = loop[:-1], loop[1:]
+    come back as infinitely deep. With ``pairs``, ``loop (2c, 2)`` holds c separate chords."""
+    a, b = (loop[0::2], loop[1::2]) if pairs else (loop[:-1], loop[1:])
     probe = a[:, None, :] + PROBES[None, :, None] * (b - a)[:, None, :]
     fp = (drop(probe.reshape(-1, 2)) - z).reshape(len(a), -1)
     worst = np.argmax(fp, axis=1)
@@ -172,15 +173,26 @@ def _chord_intrusion(loop, z, reach, drop: ToolDrop):
 
 def _refine_loop(loop, z, chord_tol, reach, drop: ToolDrop):
     """Passes ``[(m, 2)]`` along the clockwise ``loop (k, 2)``: where a chord runs into the material
-    by more than ``chord_tol``, its touch point is added; chords that still do after a few rounds
-    are left out (the pass is split there)."""
+    by more than ``chord_tol``, its touch point is added (and only the two new chords are checked
+    again); chords that still do after a few rounds are left out (the pass is split there)."""
+    depth, touch = _chord_intrusion(loop, z, reach, drop)
     for _ in range(REFINE_ROUNDS):
-        depth, touch = _chord_intrusion(loop, z, reach, drop)
         bad = np.nonzero((depth > chord_tol) & np.isfinite(depth))[0]
         if len(bad) == 0:
             break
         loop = np.insert(loop, bad + 1, touch[bad], axis=0)
-    depth, _ = _chord_intrusion(loop, z, reach, drop)
+        # chord i of the old loop becomes chords i + n and i + n + 1 (n: insertions before it)
+        new = bad + np.arange(len(bad))
+        fresh = np.concatenate([new, new + 1])
+        pairs = np.stack([loop[fresh], loop[fresh + 1]], axis=1)  # (f, 2, 2): each new chord alone
+        d_new, t_new = _chord_intrusion(pairs.reshape(-1, 2), z, reach, drop, pairs=True)
+        old_idx = np.delete(np.arange(len(depth) + len(bad)), fresh)
+        depth2 = np.empty(len(depth) + len(bad))
+        touch2 = np.empty((len(depth) + len(bad), 2))
+        depth2[old_idx] = np.delete(depth, bad)
+        touch2[old_idx] = np.delete(touch, bad, axis=0)
+        depth2[fresh], touch2[fresh] = d_new, t_new
+        depth, touch = depth2, touch2
     cuts = np.nonzero(depth > chord_tol)[0]
     if len(cuts) == 0:
         return [loop]
@@ -201,10 +213,11 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     if len(levels) == 0:
         raise InputError(f"--step-down {params.step_down:g} is larger than the part height "
                          f"{bounds[1, 2] - bounds[0, 2]:g} mm: no level")
-    lo = bounds[0, :2] - reach - 2 * params.sample
-    hi = bounds[1, :2] + reach + 2 * params.sample
-    nx = int(math.ceil((hi[0] - lo[0]) / params.sample)) + 1
-    ny = int(math.ceil((hi[1] - lo[1]) / params.sample)) + 1
+    spacing = params.sample
+    lo = bounds[0, :2] - reach - 2 * spacing
+    hi = bounds[1, :2] + reach + 2 * spacing
+    nx = int(math.ceil((hi[0] - lo[0]) / spacing)) + 1
+    ny = int(math.ceil((hi[1] - lo[1]) / spacing)) + 1
     if nx * ny > 50_000_000:
         raise InputError(f"{nx} x {ny} grid points: use a larger --sample")
     seconds = {}
@@ -256,13 +269,13 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
                 continue
             loop = np.column_stack([p, np.full(len(p), z)])[::-1]  # clockwise: climb milling
             loop = simplify_polyline(np.vstack([loop, loop[:1]]), 0.25 * params.tol)
-            for piece in _refine_loop(loop[:, :2], z, 0.5 * params.tol, params.sample, drop):
+            for piece in _refine_loop(loop[:, :2], z, 0.5 * params.tol, spacing, drop):
                 loops.append((float(z), np.column_stack([piece, np.full(len(piece), z)])))
     seconds["levels"] = time.perf_counter() - t
     safe_z = float(bounds[1, 2] + SAFE_ABOVE)
     say("verify")
     t = time.perf_counter()
-    tp, report, kept = verified_path([p for _, p in loops], index, tools, bvh, safe_z, params.tol, params.sample)
+    tp, report, kept = verified_path([p for _, p in loops], index, tools, bvh, safe_z, params.tol, DEFAULT_STEP)
     loops = [(float(p[0, 2]), p) for p in kept]
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
@@ -271,6 +284,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
         "tool": tool.name,
         "step_down": params.step_down,
         "sample": params.sample,
+        "grid_spacing": spacing,
         "tolerance": params.tol,
         "safe_z": safe_z,
         "levels": int(len(levels)),
