@@ -17,6 +17,8 @@ from .geom import INF, STACK_SIZE, build
 dev = build(numba.njit(fastmath=False, cache=True))
 cut = cutters.build(numba.njit(fastmath=False, cache=True))
 _drop = cut.tool_drop
+_reach = cut.contact_reach
+CHUNK = 64  # points of a drop-cutter batch run in order by one thread
 _point = dev.mesh_point_dist2
 _ball = dev.largest_clear_ball
 _cyl = dev.mesh_cylinder_dist2
@@ -219,10 +221,14 @@ def _drop_cutter(xy, R, r, body_r, body_t, floor, node_lo, node_hi, node_child, 
     k = xy.shape[0]
     z = np.empty(k)
     cc = np.empty((k, 3))
-    for i in prange(k):
+    for c in prange((k + CHUNK - 1) // CHUNK):
         stack = np.empty(STACK_SIZE, np.int32)
-        z[i], cc[i, 0], cc[i, 1], cc[i, 2] = _drop(xy[i, 0], xy[i, 1], R, r, body_r, body_t, floor,
-                                                   node_lo, node_hi, node_child, node_range, tris, stack)
+        sx = sy = sz = math.nan
+        for i in range(c * CHUNK, min(k, (c + 1) * CHUNK)):
+            # each point starts from the previous one's contact (a neighbour's, in a grid or a pass)
+            z[i], sx, sy, sz = _drop(xy[i, 0], xy[i, 1], R, r, body_r, body_t, floor, sx, sy, sz,
+                                     node_lo, node_hi, node_child, node_range, tris, stack)
+            cc[i, 0], cc[i, 1], cc[i, 2] = sx, sy, sz
     return z, cc
 
 
@@ -240,31 +246,71 @@ def drop_cutter(xy, radius, corner_radius, floor, bvh, body=NO_BODY):
 
 
 @numba.njit(parallel=True, cache=True)
-def _touch_points(pa, pb, fa, fb, z, R, r, body_r, body_t, floor, touch, width, rounds,
+def _touch_points(pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, width, rounds,
                   node_lo, node_hi, node_child, node_range, tris):
     out = pb.copy()
     for i in prange(pa.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
         ax, ay, bx, by = pa[i, 0], pa[i, 1], pb[i, 0], pb[i, 1]
-        fai, fbi = fa[i], fb[i]
-        ga, gb = fai, fbi
+        fbi = fb[i]
+        ga, gb = fa[i], fbi
+        qx, qy, qz = qa[i, 0], qa[i, 1], qa[i, 2]
+        if math.isnan(qz):
+            ga, qx, qy, qz = _drop(ax, ay, R, r, body_r, body_t, floor, qx, qy, qz,
+                                   node_lo, node_hi, node_child, node_range, tris, stack)
+            ga -= z
+        sx, sy, sz = qx, qy, qz
         side = 0
+        check = 0.0
         for it in range(rounds):
+            width2 = (bx - ax) ** 2 + (by - ay) ** 2
             # touching: just below z (exactly z is a flat facet at the level: go on to its edge)
-            if (-touch <= fbi < 0.0) or (bx - ax) ** 2 + (by - ay) ** 2 <= width * width:
+            if (-touch <= fbi < 0.0) or width2 <= width * width:
                 break
-            # secant and bisection steps alternate: fast where the height is smooth, and the
-            # bracket still halves where it jumps (the cutter reaching a vertical wall)
-            w = 0.5 if it % 2 else min(0.98, max(0.02, ga / (ga - gb)))
+            # Illinois (regula falsi halving the weight of an end that stays): superlinear where the
+            # height is smooth; every third step a bisection if the bracket has not halved since, so
+            # it still halves where the height jumps
+            w = min(0.98, max(0.02, ga / (ga - gb)))
+            contact = False
+            if it % 2 == 0:
+                # contact step: the inside end's contact q alone keeps the tip above z inside a
+                # disk around q, so the level set lies at or past where the segment leaves that
+                # disk; try just past it. Exact in one step at a wall (the contact stays put).
+                rho = _reach(qz - z, R, r, body_r, body_t)
+                dx = bx - ax
+                dy = by - ay
+                ox = ax - qx
+                oy = ay - qy
+                A = dx * dx + dy * dy
+                B = ox * dx + oy * dy
+                C = ox * ox + oy * oy - rho * rho
+                if C < 0.0:  # a inside q's disk: one exit root t > 0 of A t² + 2 B t + C
+                    root = math.sqrt(B * B - A * C)
+                    t_exit = -C / (B + root) if B > 0.0 else (root - B) / A
+                    t = t_exit + 0.5 * width / math.sqrt(A)
+                    if t < 0.98:
+                        w = t
+                        contact = True
+            if not contact and it % 3 == 0:
+                if it > 0 and width2 > 0.25 * check:
+                    w = 0.5
+                check = width2
             px = ax + w * (bx - ax)
             py = ay + w * (by - ay)
-            f = _drop(px, py, R, r, body_r, body_t, floor, node_lo, node_hi, node_child, node_range, tris, stack)[0] - z
+            f, sx, sy, sz = _drop(px, py, R, r, body_r, body_t, floor, sx, sy, sz,
+                                  node_lo, node_hi, node_child, node_range, tris, stack)
+            f -= z
             if f > 0.0:
-                ax, ay, fai, ga = px, py, f, f
+                ax, ay, ga = px, py, f
+                qx, qy, qz = sx, sy, sz
                 if side == 1:
                     gb *= 0.5
                 side = 1
             else:
+                if contact:  # the disk's exit, width/2 back, is inside or on the level set
+                    back = 0.5 * width / math.sqrt((bx - ax) ** 2 + (by - ay) ** 2)
+                    ax += (w - back) * (bx - ax)
+                    ay += (w - back) * (by - ay)
                 bx, by, fbi, gb = px, py, f, f
                 if side == -1:
                     ga *= 0.5
@@ -275,13 +321,17 @@ def _touch_points(pa, pb, fa, fb, z, R, r, body_r, body_t, floor, touch, width, 
 
 
 def touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_radius, floor, bvh,
-                 touch=1e-6, width=1e-5, rounds=80, body=NO_BODY):
+                 touch=1e-6, width=1e-4, rounds=80, body=NO_BODY, inside_contacts=None):
     """Where the drop-cutter height crosses ``z`` between each inside point (height above z by
     ``f_inside > 0``) and outside point (``f_outside <= 0``): bracketed search that keeps the
     outside end, so the result never gouges; it stops when the height is within ``touch`` mm of z
-    or the bracket is ``width`` mm short (a vertical wall). ``(k, 2)``."""
+    or the bracket is ``width`` mm short (a vertical wall). ``inside_contacts (k, 3)``: the inside
+    points' contacts from their drop (NaN rows or None: dropped again). ``(k, 2)``."""
+    if inside_contacts is None:
+        inside_contacts = np.full((len(inside_xy), 3), np.nan)
     return _touch_points(np.ascontiguousarray(inside_xy, np.float64), np.ascontiguousarray(outside_xy, np.float64),
                          np.ascontiguousarray(f_inside, np.float64), np.ascontiguousarray(f_outside, np.float64),
+                         np.ascontiguousarray(inside_contacts, np.float64),
                          float(z), float(radius), float(corner_radius), np.ascontiguousarray(body[0], np.float64),
                          np.ascontiguousarray(body[1], np.float64), float(floor), float(touch), float(width),
                          int(rounds), *bvh)

@@ -19,6 +19,7 @@ import math
 from types import SimpleNamespace
 
 NEG = -1.0e300
+PLANE_BOUND_NZ = 1e-6  # facets at least this far from vertical bound their triangle's contact by their plane's
 BISECTIONS = 60
 
 
@@ -45,8 +46,9 @@ def build(jit):
         return q / math.sqrt(v) if v > 0.0 else 1.0e300
 
     @jit
-    def edge_drop(px, py, pz, qx, qy, qz, x, y, R, r):
-        """Highest tip z touching segment p-q (NEG if out of reach) and the contact parameter t."""
+    def edge_drop(px, py, pz, qx, qy, qz, x, y, R, r, best):
+        """Highest tip z touching segment p-q (NEG if out of reach or surely not above ``best``)
+        and the contact parameter t."""
         ex = qx - px
         ey = qy - py
         L = math.sqrt(ex * ex + ey * ey)
@@ -56,7 +58,7 @@ def build(jit):
         ey /= L
         uc = (x - px) * ex + (y - py) * ey
         d = abs((x - px) * ey - (y - py) * ex)
-        if d > R:
+        if d > R or max(pz, qz) - profile(d, R, r) <= best:
             return NEG, 0.0
         s = math.sqrt(max(0.0, R * R - d * d))
         wa = max(-s, -uc)
@@ -114,8 +116,11 @@ def build(jit):
 
     @jit
     def facet_drop(tris, t, x, y, R, r):
-        """Tip z of the facet contact of triangle t (NEG when it falls outside the triangle) and
-        the contact point: the cutter point whose normal is the facet's upward normal."""
+        """Tip z of the cutter at (x, y) resting on the plane of triangle t: the cutter point whose
+        normal is the plane's upward normal touches it; no point of the plane within the cutter's
+        reach holds the tip higher. Returns that z (NEG for a vertical plane), the contact point,
+        whether the contact falls inside the triangle (then it is the triangle's contact) and the
+        z component of the plane's unit normal."""
         ax = tris[t, 0]
         ay = tris[t, 1]
         az = tris[t, 2]
@@ -132,7 +137,7 @@ def build(jit):
             nx, ny, nz = -nx, -ny, -nz
         nn = math.sqrt(nx * nx + ny * ny + nz * nz)
         if nz <= 1e-12 * nn:
-            return NEG, 0.0, 0.0, 0.0
+            return NEG, 0.0, 0.0, 0.0, False, 0.0
         nx /= nn
         ny /= nn
         nz /= nn
@@ -142,16 +147,14 @@ def build(jit):
         if nh > 0.0:
             px -= (R - r) * nx / nh + r * nx
             py -= (R - r) * ny / nh + r * ny
-        # inside the triangle's projection (2-D barycentric, either winding)
+        # the plane's height at the contact, and whether it is inside the triangle's projection
         det = abx * acy - aby * acx
         wx = px - ax
         wy = py - ay
         b1 = (wx * acy - wy * acx) / det
         b2 = (abx * wy - aby * wx) / det
-        if b1 >= 0.0 and b2 >= 0.0 and b1 + b2 <= 1.0:
-            zp = az + b1 * abz + b2 * acz
-            return zp - r * (1.0 - nz), px, py, zp
-        return NEG, 0.0, 0.0, 0.0
+        zp = az + b1 * abz + b2 * acz
+        return zp - r * (1.0 - nz), px, py, zp, b1 >= 0.0 and b2 >= 0.0 and b1 + b2 <= 1.0, nz
 
     @jit
     def triangle_drop(tris, t, x, y, R, r, best):
@@ -161,15 +164,22 @@ def build(jit):
         zmax = max(tris[t, 2], tris[t, 5], tris[t, 8])
         if zmax <= best:
             return NEG, 0.0, 0.0, 0.0
-        if (min(tris[t, 0], tris[t, 3], tris[t, 6]) > x + R or max(tris[t, 0], tris[t, 3], tris[t, 6]) < x - R
-                or min(tris[t, 1], tris[t, 4], tris[t, 7]) > y + R or max(tris[t, 1], tris[t, 4], tris[t, 7]) < y - R):
+        dx = max(min(tris[t, 0], tris[t, 3], tris[t, 6]) - x, 0.0, x - max(tris[t, 0], tris[t, 3], tris[t, 6]))
+        dy = max(min(tris[t, 1], tris[t, 4], tris[t, 7]) - y, 0.0, y - max(tris[t, 1], tris[t, 4], tris[t, 7]))
+        d2 = dx * dx + dy * dy
+        if d2 > R * R or zmax - profile(math.sqrt(d2), R, r) <= best:
             return NEG, 0.0, 0.0, 0.0
         top = best
         cx = 0.0
         cy = 0.0
         cz = 0.0
-        z, px, py, pz = facet_drop(tris, t, x, y, R, r)
-        if z > top:
+        z, px, py, pz, inside, nz = facet_drop(tris, t, x, y, R, r)
+        if nz > PLANE_BOUND_NZ:  # not so steep that the plane's height is ill-conditioned
+            if z <= best:  # every point of the triangle lies on that plane: none does better
+                return NEG, 0.0, 0.0, 0.0
+            if inside:  # the plane's best point is the triangle's
+                return z, px, py, pz
+        elif inside and z > top:
             top = z
             cx, cy, cz = px, py, pz
         for k in range(3):
@@ -194,7 +204,7 @@ def build(jit):
             py = tris[t, 3 * k + 1]
             qx = tris[t, 3 * j]
             qy = tris[t, 3 * j + 1]
-            z, f = edge_drop(px, py, pz, qx, qy, qz, x, y, R, r)
+            z, f = edge_drop(px, py, pz, qx, qy, qz, x, y, R, r, top)
             if z > top:
                 top = z
                 cx = px + f * (qx - px)
@@ -205,13 +215,21 @@ def build(jit):
         return NEG, 0.0, 0.0, 0.0
 
     @jit
-    def mesh_drop(x, y, R, r, floor, node_lo, node_hi, node_child, node_range, tris, stack):
+    def mesh_drop(x, y, R, r, floor, sx, sy, sz, node_lo, node_hi, node_child, node_range, tris, stack):
         """Drop the cutter at (x, y) onto the mesh: the highest touching tip z (at least floor) and
-        the contact point (NaN when the floor wins)."""
+        the contact point (NaN when the floor wins). ``(sx, sy, sz)``: a point of the mesh (NaN for
+        none), usually a neighbour's contact: the tip height it gives is a first lower bound, so the
+        search prunes everything below it from the start."""
         best = floor
         cx = math.nan
         cy = math.nan
         cz = math.nan
+        rho = math.sqrt((sx - x) ** 2 + (sy - y) ** 2)
+        if rho <= R:  # False for NaN
+            z = sz - profile(rho, R, r)
+            if z > best:
+                best = z
+                cx, cy, cz = sx, sy, sz
         stack[0] = 0
         sp = 1
         while sp > 0:
@@ -221,7 +239,11 @@ def build(jit):
                 continue
             dx = max(node_lo[n, 0] - x, 0.0, x - node_hi[n, 0])
             dy = max(node_lo[n, 1] - y, 0.0, y - node_hi[n, 1])
-            if dx * dx + dy * dy > R * R:
+            d2 = dx * dx + dy * dy
+            if d2 > R * R:
+                continue
+            # no point of the box can lift the tip above its top less the cutter's rise there
+            if node_hi[n, 2] - profile(math.sqrt(d2), R, r) <= best:
                 continue
             left = node_child[n, 0]
             if left < 0:
@@ -243,19 +265,34 @@ def build(jit):
         return best, cx, cy, cz
 
     @jit
-    def tool_drop(x, y, R, r, body_r, body_t, floor, node_lo, node_hi, node_child, node_range, tris, stack):
+    def tool_drop(x, y, R, r, body_r, body_t, floor, sx, sy, sz, node_lo, node_hi, node_child, node_range, tris,
+                  stack):
         """As mesh_drop for the whole tool: the cutter, and above it the flat-bottomed cylinders of
         radius body_r[k] starting body_t[k] above the tip (shank, holder; those no wider than the
         cutter are covered by it)."""
-        best, cx, cy, cz = mesh_drop(x, y, R, r, floor, node_lo, node_hi, node_child, node_range, tris, stack)
+        best, cx, cy, cz = mesh_drop(x, y, R, r, floor, sx, sy, sz, node_lo, node_hi, node_child, node_range, tris,
+                                     stack)
         for k in range(body_r.shape[0]):
             if body_r[k] > R:
-                z, px, py, pz = mesh_drop(x, y, body_r[k], 0.0, best + body_t[k],
+                z, px, py, pz = mesh_drop(x, y, body_r[k], 0.0, best + body_t[k], sx, sy, sz,
                                           node_lo, node_hi, node_child, node_range, tris, stack)
                 if z - body_t[k] > best:
                     best = z - body_t[k]
                     cx, cy, cz = px, py, pz
         return best, cx, cy, cz
 
-    return SimpleNamespace(profile=profile, edge_drop=edge_drop, triangle_drop=triangle_drop, mesh_drop=mesh_drop,
+    @jit
+    def contact_reach(rise, R, r, body_r, body_t):
+        """How far from a mesh point the whole tool's axis can be while that point holds the tip
+        more than ``rise`` mm below it (-1 if nowhere): the tool's lower envelope (cutter profile,
+        then the flat bottoms of the wider body cylinders) stays under ``rise`` up to there."""
+        rho = -1.0
+        if rise > 0.0:
+            rho = R if rise >= r else R - r + math.sqrt(rise * (2.0 * r - rise))
+        for k in range(body_r.shape[0]):
+            if body_r[k] > R and body_t[k] < rise:
+                rho = max(rho, body_r[k])
+        return rho
+
+    return SimpleNamespace(profile=profile, contact_reach=contact_reach, edge_drop=edge_drop, triangle_drop=triangle_drop, mesh_drop=mesh_drop,
                            tool_drop=tool_drop)

@@ -10,7 +10,7 @@ from .verify import verify_toolpath
 
 SAFE_ABOVE = 5.0  # mm above the part's top for rapid moves of 3-axis paths
 TOUCH = 1e-6  # mm: a touch point's drop height is within this of its level ...
-WALL = 1e-5  # mm: ... or within this distance of where the height jumps past it (a vertical wall)
+WALL = 1e-4  # mm: ... or within this distance of where the height jumps past it (a vertical wall)
 TOUCH_ROUNDS = 80
 REPAIR_ROUNDS = 3
 
@@ -38,13 +38,38 @@ class ToolDrop:
 
     def __call__(self, xy: np.ndarray) -> np.ndarray:
         """Tip heights ``(k,)`` at ``xy (k, 2)``."""
-        return cpu.drop_cutter(xy, self.radius, self.corner, self.floor, self.bvh.arrays, self.body)[0]
+        return self.with_contacts(xy)[0]
 
-    def touch(self, inside_xy, outside_xy, f_inside, f_outside, z) -> np.ndarray:
+    def with_contacts(self, xy: np.ndarray):
+        """Tip heights ``(k,)`` at ``xy (k, 2)`` and the mesh points touched ``(k, 3)`` (NaN: none)."""
+        return cpu.drop_cutter(xy, self.radius, self.corner, self.floor, self.bvh.arrays, self.body)
+
+    def bounds(self, xy: np.ndarray, delta: float):
+        """Upper and lower bounds ``(k,), (k,)`` of the drop height anywhere within ``delta`` mm of
+        each of ``xy (k, 2)``.
+
+        Upper: the contact a point q offers the tool at p rises at most to what it offers a tool
+        whose profile is the original pushed out by delta (h(max(0, rho - delta))) at the centre, which
+        is the cutter with radius R + delta and the same corner radius, and body cylinders delta wider.
+        Lower: any mesh point within rho0 - delta of the centre lies within rho0 of p and holds
+        the tool tip at most h(rho0) below itself, so a flat cutter of radius rho0 - delta at the
+        centre, lowered by h(rho0), stays below the drop height (best of a few rho0)."""
+        R, r = self.radius, self.corner
+        bvh = self.bvh.arrays
+        upper = cpu.drop_cutter(xy, R + delta, r, self.floor, bvh, (self.body[0] + delta, self.body[1]))[0]
+        lower = np.full(len(xy), self.floor)
+        if delta < R:
+            flat = R - r  # the flat bottom's radius: no rise inside it
+            for rho0 in {max(flat, delta + 0.4 * (R - delta)), max(flat, delta + 0.75 * (R - delta))}:
+                rise = cpu.cut.profile(rho0, R, r)
+                lower = np.maximum(lower, cpu.drop_cutter(xy, rho0 - delta, 0.0, self.floor + rise, bvh)[0] - rise)
+        return upper, lower
+
+    def touch(self, inside_xy, outside_xy, f_inside, f_outside, z, inside_contacts=None) -> np.ndarray:
         """Points ``(k, 2)`` between inside (height > z) and outside (<= z) points where the height
         reaches z from below (see :func:`meshmill.kernels.cpu.touch_points`)."""
         return cpu.touch_points(inside_xy, outside_xy, f_inside, f_outside, z, self.radius, self.corner, self.floor,
-                                self.bvh.arrays, TOUCH, WALL, TOUCH_ROUNDS, self.body)
+                                self.bvh.arrays, TOUCH, WALL, TOUCH_ROUNDS, self.body, inside_contacts)
 
 
 def verified_path(passes, tool_index, tools, bvh, safe_z, tol, step):

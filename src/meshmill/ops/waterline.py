@@ -1,12 +1,14 @@
 """3-axis waterline (Z-level) finishing and roughing loops for flat, ball and bull-nose cutters.
 
 A tool at tip height z and position (x, y) gouges (or its shank or holder collides) exactly when
-the drop height of the whole tool there is above z, so the waterline loops at z are the level set ``drop(x, y) = z``. The drop-cutter heights
-are computed once on a grid over the part (``sample`` apart, like the fibres of other programs,
-widened by the tool's reach) and serve every level. Per level, marching squares (with the cell centre deciding the saddles) gives the
+the drop height of the whole tool there is above z, so the waterline loops at z are the level set
+``drop(x, y) = z``. The drop-cutter heights live on one grid over the part (``sample`` apart, like
+the fibres of other programs, widened by the tool's reach) shared by every level, and are computed
+only in the blocks of the grid where bounds of the drop height cannot tell inside from outside
+(:mod:`meshmill.ops.dropgrid`). Per level, marching squares (the cell centre deciding saddles) gives the
 crossings, which are moved onto the level set by a bracketed search with the exact drop-cutter:
 each loop point keeps ``drop <= z`` (no gouge) and its height is within 1e-6 mm of z, or (at a
-vertical wall, where the height jumps) it is within 1e-5 mm of the jump.
+vertical wall, where the height jumps) it is within 1e-4 mm of the jump.
 A point counts as inside when ``drop > z`` strictly, so a flat facet lying exactly at z gives no
 loop of its own. Loops are chained by grid-edge identity, closed, and run clockwise around material
 seen from +Z (climb milling with a clockwise spindle).
@@ -27,6 +29,7 @@ from ..geometry.slicing import z_levels
 from ..tolerances import GOUGE_TOL
 from ..toolpath.linking import simplify_polyline
 from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool, verified_path
+from .dropgrid import DropGrid
 from .verify import DEFAULT_STEP
 
 REFINE_ROUNDS = 8  # chord refinement rounds of a loop
@@ -118,17 +121,15 @@ def _edge_nodes(edge_ids, ny):
     return i, j, np.where(vertical, i, i + 1), np.where(vertical, j + 1, j)
 
 
-def _crossings(xs, ys, heights, z, edge_ids, drop: ToolDrop):
+def _crossings(grid: DropGrid, z, edge_ids, drop: ToolDrop):
     """The point on each grid edge where the drop height reaches z, never above it; ``(k, 2)``."""
-    i0, j0, i1, j1 = _edge_nodes(edge_ids, len(ys))
-    pa = np.column_stack([xs[i0], ys[j0]])
-    pb = np.column_stack([xs[i1], ys[j1]])
-    fa = heights[i0, j0] - z
-    fb = heights[i1, j1] - z
-    swap = fa <= 0  # a: the inside end (f > 0), b: the outside end (f <= 0)
-    pa[swap], pb[swap] = pb[swap].copy(), pa[swap].copy()
-    fa[swap], fb[swap] = fb[swap].copy(), fa[swap].copy()
-    return drop.touch(pa, pb, fa, fb, z)
+    i0, j0, i1, j1 = _edge_nodes(edge_ids, len(grid.ys))
+    swap = grid.heights[i0, j0] <= z  # a: the inside end (height > z), b: the outside end
+    ia, ja = np.where(swap, i1, i0), np.where(swap, j1, j0)
+    ib, jb = np.where(swap, i0, i1), np.where(swap, j0, j1)
+    pa = np.column_stack([grid.xs[ia], grid.ys[ja]])
+    pb = np.column_stack([grid.xs[ib], grid.ys[jb]])
+    return drop.touch(pa, pb, grid.heights[ia, ja] - z, grid.heights[ib, jb] - z, z, grid.contacts[ia, ja])
 
 
 def _chord_intrusion(loop, z, reach, drop: ToolDrop, pairs=False):
@@ -140,10 +141,12 @@ def _chord_intrusion(loop, z, reach, drop: ToolDrop, pairs=False):
     come back as infinitely deep. With ``pairs``, ``loop (2c, 2)`` holds c separate chords."""
     a, b = (loop[0::2], loop[1::2]) if pairs else (loop[:-1], loop[1:])
     probe = a[:, None, :] + PROBES[None, :, None] * (b - a)[:, None, :]
-    fp = (drop(probe.reshape(-1, 2)) - z).reshape(len(a), -1)
+    zp, cp = drop.with_contacts(probe.reshape(-1, 2))
+    fp = (zp - z).reshape(len(a), -1)
     worst = np.argmax(fp, axis=1)
     rows = np.arange(len(a))
     f, mid = fp[rows, worst], probe[rows, worst]
+    contact = cp.reshape(len(a), -1, 3)[rows, worst]
     depth = np.maximum(f, 0.0)
     touch = np.full_like(mid, np.nan)
     idx = np.nonzero(f > 0.0)[0]
@@ -166,7 +169,7 @@ def _chord_intrusion(loop, z, reach, drop: ToolDrop, pairs=False):
         depth[idx[~ok]] = np.inf
         j = idx[ok]
         if len(j):
-            touch[j] = drop.touch(mid[j], outer[ok], f[j], fo[ok], z)
+            touch[j] = drop.touch(mid[j], outer[ok], f[j], fo[ok], z, contact[j])
             depth[j] = np.minimum(f[j], np.linalg.norm(touch[j] - mid[j], axis=1))
     return depth, touch
 
@@ -226,22 +229,24 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     t = time.perf_counter()
     bvh = build_bvh(mesh.vertices, mesh.faces)
     seconds["index"] = time.perf_counter() - t
-    say("drop-cutter grid")
+    say("drop-cutter bounds")
     t = time.perf_counter()
     xs = lo[0] + (hi[0] - lo[0]) * np.arange(nx) / (nx - 1)
     ys = lo[1] + (hi[1] - lo[1]) * np.arange(ny) / (ny - 1)
-    gx, gy = np.meshgrid(xs, ys, indexing="ij")
     drop = ToolDrop(tool, bvh, float(bounds[0, 2]) - 1.0)
-    heights = drop(np.column_stack([gx.ravel(), gy.ravel()])).reshape(nx, ny)
+    grid = DropGrid(drop, xs, ys)
     cx = 0.5 * (xs[:-1] + xs[1:])
     cy = 0.5 * (ys[:-1] + ys[1:])
-    seconds["grid"] = time.perf_counter() - t
+    seconds["bounds"] = time.perf_counter() - t
+    seconds["grid"] = 0.0
     say("levels")
-    t = time.perf_counter()
+    t_levels = time.perf_counter()
     loops = []
     centre_cache = {}
     for z in levels:
-        inside = heights > z
+        t = time.perf_counter()
+        inside = grid.inside(z)
+        seconds["grid"] += time.perf_counter() - t
         mixed = (inside[:-1, :-1] != inside[1:, :-1]) | (inside[:-1, :-1] != inside[:-1, 1:]) | \
             (inside[:-1, :-1] != inside[1:, 1:])
         saddle = mixed & (inside[:-1, :-1] == inside[1:, 1:]) & (inside[1:, :-1] == inside[:-1, 1:]) & \
@@ -260,7 +265,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
             continue
         edge_loops = _chain_loops(segs)
         all_edges = np.concatenate(edge_loops)
-        pts = _crossings(xs, ys, heights, z, all_edges, drop)
+        pts = _crossings(grid, z, all_edges, drop)
         start = 0
         for el in edge_loops:
             p = pts[start:start + len(el)]
@@ -271,7 +276,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
             loop = simplify_polyline(np.vstack([loop, loop[:1]]), 0.25 * params.tol)
             for piece in _refine_loop(loop[:, :2], z, 0.5 * params.tol, spacing, drop):
                 loops.append((float(z), np.column_stack([piece, np.full(len(piece), z)])))
-    seconds["levels"] = time.perf_counter() - t
+    seconds["levels"] = time.perf_counter() - t_levels - seconds["grid"]
     safe_z = float(bounds[1, 2] + SAFE_ABOVE)
     say("verify")
     t = time.perf_counter()
@@ -291,6 +296,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
         "passes": len(loops),
         "closed_loops": int(sum(np.array_equal(p[0], p[-1]) for _, p in loops)),
         "grid": [nx, ny],
+        "grid_points_dropped": grid.dropped,
         "cl_points": int(sum(len(p) for _, p in loops)),
         "moves": int(len(tp)),
         "cutting_length": tp.cutting_length(),
