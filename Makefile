@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DATA   := src/meshmill/data
 
-.PHONY: venv demo test bench clean
+.PHONY: venv demo test bench bench-3axis clean
 
 venv: $(STAMP)
 
@@ -24,6 +24,9 @@ test: venv
 
 bench: venv
 	$(BIN)/python bench/finish_tableau7.py
+
+bench-3axis: venv
+	$(BIN)/python bench/three_axis_vs_ocl.py
 
 clean:
 	rm -rf $(VENV) demo-out bench/out .pytest_cache

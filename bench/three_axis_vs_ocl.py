@@ -4,11 +4,15 @@ Drop-cutter: CL points per second on a grid over each part (default 1000 x 1000)
 (``meshmill.kernels.cpu.drop_cutter``) against OpenCAMLib's ``BatchDropCutter``, for flat, ball and
 bull-nose cutters, with the largest height difference between the two.
 
-Waterline: seconds per Z level, ours (``meshmill.ops.waterline.waterline``, which computes one
-drop-cutter grid for all levels, refines and verifies) against ``Waterline`` and
-``AdaptiveWaterline`` at sampling = span/500, for one level and for all levels of a step-down.
+Waterline: seconds per Z level, ours (``meshmill.ops.waterline.waterline``, the whole operation:
+bounds, grid, loops, refinement and the verification of the path) against ``Waterline`` and
+``AdaptiveWaterline`` at sampling = span/500, over 10 levels and for a single level; the loops'
+quality (how deep the ball enters the part at the points and along the chords, exact distances);
+and the loop counts at levels lying exactly on flat facets.
 
-    .venv/bin/python bench/three_axis_vs_ocl.py [--grid 1000] [--parts pycam-textbox,beet_mm,mount_rush]
+    .venv/bin/python bench/three_axis_vs_ocl.py [--grid 1000] [--parts ...] [--wl-parts ...] [--flat part:z:z]
+
+(an empty ``--parts`` / ``--wl-parts`` / ``--flat`` skips that part of the run)
 """
 from __future__ import annotations
 
@@ -89,43 +93,98 @@ def bench_waterline(part, levels):
     step = float((hi[2] - lo[2]) / (levels + 1))
     zs = hi[2] - step * np.arange(1, levels + 1)
     tools = [tool_from_entry(dict(name="B6", type="ball", diameter=6, flute_length=30, gauge_length=30), 1, "b")]
-    waterline(mesh, tools, "B6", WaterlineParams(step_down=float(hi[2] - lo[2]) * 0.6, sample=sampling))  # warm
+    one = WaterlineParams(step_down=float(hi[2] - lo[2]) * 0.6, sample=sampling)  # a single level, at z_one
+    z_one = float(hi[2] - one.step_down)
+    waterline(mesh, tools, "B6", one)  # compiled (or loaded from numba's cache) before timing
     t = time.perf_counter()
-    _, one, _ = waterline(mesh, tools, "B6", WaterlineParams(step_down=float(hi[2] - zs[0]), sample=sampling))
+    waterline(mesh, tools, "B6", one)
     t_one = time.perf_counter() - t
     t = time.perf_counter()
     _, s_all, passes = waterline(mesh, tools, "B6", WaterlineParams(step_down=step, sample=sampling))
     t_all = time.perf_counter() - t
     res = {}
     cutter = ocl.BallCutter(6.0, 30.0)  # kept alive: OpenCAMLib holds a bare pointer to it
+
+    def run_ocl(cls, z):
+        wl = cls()
+        wl.setSTL(surf)
+        wl.setCutter(cutter)
+        wl.setZ(float(z))
+        wl.setSampling(sampling)
+        if cls is ocl.AdaptiveWaterline:
+            wl.setMinSampling(sampling / 10)
+        wl.run()
+        return wl.getLoops()
+
+    bvh = build_bvh(mesh.vertices, mesh.faces)
+
+    def quality(loops):
+        """For the points of ``loops [(z, (k, 2+))]`` (tool tips at level z, each loop closed): the deepest
+        the ball enters the part at a point and along the chords between points (sampled at eighths;
+        mm, exact distance from its centre to the mesh), and the share of points where it stays more
+        than 1 µm away (the loop does not touch the part there)."""
+        def centres(z, xy):
+            return np.column_stack([xy, np.full(len(xy), z + 3.0)])
+
+        pts = np.vstack([centres(z, p[:, :2]) for z, p in loops])
+        frac = np.arange(1, 8) / 8.0
+        chords = []
+        for z, p in loops:
+            a = p[:, :2]
+            b = np.roll(a, -1, axis=0)
+            chords.append(centres(z, (a[:, None, :] + frac[None, :, None] * (b - a)[:, None, :]).reshape(-1, 2)))
+        d = cpu.mesh_distances(pts, bvh.arrays)
+        dc = cpu.mesh_distances(np.vstack(chords), bvh.arrays)
+        return dict(points=len(d), max_gouge=float(max(0.0, 3.0 - d.min())),
+                    max_chord_gouge=float(max(0.0, 3.0 - dc.min())), not_touching=float(np.mean(d > 3.0 + 1e-3)))
+
     for name, cls in (("Waterline", ocl.Waterline), ("AdaptiveWaterline", ocl.AdaptiveWaterline)):
         t = time.perf_counter()
-        loops = 0
-        tiny = 0
-        for z in zs:
-            wl = cls()
-            wl.setSTL(surf)
-            wl.setCutter(cutter)
-            wl.setZ(float(z))
-            wl.setSampling(sampling)
-            if name == "AdaptiveWaterline":
-                wl.setMinSampling(sampling / 10)
-            wl.run()
-            got = wl.getLoops()
-            loops += len(got)
-            tiny += sum(len(g) < 5 for g in got)
-        res[name] = dict(seconds_per_level=(time.perf_counter() - t) / len(zs), loops=loops, loops_under_5_points=tiny)
-    row = dict(part=part, sampling=sampling, levels=int(s_all["levels"]), ours_one_level_s=t_one,
+        got = [run_ocl(cls, z) for z in zs]
+        seconds = (time.perf_counter() - t) / len(zs)
+        loops = [g for level in got for g in level]
+        pts = [(z, np.array([[q.x, q.y] for q in g])) for z, level in zip(zs, got) for g in level if len(g)]
+        res[name] = dict(seconds_per_level=seconds, loops=len(loops), loops_under_5_points=sum(len(g) < 5 for g in loops),
+                         **quality(pts))
+    t = time.perf_counter()
+    run_ocl(ocl.Waterline, z_one)
+    res["Waterline"]["one_level_s"] = time.perf_counter() - t
+    row = dict(part=part, sampling=sampling, levels=int(s_all["levels"]), z_one=z_one, ours_one_level_s=t_one,
+               ours_quality=quality(passes),
                ours_per_level_s=t_all / s_all["levels"], ours_passes=s_all["passes"],
                ours_closed_loops=s_all["closed_loops"], ours_verify_ok=s_all["verify"]["ok"],
-               ours_grid_s=s_all["seconds"]["grid"], ocl=res)
+               ours_seconds=s_all["seconds"], grid=s_all["grid"], grid_points_dropped=s_all["grid_points_dropped"],
+               ocl=res)
     row["ratio_waterline"] = res["Waterline"]["seconds_per_level"] / row["ours_per_level_s"]
     row["ratio_adaptive"] = res["AdaptiveWaterline"]["seconds_per_level"] / row["ours_per_level_s"]
-    row["ratio_one_level"] = res["Waterline"]["seconds_per_level"] / t_one
+    row["ratio_one_level"] = res["Waterline"]["one_level_s"] / t_one
     print(f"  waterline {part:14s}: ours {row['ours_per_level_s']:.3f} s/level ({t_one:.3f} s for one), "
-          f"Waterline {res['Waterline']['seconds_per_level']:.3f}, Adaptive "
+          f"Waterline {res['Waterline']['seconds_per_level']:.3f} ({res['Waterline']['one_level_s']:.3f} for one), Adaptive "
           f"{res['AdaptiveWaterline']['seconds_per_level']:.3f}", file=sys.stderr)
     return row
+
+
+def bench_flat_levels(part, levels):
+    """Loop counts at levels that lie exactly on flat facets of the part: ours and ``Waterline``'s."""
+    path = os.path.join(PARTS, part + ".stl")
+    mesh = load_mesh(path)
+    surf = ocl_surface(path)
+    tools = [tool_from_entry(dict(name="B6", type="ball", diameter=6, flute_length=30, gauge_length=30), 1, "b")]
+    sampling = float((mesh.bounds[1, :2] - mesh.bounds[0, :2]).max() / 500)
+    cutter = ocl.BallCutter(6.0, 30.0)
+    rows = []
+    for z in levels:
+        wl = ocl.Waterline()
+        wl.setSTL(surf)
+        wl.setCutter(cutter)
+        wl.setZ(z)
+        wl.setSampling(sampling)
+        wl.run()
+        theirs = wl.getLoops()
+        _, _, passes = waterline(mesh, tools, "B6", WaterlineParams(step_down=float(mesh.bounds[1, 2] - z), sample=sampling))
+        rows.append(dict(part=part, z=z, ours=sum(1 for zz, _ in passes if zz == z), ocl=len(theirs),
+                         ocl_under_5_points=sum(len(g) < 5 for g in theirs)))
+    return rows
 
 
 def main():
@@ -134,13 +193,16 @@ def main():
     ap.add_argument("--parts", default="pycam-textbox,beet_mm,mount_rush")
     ap.add_argument("--wl-parts", default="pycam-textbox,beet_mm,mount_rush,sphere_on_plate")
     ap.add_argument("--levels", type=int, default=10)
+    ap.add_argument("--flat", default="pycam-textbox:-5:-2.05", help="part:z:z... levels on flat facets")
     ap.add_argument("--out", default=os.path.join("bench", "out", "three_axis_vs_ocl.json"))
     a = ap.parse_args()
     threads = numba.get_num_threads()
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, numba threads {threads}, "
           f"OpenCAMLib threads {ocl.max_threads()}", file=sys.stderr)
-    drop = [r for p in a.parts.split(",") for r in bench_drop(p, a.grid)]
-    wl = [bench_waterline(p, a.levels) for p in a.wl_parts.split(",")]
+    drop = [r for p in a.parts.split(",") if p for r in bench_drop(p, a.grid)]
+    wl = [bench_waterline(p, a.levels) for p in a.wl_parts.split(",") if p]
+    part, *zs = a.flat.split(":") if a.flat else [None]
+    flat = bench_flat_levels(part, [float(z) for z in zs]) if part else []
     print(f"\n### Drop-cutter, {a.grid} x {a.grid} grid over each part, diameter 6 mm cutters\n")
     print("| part | cutter | ours CL pts/s | OpenCAMLib pts/s | ratio | max abs dz (mm) |")
     print("|---|---|---:|---:|---:|---:|")
@@ -148,23 +210,40 @@ def main():
         print(f"| {r['part']} | {r['cutter']} | {r['ours_pts_per_s']:,.0f} | {r['ocl_pts_per_s']:,.0f} | "
               f"{r['ratio']:.1f}x | {r['max_abs_diff']:.1e} |")
     print(f"\n### Waterline, ball 6 mm, sampling span/500, {a.levels} levels\n")
-    print("| part | ours s/level (all levels) | ours s (one level) | Waterline s/level | AdaptiveWaterline s/level "
-          "| ratio vs Waterline (all / one) | ratio vs Adaptive | our passes (closed) | OCL loops (< 5 points) |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("| part | sampling (mm) | ours s/level | Waterline s/level | AdaptiveWaterline s/level | ratio vs Waterline "
+          "| ratio vs Adaptive | one level: ours s | one level: Waterline s | ratio | our passes (closed) "
+          "| OCL loops (< 5 points) |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in wl:
         o = r["ocl"]
-        print(f"| {r['part']} | {r['ours_per_level_s']:.3f} | {r['ours_one_level_s']:.3f} | "
+        print(f"| {r['part']} | {r['sampling']:.3f} | {r['ours_per_level_s']:.3f} | "
               f"{o['Waterline']['seconds_per_level']:.3f} | {o['AdaptiveWaterline']['seconds_per_level']:.3f} | "
-              f"{r['ratio_waterline']:.1f}x / {r['ratio_one_level']:.1f}x | {r['ratio_adaptive']:.1f}x | "
+              f"{r['ratio_waterline']:.1f}x | {r['ratio_adaptive']:.1f}x | {r['ours_one_level_s']:.3f} | "
+              f"{o['Waterline']['one_level_s']:.3f} | {r['ratio_one_level']:.1f}x | "
               f"{r['ours_passes']} ({r['ours_closed_loops']}) | {o['Waterline']['loops']} "
               f"({o['Waterline']['loops_under_5_points']}) |")
+    print("\nLoop quality, all levels: how deep the ball enters the part at a loop point (exact distance from its "
+          "centre to the mesh) and along the chords between them, and the share of points where it stays more "
+          "than 1 µm away:\n")
+    print("| part | ours: points | gouge at points / chords (mm) | not touching | Waterline: points "
+          "| gouge at points / chords (mm) | not touching | Adaptive: points | gouge at points / chords (mm) | not touching |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for r in wl:
+        cells = [r["ours_quality"], r["ocl"]["Waterline"], r["ocl"]["AdaptiveWaterline"]]
+        print(f"| {r['part']} | " + " | ".join(f"{c['points']} | {c['max_gouge']:.1e} / {c['max_chord_gouge']:.1e} | {100 * c['not_touching']:.1f}%"
+                                             for c in cells) + " |")
+    print("\nLevels exactly on flat facets (the tool at z rests on them):\n")
+    print("| part | z (mm) | our loops | Waterline loops (< 5 points) |")
+    print("|---|---:|---:|---:|")
+    for r in flat:
+        print(f"| {r['part']} | {r['z']:g} | {r['ours']} | {r['ocl']} ({r['ocl_under_5_points']}) |")
     os.makedirs(os.path.dirname(a.out), exist_ok=True)
     with open(a.out, "w") as fh:
         json.dump(dict(date=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                        machine=dict(cpus=os.cpu_count(), numba_threads=threads, ocl_threads=ocl.max_threads(),
                                     python=platform.python_version(), numba=numba.__version__,
                                     numpy=np.__version__, opencamlib=getattr(ocl, "version", lambda: "?")()),
-                       drop=drop, waterline=wl), fh, indent=2)
+                       drop=drop, waterline=wl, flat_levels=flat), fh, indent=2)
     print(f"\nJSON written to {a.out}")
 
 
