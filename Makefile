@@ -17,7 +17,9 @@ $(STAMP): pyproject.toml
 demo: venv
 	$(BIN)/meshmill finish $(DATA)/vase.stl --tools $(DATA)/tools.toml --step-down 1 --out demo-out
 	$(BIN)/meshmill verify $(DATA)/vase.stl demo-out/toolpath.cl --tools $(DATA)/tools.toml --out demo-out/verify.json
-	@echo "demo results in demo-out/ (toolpath.cl, summary.json, verify.json)"
+	$(BIN)/meshmill waterline $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool B4 --step-down 2 --out demo-out/waterline
+	$(BIN)/meshmill raster $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool R6 --scallop 0.01 --angle 45 --out demo-out/raster
+	@echo "demo results in demo-out/: 5-axis finishing (toolpath.cl, summary.json, verify.json), 3-axis waterline/ and raster/"
 
 test: venv
 	$(BIN)/python -m pytest

@@ -221,7 +221,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     hi = bounds[1, :2] + reach + 2 * spacing
     nx = int(math.ceil((hi[0] - lo[0]) / spacing)) + 1
     ny = int(math.ceil((hi[1] - lo[1]) / spacing)) + 1
-    if nx * ny > 50_000_000:
+    if nx * ny > 20_000_000:  # heights and contacts: 32 bytes a node
         raise InputError(f"{nx} x {ny} grid points: use a larger --sample")
     seconds = {}
     t_all = time.perf_counter()
