@@ -71,3 +71,28 @@ def test_tier_sizes():
     assert tier_sizes(0.5, 3.0) == [4]
     assert tier_sizes(0.1, 3.0) == [16, 8, 4]
     assert tier_sizes(1.0, 3.0) == []
+
+
+@pytest.mark.parametrize("kind", ["flat", "ball", "bull"])
+def test_touch_points_converge_on_long_brackets(kind):
+    # levels just under flat tops (the inside end barely above z, the outside end far below) and
+    # brackets up to 4 mm long: the search must still end on the outside within 1e-4 mm of the level set
+    m = _part()
+    tool = tool_from_entry(TOOLS[kind], 1, "t")
+    drop = ToolDrop(tool, build_bvh(m.vertices, m.faces), -1.0)
+    rng = np.random.default_rng(5)
+    for length in (0.5, 4.0):
+        for z in (18 - 1e-9, 10 - 1e-7, 6.0):
+            a = rng.uniform([-18, -18], [30, 18], (4000, 2))
+            ang = rng.uniform(0, 2 * np.pi, len(a))
+            u = np.column_stack([np.cos(ang), np.sin(ang)])
+            b = a + length * u
+            fa, fb = drop(a) - z, drop(b) - z
+            ok = (fa > 0) & (fb <= 0)
+            a, b, u, fa, fb = a[ok], b[ok], u[ok], fa[ok], fb[ok]
+            out = drop.touch(a, b, fa, fb, z)
+            fo = drop(out) - z
+            assert np.all(fo <= 0.0)
+            back = np.linspace(0.0, 1.0001e-4, 40)
+            fv = drop((out[:, None] - back[None, :, None] * u[:, None]).reshape(-1, 2)).reshape(len(a), -1) - z
+            assert np.all((fo >= -1e-6) | (fv > 0).any(axis=1)), (length, z)

@@ -268,11 +268,19 @@ def _touch_points(pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, wid
             if (-touch <= fbi < 0.0) or width2 <= width * width:
                 break
             # Illinois (regula falsi halving the weight of an end that stays): superlinear where the
-            # height is smooth; every third step a bisection if the bracket has not halved since, so
+            # height is smooth; every third round a bisection if the bracket has not halved since, so
             # it still halves where the height jumps
-            w = min(0.98, max(0.02, ga / (ga - gb)))
+            w = ga / (ga - gb)
+            if not (0.02 < w < 0.98):  # one end far steeper (a jump): regula falsi would creep
+                w = 0.5
             contact = False
-            if it % 2 == 0:
+            halve = False
+            if it % 3 == 0:
+                halve = it > 0 and width2 > 0.25 * check  # at least one halving every three rounds
+                check = width2
+            if halve:
+                w = 0.5
+            elif it % 2 == 0:
                 # contact step: the inside end's contact q alone keeps the tip above z inside a
                 # disk around q, so the level set lies at or past where the segment leaves that
                 # disk; try just past it. Exact in one step at a wall (the contact stays put).
@@ -291,10 +299,6 @@ def _touch_points(pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, wid
                     if t < 0.98:
                         w = t
                         contact = True
-            if not contact and it % 3 == 0:
-                if it > 0 and width2 > 0.25 * check:
-                    w = 0.5
-                check = width2
             px = ax + w * (bx - ax)
             py = ay + w * (by - ay)
             f, sx, sy, sz = _drop(px, py, R, r, body_r, body_t, floor, sx, sy, sz,
@@ -325,7 +329,7 @@ def touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_r
     """Where the drop-cutter height crosses ``z`` between each inside point (height above z by
     ``f_inside > 0``) and outside point (``f_outside <= 0``): bracketed search that keeps the
     outside end, so the result never gouges; it stops when the height is within ``touch`` mm of z
-    or the bracket is ``width`` mm short (a vertical wall). ``inside_contacts (k, 3)``: the inside
+    or the bracket is ``width`` mm short (always so at a vertical wall, where the height jumps). ``inside_contacts (k, 3)``: the inside
     points' contacts from their drop (NaN rows or None: dropped again). ``(k, 2)``."""
     if inside_contacts is None:
         inside_contacts = np.full((len(inside_xy), 3), np.nan)

@@ -10,7 +10,7 @@ from .verify import verify_toolpath
 
 SAFE_ABOVE = 5.0  # mm above the part's top for rapid moves of 3-axis paths
 TOUCH = 1e-6  # mm: a touch point's drop height is within this of its level ...
-WALL = 1e-4  # mm: ... or within this distance of where the height jumps past it (a vertical wall)
+WALL = 1e-4  # mm: ... or the level set is within this distance of it (so always at a vertical wall)
 TOUCH_ROUNDS = 80
 REPAIR_ROUNDS = 3
 

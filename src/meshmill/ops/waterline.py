@@ -7,8 +7,9 @@ the fibres of other programs, widened by the tool's reach) shared by every level
 only in the blocks of the grid where bounds of the drop height cannot tell inside from outside
 (:mod:`meshmill.ops.dropgrid`). Per level, marching squares (the cell centre deciding saddles) gives the
 crossings, which are moved onto the level set by a bracketed search with the exact drop-cutter:
-each loop point keeps ``drop <= z`` (no gouge) and its height is within 1e-6 mm of z, or (at a
-vertical wall, where the height jumps) it is within 1e-4 mm of the jump.
+each loop point keeps ``drop <= z`` (no gouge) and either its height is within 1e-6 mm of z or the
+level set lies within 1e-4 mm of it toward the material (always so at a vertical wall, where the
+height jumps).
 A point counts as inside when ``drop > z`` strictly, so a flat facet lying exactly at z gives no
 loop of its own. Loops are chained by grid-edge identity, closed, and run clockwise around material
 seen from +Z (climb milling with a clockwise spindle).
