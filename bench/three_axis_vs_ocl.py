@@ -51,6 +51,22 @@ def ocl_surface(path):
     return s
 
 
+B6 = tool_from_entry(dict(name="B6", type="ball", diameter=6, flute_length=30, gauge_length=30), 1, "bench")
+
+
+def ocl_loops(cls, surf, cutter, z, sampling):
+    """OpenCAMLib's ``Waterline`` or ``AdaptiveWaterline`` (min sampling a tenth) loops at z."""
+    wl = cls()
+    wl.setSTL(surf)
+    wl.setCutter(cutter)
+    wl.setZ(float(z))
+    wl.setSampling(sampling)
+    if cls is ocl.AdaptiveWaterline:
+        wl.setMinSampling(sampling / 10)
+    wl.run()
+    return wl.getLoops()
+
+
 def bench_drop(part, n):
     path = os.path.join(PARTS, part + ".stl")
     mesh = load_mesh(path)
@@ -92,7 +108,7 @@ def bench_waterline(part, levels):
     sampling = float((hi[:2] - lo[:2]).max() / 500)
     step = float((hi[2] - lo[2]) / (levels + 1))
     zs = hi[2] - step * np.arange(1, levels + 1)
-    tools = [tool_from_entry(dict(name="B6", type="ball", diameter=6, flute_length=30, gauge_length=30), 1, "b")]
+    tools = [B6]
     one = WaterlineParams(step_down=float(hi[2] - lo[2]) * 0.6, sample=sampling)  # a single level, at z_one
     z_one = float(hi[2] - one.step_down)
     waterline(mesh, tools, "B6", one)  # compiled (or loaded from numba's cache) before timing
@@ -106,15 +122,7 @@ def bench_waterline(part, levels):
     cutter = ocl.BallCutter(6.0, 30.0)  # kept alive: OpenCAMLib holds a bare pointer to it
 
     def run_ocl(cls, z):
-        wl = cls()
-        wl.setSTL(surf)
-        wl.setCutter(cutter)
-        wl.setZ(float(z))
-        wl.setSampling(sampling)
-        if cls is ocl.AdaptiveWaterline:
-            wl.setMinSampling(sampling / 10)
-        wl.run()
-        return wl.getLoops()
+        return ocl_loops(cls, surf, cutter, z, sampling)
 
     bvh = build_bvh(mesh.vertices, mesh.faces)
 
@@ -169,19 +177,12 @@ def bench_flat_levels(part, levels):
     path = os.path.join(PARTS, part + ".stl")
     mesh = load_mesh(path)
     surf = ocl_surface(path)
-    tools = [tool_from_entry(dict(name="B6", type="ball", diameter=6, flute_length=30, gauge_length=30), 1, "b")]
     sampling = float((mesh.bounds[1, :2] - mesh.bounds[0, :2]).max() / 500)
-    cutter = ocl.BallCutter(6.0, 30.0)
+    cutter = ocl.BallCutter(6.0, 30.0)  # kept alive: OpenCAMLib holds a bare pointer to it
     rows = []
     for z in levels:
-        wl = ocl.Waterline()
-        wl.setSTL(surf)
-        wl.setCutter(cutter)
-        wl.setZ(z)
-        wl.setSampling(sampling)
-        wl.run()
-        theirs = wl.getLoops()
-        _, _, passes = waterline(mesh, tools, "B6", WaterlineParams(step_down=float(mesh.bounds[1, 2] - z), sample=sampling))
+        theirs = ocl_loops(ocl.Waterline, surf, cutter, z, sampling)
+        _, _, passes = waterline(mesh, [B6], "B6", WaterlineParams(step_down=float(mesh.bounds[1, 2] - z), sample=sampling))
         rows.append(dict(part=part, z=z, ours=sum(1 for zz, _ in passes if zz == z), ocl=len(theirs),
                          ocl_under_5_points=sum(len(g) < 5 for g in theirs)))
     return rows

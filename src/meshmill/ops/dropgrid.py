@@ -57,7 +57,6 @@ class DropGrid:
         shapes = [(-(-(nx - 1) // k), -(-(ny - 1) // k)) for k in self.sizes]
         self.upper = [np.full(sh, np.inf) for sh in shapes]  # own bounds (inf / -inf: not computed)
         self.lower = [np.full(sh, -np.inf) for sh in shapes]
-        self.bounded = [np.zeros(sh, bool) for sh in shapes]
         self.done = np.zeros(shapes[-1], bool)  # finest blocks whose nodes are all dropped
         self._bound(0, np.ones(shapes[0], bool))
 
@@ -71,7 +70,6 @@ class DropGrid:
         cy = 0.5 * (ys[bj * k] + ys[np.minimum(bj * k + k, ny - 1)])
         reach = 0.5 * math.hypot(k * (xs[1] - xs[0]), k * (ys[1] - ys[0])) * (1 + 1e-9)
         self.upper[tier][bi, bj], self.lower[tier][bi, bj] = self.drop.bounds(np.column_stack([cx, cy]), reach)
-        self.bounded[tier][bi, bj] = True
 
     @property
     def dropped(self) -> int:
@@ -90,17 +88,22 @@ class DropGrid:
             if t + 1 == len(self.sizes):
                 break
             shape = self.upper[t + 1].shape
-            children = np.repeat(np.repeat(unsure, 2, 0), 2, 1)[:shape[0], :shape[1]]
-            if (children & ~self.bounded[t + 1]).any():
-                self._bound(t + 1, children & ~self.bounded[t + 1])
-            up = np.minimum(self.upper[t + 1], np.repeat(np.repeat(up, 2, 0), 2, 1)[:shape[0], :shape[1]])
-            lo = np.maximum(self.lower[t + 1], np.repeat(np.repeat(lo, 2, 0), 2, 1)[:shape[0], :shape[1]])
+            new = _to_children(unsure, shape) & np.isinf(self.upper[t + 1])  # bounds not computed yet
+            if new.any():
+                self._bound(t + 1, new)
+            up = np.minimum(self.upper[t + 1], _to_children(up, shape))
+            lo = np.maximum(self.lower[t + 1], _to_children(lo, shape))
         unsure &= ~self.done
         i, j = _nodes_to_drop(unsure, self.heights, self.sizes[-1])
         if len(i):
             self.heights[i, j], self.contacts[i, j] = self.drop.with_contacts(np.column_stack([self.xs[i], self.ys[j]]))
         self.done |= unsure
         return _inside(self.heights, lo, z + eps, z, self.sizes[-1])
+
+
+def _to_children(a, shape):
+    """Per-block values of a tier spread to the blocks of the next tier, ``shape``."""
+    return np.repeat(np.repeat(a, 2, 0), 2, 1)[:shape[0], :shape[1]]
 
 
 @numba.njit(cache=True)
