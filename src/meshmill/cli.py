@@ -168,6 +168,79 @@ def cmd_verify(args):
     return 0 if report["ok"] else 1
 
 
+def cmd_dexel(args):
+    from .ops.simulate import dexel_model
+    from .simulation.dexel import export_td, save_npz
+
+    mesh = _load_part(args, args.part)
+    model, summary = dexel_model(mesh, args.step, args.index, args.partitions, args.init, args.minibatch,
+                                 args.kmax, progress=_progress(args))
+    model.name = os.path.basename(args.part)
+    out = args.out or os.path.splitext(os.path.basename(args.part))[0] + ".dexel.npz"
+    folder = os.path.dirname(os.path.abspath(out))
+    _out_dir(folder)
+    if out.lower().endswith(".td"):
+        export_td(out, model)
+    else:
+        if not out.lower().endswith(".npz"):
+            out += ".npz"
+        save_npz(out, model)
+    summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
+    summary["file"] = os.path.abspath(out)
+    _write_json(os.path.join(folder, "summary.json"), summary)
+    d = summary["dexels"]
+    _say(args, f"dexels X {d['X']:,}, Y {d['Y']:,}, Z {d['Z']:,}; volume {summary['volume_mm3']:.3f} mm^3 "
+               f"(mesh {_mesh_volume(mesh):.3f}); cast in {model.info['cast_seconds']:.2f} s with {model.info['index']}")
+    _say(args, f"wrote {out} and {os.path.join(folder, 'summary.json')}")
+    return 0
+
+
+def _mesh_volume(mesh):
+    import numpy as np
+
+    tri = mesh.vertices[mesh.faces]
+    return float(np.einsum("ij,ij->", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6.0)
+
+
+def cmd_simulate(args):
+    from .ops.simulate import read_toolpath, simulate
+    from .tools.table import load_tools
+
+    if not (math.isfinite(args.step) and args.step > 0):
+        raise InputError(f"--step must be a positive number of mm, got {args.step}")
+    tools = load_tools(args.tools)
+    design = _load_part(args, args.design)
+    stock = "box"
+    if args.stock not in (None, "box"):
+        stock = _load_part(args, args.stock)
+        if not stock.closed:
+            raise InputError(f"{args.stock}: the stock mesh is open (not watertight)")
+    tp, warnings = read_toolpath(args.toolpath, tools, args.tool)
+    for w in warnings:
+        _say(args, f"warning: {w}")
+    out = _out_dir(args.out)
+    deviation, summary, _, (verts, faces) = simulate(
+        design, tp, tools, args.step, stock=stock, allowance=args.allowance, tolerance=args.tolerance,
+        mode=args.mode, progress=_progress(args))
+    summary["design"] = {"file": os.path.abspath(args.design), **design.summary()}
+    summary["toolpath"] = {"file": os.path.abspath(args.toolpath), "warnings": warnings}
+    _write_json(os.path.join(out, "deviation.json"), deviation)
+    _write_json(os.path.join(out, "summary.json"), summary)
+    if len(faces):
+        import trimesh
+
+        trimesh.Trimesh(verts, faces, process=False).export(os.path.join(out, "machined.stl"))
+    for w in summary["warnings"]:
+        _say(args, f"warning: {w}")
+    _say(args, f"Sa {deviation['Sa']:.4f}  Sq {deviation['Sq']:.4f}  Sp {deviation['Sp']:.4f}  Sv {deviation['Sv']:.4f}  "
+               f"Sz {deviation['Sz']:.4f} mm; within ±{args.tolerance:g} mm: {100 * deviation['within_tolerance']:.1f} %")
+    _say(args, f"gouge max {deviation['gouge_max']:.4f} mm at {deviation['gouge_at']}; excess max "
+               f"{deviation['excess_max']:.4f} mm; removed {deviation['removed_volume']:.1f} mm^3, remaining "
+               f"{deviation['remaining_volume']:.1f} mm^3")
+    _say(args, f"wrote deviation.json, summary.json, machined.stl in {out} ({summary['seconds']['total']:.1f} s)")
+    return 1 if summary["rapid_moves_cutting"] else 0
+
+
 def build_parser():
     p = _Parser(prog="meshmill", description="Exact, verified multi-axis milling tool paths from triangle meshes.")
     p.add_argument("--version", action="version", version=f"meshmill {__version__}")
@@ -226,6 +299,35 @@ def build_parser():
     v.add_argument("--out", default=None, help="write the report as JSON to this file")
     v.add_argument("--quiet", action="store_true", help="no warnings")
     v.set_defaults(func=cmd_verify)
+
+    d = sub.add_parser("dexel", help="triple-dexel model of a closed part")
+    d.add_argument("part", help="part mesh (STL, OBJ, PLY), mm; must be closed")
+    d.add_argument("--step", type=float, required=True, help="distance between grid lines, mm")
+    d.add_argument("--index", choices=("bvh", "cells", "kmeans"), default="bvh",
+                   help="how lines find their triangles: BVH, or the seed's cells or k-means partitions (bvh)")
+    d.add_argument("--partitions", default="1", help="number of cells or clusters, or 'auto' (K-optimal helper) (1)")
+    d.add_argument("--kmax", type=int, default=27, help="largest K the K-optimal helper tries (27)")
+    d.add_argument("--init", choices=("k-means++", "random"), default="k-means++", help="k-means initialisation")
+    d.add_argument("--minibatch", action="store_true", help="mini-batch k-means")
+    d.add_argument("--out", default=None, help="model file: .npz (compact binary) or .td (seed's ASCII) (PART.dexel.npz)")
+    d.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    d.set_defaults(func=cmd_dexel)
+
+    s = sub.add_parser("simulate", help="cut a tool path from a stock and measure it against the design")
+    s.add_argument("--design", required=True, help="design part mesh (STL, OBJ, PLY), mm; closed")
+    g = s.add_mutually_exclusive_group()
+    g.add_argument("--stock", default=None, help="'box' (the design's box, default) or a closed stock mesh")
+    g.add_argument("--allowance", type=float, default=None, help="stock = design dexels lengthened by MM at both ends")
+    s.add_argument("--toolpath", required=True, help="APT CL file (.cl) or 3-axis G-code (.nc, .ngc, .gcode, .tap)")
+    s.add_argument("--tools", required=True, help="TOML tool table")
+    s.add_argument("--tool", default=None, help="tool name for G-code without T words")
+    s.add_argument("--step", type=float, required=True, help="dexel grid step, mm")
+    s.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"deviation tolerance band ±MM ({GOUGE_TOL})")
+    s.add_argument("--mode", choices=("sweep", "points"), default="sweep",
+                   help="exact swept volume of every move, or the tool at the points only (seed) (sweep)")
+    s.add_argument("--out", default="sim", help="output folder (sim)")
+    s.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    s.set_defaults(func=cmd_simulate)
     return p
 
 

@@ -1,0 +1,452 @@
+"""Where an axis-aligned line crosses the volume a cutter sweeps along a linear move (device
+functions, written once for every backend).
+
+Coordinates are in the line's frame: the line is ``(u0, v0, w)``, w free (see
+:mod:`meshmill.kernels.raycast` for the axis order); every point handed in is already permuted
+to that frame. An interval is ``(lo, hi)``; ``lo > hi`` means empty.
+
+The cutter is the rounded-cylinder family ``Disk(rho) + Segment(H) + Ball(r)`` (Minkowski sums,
+the disk perpendicular to the axis): a ball-end mill of radius R is rho = 0, r = R; a flat end
+mill is r = 0, rho = R; a bull-nose is rho = R - r. Its end is exact; its flutes are the full
+radius up to ``flute_length - r`` and rounded like the end above that, so the flute top never
+cuts more than the real tool. Swept along a move with a fixed axis it becomes
+``Disk(rho) + Parallelogram(D, H u) + Ball(r)``, convex, so a line meets it in one interval:
+
+- ball (rho = 0): the parallelogram thickened by r is a slab-clipped parallelepiped plus four
+  capsules on the edges; all closed form (:func:`pgram_ball`);
+- flat and bull-nose: the distance from a line point to ``Disk + Parallelogram`` is convex along
+  the line; its level set ``<= r`` is bracketed by the ball sweep of radius rho + r and found by
+  bisection to ``BISECT_TOL`` (:func:`rounded_sweep`).
+
+When the axis turns during a move (5-axis), see :func:`tool_move`: the callers split such moves
+into pieces short enough for the stated sweep tolerance.
+"""
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+INF = 1.0e300
+BISECT_TOL = 1e-9  # mm along the line
+GOLDEN = 0.6180339887498949
+SEARCH_SAMPLES = 16  # poses sampled along a turning piece before the golden-section search
+
+
+def build(jit):
+    """Compile the device functions with ``jit`` and return them in a namespace."""
+
+    @jit
+    def sphere(u0, v0, cu, cv, cw, R):
+        """Line against the ball of radius R at c."""
+        q = R * R - (u0 - cu) ** 2 - (v0 - cv) ** 2
+        if q < 0.0:
+            return INF, -INF
+        h = math.sqrt(q)
+        return cw - h, cw + h
+
+    @jit
+    def capsule(u0, v0, au, av, aw, bu, bv, bw, R):
+        """Line against the capsule of radius R around segment a-b."""
+        lo, hi = sphere(u0, v0, au, av, aw, R)
+        l2, h2 = sphere(u0, v0, bu, bv, bw, R)
+        lo = min(lo, l2)
+        hi = max(hi, h2)
+        du = bu - au
+        dv = bv - av
+        dw = bw - aw
+        dd = du * du + dv * dv + dw * dw
+        if dd <= 1e-24:
+            return lo, hi
+        pu = u0 - au
+        pv = v0 - av
+        # k(z) = (pu, pv, z); t(z) = (s0 + z dw)/dd; |k|^2 - (k.d)^2/dd <= R^2
+        s0 = pu * du + pv * dv
+        A = 1.0 - dw * dw / dd
+        B = -2.0 * s0 * dw / dd
+        C = pu * pu + pv * pv - s0 * s0 / dd - R * R
+        if A <= 1e-14:  # segment along the line: constant distance
+            if C > 0.0:
+                return lo, hi
+            z0, z1 = -INF, INF
+        else:
+            disc = B * B - 4.0 * A * C
+            if disc < 0.0:
+                return lo, hi
+            sq = math.sqrt(disc)
+            z0 = (-B - sq) / (2.0 * A)
+            z1 = (-B + sq) / (2.0 * A)
+        # clip to 0 <= t <= 1
+        if dw > 0.0:
+            z0 = max(z0, -s0 / dw)
+            z1 = min(z1, (dd - s0) / dw)
+        elif dw < 0.0:
+            z0 = max(z0, (dd - s0) / dw)
+            z1 = min(z1, -s0 / dw)
+        elif s0 < 0.0 or s0 > dd:
+            return lo, hi
+        if z0 <= z1:
+            lo = min(lo, z0 + aw)
+            hi = max(hi, z1 + aw)
+        return lo, hi
+
+    @jit
+    def pgram_ball(u0, v0, cu, cv, cw, Du, Dv, Dw, Eu, Ev, Ew, R, tri=False):
+        """Line against ``Parallelogram(c; D, E) + Ball(R)``, or with ``tri`` the triangle
+        ``(c, c + D, c + E) + Ball(R)``."""
+        nu = Dv * Ew - Dw * Ev
+        nv = Dw * Eu - Du * Ew
+        nw = Du * Ev - Dv * Eu
+        area = math.sqrt(nu * nu + nv * nv + nw * nw)
+        dd = Du * Du + Dv * Dv + Dw * Dw
+        ee = Eu * Eu + Ev * Ev + Ew * Ew
+        if area <= 1e-12 * max(dd + ee, 1e-300):
+            # degenerate: the four corners lie on one line; a capsule over the extreme two
+            if dd >= ee:
+                xu, xv, xw, xx = Du, Dv, Dw, dd
+            else:
+                xu, xv, xw, xx = Eu, Ev, Ew, ee
+            if xx <= 1e-24:
+                return sphere(u0, v0, cu, cv, cw, R)
+            tmin = min(0.0, min((Du * xu + Dv * xv + Dw * xw) / xx, (Eu * xu + Ev * xv + Ew * xw) / xx))
+            tmax = max(0.0, max((Du * xu + Dv * xv + Dw * xw) / xx, (Eu * xu + Ev * xv + Ew * xw) / xx))
+            if not tri:
+                tmin = min(tmin, ((Du + Eu) * xu + (Dv + Ev) * xv + (Dw + Ew) * xw) / xx)
+                tmax = max(tmax, ((Du + Eu) * xu + (Dv + Ev) * xv + (Dw + Ew) * xw) / xx)
+            return capsule(u0, v0, cu + tmin * xu, cv + tmin * xv, cw + tmin * xw,
+                           cu + tmax * xu, cv + tmax * xv, cw + tmax * xw, R)
+        nu /= area
+        nv /= area
+        nw /= area
+        lo, hi = capsule(u0, v0, cu, cv, cw, cu + Du, cv + Dv, cw + Dw, R)
+        l2, h2 = capsule(u0, v0, cu, cv, cw, cu + Eu, cv + Ev, cw + Ew, R)
+        lo = min(lo, l2)
+        hi = max(hi, h2)
+        if tri:
+            l2, h2 = capsule(u0, v0, cu + Du, cv + Dv, cw + Dw, cu + Eu, cv + Ev, cw + Ew, R)
+            lo = min(lo, l2)
+            hi = max(hi, h2)
+        else:
+            l2, h2 = capsule(u0, v0, cu + Eu, cv + Ev, cw + Ew, cu + Eu + Du, cv + Ev + Dv, cw + Ew + Dw, R)
+            lo = min(lo, l2)
+            hi = max(hi, h2)
+            l2, h2 = capsule(u0, v0, cu + Du, cv + Dv, cw + Dw, cu + Du + Eu, cv + Dv + Ev, cw + Dw + Ew, R)
+            lo = min(lo, l2)
+            hi = max(hi, h2)
+        # the slab part: p - c = s D + h E + t n, 0 <= s, h <= 1, |t| <= R; rows of the inverse
+        # are (E x n)/area, (n x D)/area, n (det = area)
+        r0u = (Ev * nw - Ew * nv) / area
+        r0v = (Ew * nu - Eu * nw) / area
+        r0w = (Eu * nv - Ev * nu) / area
+        r1u = (nv * Dw - nw * Dv) / area
+        r1v = (nw * Du - nu * Dw) / area
+        r1w = (nu * Dv - nv * Du) / area
+        pu = u0 - cu
+        pv = v0 - cv
+        z0 = -INF
+        z1 = INF
+        for k in range(4 if tri else 3):
+            if k == 0:
+                a0 = r0u * pu + r0v * pv - r0w * cw
+                b0 = r0w
+                lim0, lim1 = 0.0, 1.0
+            elif k == 1:
+                a0 = r1u * pu + r1v * pv - r1w * cw
+                b0 = r1w
+                lim0, lim1 = 0.0, 1.0
+            elif k == 2:
+                a0 = nu * pu + nv * pv - nw * cw
+                b0 = nw
+                lim0, lim1 = -R, R
+            else:  # triangle: s + h <= 1
+                a0 = (r0u + r1u) * pu + (r0v + r1v) * pv - (r0w + r1w) * cw
+                b0 = r0w + r1w
+                lim0, lim1 = -INF, 1.0
+            # coordinate = a0 + w b0 must lie in [lim0, lim1]
+            if b0 == 0.0:
+                if a0 < lim0 or a0 > lim1:
+                    return lo, hi
+            else:
+                t0 = (lim0 - a0) / b0
+                t1 = (lim1 - a0) / b0
+                if t0 > t1:
+                    t0, t1 = t1, t0
+                z0 = max(z0, t0)
+                z1 = min(z1, t1)
+        if z0 <= z1:
+            lo = min(lo, z0)
+            hi = max(hi, z1)
+        return lo, hi
+
+    @jit
+    def core_dist2(pu, pv, pw, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho):
+        """Squared distance from p to ``Disk(rho) + Parallelogram(c; D, H x)``, x the unit axis,
+        the disk perpendicular to x."""
+        qu = pu - cu
+        qv = pv - cv
+        qw = pw - cw
+        qa = qu * xu + qv * xv + qw * xw
+        Da = Du * xu + Dv * xv + Dw * xw
+        # perpendicular parts
+        su = qu - qa * xu
+        sv = qv - qa * xv
+        sw = qw - qa * xw
+        eu = Du - Da * xu
+        ev = Dv - Da * xv
+        ew = Dw - Da * xw
+        ee = eu * eu + ev * ev + ew * ew
+        dscale = Du * Du + Dv * Dv + Dw * Dw
+        if ee <= 1e-20 * max(dscale, 1e-300):
+            # move along the axis: radial term constant, axial term over an interval
+            radial = max(0.0, math.sqrt(su * su + sv * sv + sw * sw) - rho)
+            a0 = qa - max(Da, 0.0)
+            a1 = qa - min(Da, 0.0)
+            gap = max(0.0, max(-a1, a0 - H))
+            return radial * radial + gap * gap
+        if abs(Da) <= 1e-10 * math.sqrt(dscale):
+            s = min(1.0, max(0.0, (su * eu + sv * ev + sw * ew) / ee))
+            du = su - s * eu
+            dv = sv - s * ev
+            dw = sw - s * ew
+            radial = max(0.0, math.sqrt(du * du + dv * dv + dw * dw) - rho)
+            gap = max(0.0, max(-qa, qa - H))
+            return radial * radial + gap * gap
+        # general: convex in s, golden-section search on [0, 1]
+        a = 0.0
+        b = 1.0
+        best = INF
+        for _ in range(60):
+            s1 = b - GOLDEN * (b - a)
+            s2 = a + GOLDEN * (b - a)
+            f1 = 0.0
+            f2 = 0.0
+            for k in range(2):
+                s = s1 if k == 0 else s2
+                du = su - s * eu
+                dv = sv - s * ev
+                dw = sw - s * ew
+                radial = max(0.0, math.sqrt(du * du + dv * dv + dw * dw) - rho)
+                ax = qa - s * Da
+                gap = max(0.0, max(-ax, ax - H))
+                f = radial * radial + gap * gap
+                if k == 0:
+                    f1 = f
+                else:
+                    f2 = f
+            best = min(best, min(f1, f2))
+            if f1 <= f2:
+                b = s2
+            else:
+                a = s1
+            if b - a < 1e-12:
+                break
+        for k in range(2):  # the ends of [0, 1]
+            s = float(k)
+            du = su - s * eu
+            dv = sv - s * ev
+            dw = sw - s * ew
+            radial = max(0.0, math.sqrt(du * du + dv * dv + dw * dw) - rho)
+            ax = qa - s * Da
+            gap = max(0.0, max(-ax, ax - H))
+            best = min(best, radial * radial + gap * gap)
+        return best
+
+    @jit
+    def rounded_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r):
+        """Line against ``Disk(rho) + Parallelogram(c; D, H x) + Ball(r)`` (rho > 0)."""
+        olo, ohi = pgram_ball(u0, v0, cu, cv, cw, Du, Dv, Dw, H * xu, H * xv, H * xw, rho + r)
+        if olo > ohi:
+            return INF, -INF
+        r2 = r * r + 1e-18
+        ilo, ihi = pgram_ball(u0, v0, cu, cv, cw, Du, Dv, Dw, H * xu, H * xv, H * xw, r)
+        if ilo <= ihi:
+            inside = 0.5 * (ilo + ihi)
+        else:
+            # find a point inside: golden-section on the convex distance over the outer interval
+            a = olo
+            b = ohi
+            inside = INF
+            m = 0.5 * (a + b)
+            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho) <= r2:
+                inside = m
+            else:
+                for _ in range(80):
+                    w1 = b - GOLDEN * (b - a)
+                    w2 = a + GOLDEN * (b - a)
+                    f1 = core_dist2(u0, v0, w1, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho)
+                    if f1 <= r2:
+                        inside = w1
+                        break
+                    f2 = core_dist2(u0, v0, w2, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho)
+                    if f2 <= r2:
+                        inside = w2
+                        break
+                    if f1 <= f2:
+                        b = w2
+                    else:
+                        a = w1
+                    if b - a < BISECT_TOL:
+                        break
+            if inside == INF:
+                return INF, -INF
+            ilo = inside
+            ihi = inside
+        # bisection for both ends of the level set
+        a = olo
+        b = ilo
+        while b - a > BISECT_TOL:
+            m = 0.5 * (a + b)
+            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho) <= r2:
+                b = m
+            else:
+                a = m
+        lo = b
+        a = ihi
+        b = ohi
+        while b - a > BISECT_TOL:
+            m = 0.5 * (a + b)
+            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho) <= r2:
+                a = m
+            else:
+                b = m
+        return lo, a
+
+    @jit
+    def pose(u0, v0, tu, tv, tw, xu, xv, xw, R, r, F):
+        """Line against the cutter standing at tip t with unit axis x."""
+        H = max(0.0, F - 2.0 * r)
+        cu = tu + r * xu
+        cv = tv + r * xv
+        cw = tw + r * xw
+        if R - r <= 1e-12:
+            return capsule(u0, v0, cu, cv, cw, cu + H * xu, cv + H * xv, cw + H * xw, r)
+        return rounded_sweep(u0, v0, cu, cv, cw, 0.0, 0.0, 0.0, xu, xv, xw, H, R - r, r)
+
+    @jit
+    def pose_at(u0, v0, pa, pb, xa, xb, t, R, r, F):
+        """:func:`pose` at fraction t of a move (tip linear, axis normalised linear)."""
+        xu = xa[0] + t * (xb[0] - xa[0])
+        xv = xa[1] + t * (xb[1] - xa[1])
+        xw = xa[2] + t * (xb[2] - xa[2])
+        n = math.sqrt(xu * xu + xv * xv + xw * xw)
+        return pose(u0, v0, pa[0] + t * (pb[0] - pa[0]), pa[1] + t * (pb[1] - pa[1]), pa[2] + t * (pb[2] - pa[2]),
+                    xu / n, xv / n, xw / n, R, r, F)
+
+    @jit
+    def turning_search(u0, v0, pa, pb, xa, xb, R, r, F, upper):
+        """Lowest start (``upper`` False) or highest end of the pose intervals over the move: the
+        best of ``SEARCH_SAMPLES + 1`` poses, then golden-section search around it (the pieces
+        moves are split into turn little, so the extreme is unimodal there)."""
+        best = INF
+        tbest = -1.0
+        for k in range(SEARCH_SAMPLES + 1):
+            t = k / SEARCH_SAMPLES
+            lo, hi = pose_at(u0, v0, pa, pb, xa, xb, t, R, r, F)
+            if lo <= hi:
+                f = -hi if upper else lo
+                if f < best:
+                    best = f
+                    tbest = t
+        if tbest < 0.0:
+            return -INF if upper else INF
+        a = max(0.0, tbest - 1.0 / SEARCH_SAMPLES)
+        b = min(1.0, tbest + 1.0 / SEARCH_SAMPLES)
+        for _ in range(40):
+            t1 = b - GOLDEN * (b - a)
+            t2 = a + GOLDEN * (b - a)
+            l1, h1 = pose_at(u0, v0, pa, pb, xa, xb, t1, R, r, F)
+            l2, h2 = pose_at(u0, v0, pa, pb, xa, xb, t2, R, r, F)
+            f1 = (-h1 if upper else l1) if l1 <= h1 else INF
+            f2 = (-h2 if upper else l2) if l2 <= h2 else INF
+            best = min(best, min(f1, f2))
+            if f1 <= f2:
+                b = t2
+            else:
+                a = t1
+            if b - a < 1e-9:
+                break
+        return -best if upper else best
+
+    @jit
+    def ball_part(u0, v0, pa, pb, xa, xb, r):
+        """Line against the volume the ball of a ball-end mill (radius r) sweeps: the capsule
+        along its centre's chord."""
+        return capsule(u0, v0, pa[0] + r * xa[0], pa[1] + r * xa[1], pa[2] + r * xa[2],
+                       pb[0] + r * xb[0], pb[1] + r * xb[1], pb[2] + r * xb[2], r)
+
+    @jit
+    def flute_range(u0, v0, pa, pb, xa, xb, r, F):
+        """Where on the line a ball-end mill's flutes may cut beyond its ball: the flutes lie on
+        the shank side of the plane through the ball centre normal to the axis, for every pose;
+        over a move that is the half-space ``(p - c_a).x_a >= -m`` (m covers the move and its turn).
+        Returns ``(lo, hi)``, possibly infinite, or empty."""
+        cu = pa[0] + r * xa[0]
+        cv = pa[1] + r * xa[1]
+        cw = pa[2] + r * xa[2]
+        du = pb[0] + r * xb[0] - cu
+        dv = pb[1] + r * xb[1] - cv
+        dw = pb[2] + r * xb[2] - cw
+        dist = math.sqrt(du * du + dv * dv + dw * dw)
+        turn = math.sqrt((xb[0] - xa[0]) ** 2 + (xb[1] - xa[1]) ** 2 + (xb[2] - xa[2]) ** 2)
+        m = max(0.0, -(du * xa[0] + dv * xa[1] + dw * xa[2])) if turn == 0.0 else dist + (dist + F + r) * turn
+        m += 1e-9
+        # (u0 - cu) xa0 + (v0 - cv) xa1 + (w - cw) xa2 >= -m
+        a0 = (u0 - cu) * xa[0] + (v0 - cv) * xa[1] - cw * xa[2] + m
+        if xa[2] > 1e-12:
+            return -a0 / xa[2], INF
+        if xa[2] < -1e-12:
+            return -INF, -a0 / xa[2]
+        if a0 >= 0.0:
+            return -INF, INF
+        return INF, -INF
+
+    @jit
+    def tool_move(u0, v0, pa, pb, xa, xb, R, r, F, sub):
+        """Line against the volume a cutter (radius R, corner radius r, flute length F) sweeps
+        from tip pa with axis xa to tip pb with axis xb (arrays (3,) in the line frame).
+
+        Fixed axis: exact (see the module docstring). Turning axis (callers split moves so that
+        each piece turns little, see :mod:`meshmill.simulation.cut`): a ball-end mill sweeps the
+        ruled surface of its axis segment, taken in ``sub`` strips of two triangles each,
+        thickened by R; other cutters take the lowest start and highest end of their poses."""
+        rho = R - r
+        H = max(0.0, F - 2.0 * r)
+        cu = pa[0] + r * xa[0]
+        cv = pa[1] + r * xa[1]
+        cw = pa[2] + r * xa[2]
+        Du = pb[0] + r * xb[0] - cu
+        Dv = pb[1] + r * xb[1] - cv
+        Dw = pb[2] + r * xb[2] - cw
+        if xa[0] == xb[0] and xa[1] == xb[1] and xa[2] == xb[2]:
+            if rho <= 1e-12:
+                return pgram_ball(u0, v0, cu, cv, cw, Du, Dv, Dw, H * xa[0], H * xa[1], H * xa[2], r)
+            return rounded_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xa[0], xa[1], xa[2], H, rho, r)
+        if rho > 1e-12:  # other cutters: the extreme ends over the poses
+            lo = turning_search(u0, v0, pa, pb, xa, xb, R, r, F, False)
+            if lo >= INF:
+                return INF, -INF
+            return lo, turning_search(u0, v0, pa, pb, xa, xb, R, r, F, True)
+        # ball: per strip, the quad c_a, c_b, c_b + H x_b, c_a + H x_a split along its diagonal
+        lo = INF
+        hi = -INF
+        for k in range(sub):
+            ha = H * k / sub
+            hb = H * (k + 1) / sub
+            au = cu + ha * xa[0]
+            av = cv + ha * xa[1]
+            aw = cw + ha * xa[2]
+            bu = cu + Du + ha * xb[0]
+            bv = cv + Dv + ha * xb[1]
+            bw = cw + Dw + ha * xb[2]
+            Gu = cu + Du + hb * xb[0] - au
+            Gv = cv + Dv + hb * xb[1] - av
+            Gw = cw + Dw + hb * xb[2] - aw
+            l1, h1 = pgram_ball(u0, v0, au, av, aw, bu - au, bv - av, bw - aw, Gu, Gv, Gw, r, True)
+            l2, h2 = pgram_ball(u0, v0, au, av, aw, Gu, Gv, Gw, (hb - ha) * xa[0], (hb - ha) * xa[1],
+                                (hb - ha) * xa[2], r, True)
+            lo = min(lo, min(l1, l2))
+            hi = max(hi, max(h1, h2))
+        return lo, hi
+
+    return SimpleNamespace(sphere=sphere, capsule=capsule, pgram_ball=pgram_ball, core_dist2=core_dist2,
+                           rounded_sweep=rounded_sweep, pose=pose,
+                           ball_part=ball_part, flute_range=flute_range, tool_move=tool_move)

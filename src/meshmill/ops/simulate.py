@@ -1,0 +1,152 @@
+"""Operations on triple-dexel models: build one from a part (``meshmill dexel``), and simulate
+what a tool path cuts from a stock and compare it with the design (``meshmill simulate``)."""
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import shapes
+from ..simulation import cut as cutting
+from ..simulation import partition
+from ..simulation.deviation import deviations, difference_volume, surface_parameters
+from ..simulation.dexel import DexelModel, dexelize, lattice
+from ..simulation.surface import machined_mesh
+
+TOOLPATH_APT = (".cl", ".apt", ".cls", ".aptsource")
+TOOLPATH_GCODE = (".nc", ".ngc", ".gcode", ".tap", ".g", ".txt")
+DEVIATION_KEYS = ("Sa", "Sq", "Sp", "Sv", "Sz", "gouge_max", "excess_max", "within_tolerance",
+                  "removed_volume", "remaining_volume")
+
+
+def dexel_model(mesh, step, index="bvh", partitions="1", init="k-means++", minibatch=False, k_max=27,
+                progress=None) -> tuple[DexelModel, dict]:
+    """Dexel model of a part and its summary; ``partitions`` is a count or ``"auto"`` (the
+    K-optimal helper over 1..k_max, whose table goes into the summary)."""
+    summary = {}
+    if partitions == "auto":
+        if index == "bvh":
+            raise InputError("--partitions auto needs --index cells or kmeans")
+        lo, n = lattice(mesh.bounds, step)
+        tris = mesh.vertices[mesh.faces].reshape(-1, 9)
+        k, rows = partition.k_optimal(tris, lo, step, n, k_max, index, init, minibatch)
+        summary["k_optimal"] = {"K": k, "table": rows}
+    else:
+        try:
+            k = int(partitions)
+        except ValueError:
+            raise InputError(f"--partitions must be a whole number or 'auto', got '{partitions}'") from None
+        if k < 1:
+            raise InputError(f"--partitions must be at least 1, got {k}")
+    model = dexelize(mesh, step, index, k, init, minibatch, progress=progress)
+    summary.update(model.summary())
+    summary["index"] = model.info
+    return model, summary
+
+
+def read_toolpath(path, tools, tool_name=None):
+    """A tool path from an APT CL file or 3-axis G-code, chosen by the file's extension."""
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    if ext in TOOLPATH_APT:
+        from ..toolpath.cldata import read_apt
+
+        return read_apt(path, tools)
+    if ext in TOOLPATH_GCODE:
+        from ..toolpath.gcode import read_gcode
+
+        return read_gcode(path, tools, tool_name=tool_name)
+    raise InputError(f"{path}: unknown tool-path format '{ext}' (APT CL: {', '.join(TOOLPATH_APT)}; "
+                     f"G-code: {', '.join(TOOLPATH_GCODE)})")
+
+
+def _stock_bounds(design, stock, allowance):
+    if allowance is not None:
+        return design.bounds + np.array([[-1.0], [1.0]]) * allowance
+    if stock == "box":
+        return design.bounds
+    return stock.bounds
+
+
+def simulate(design, toolpath, tools, step, stock="box", allowance=None, tolerance=0.01, mode="sweep",
+             progress=None):
+    """Cut ``toolpath`` from the stock (``"box"``: the design's box; a Mesh; or the design with
+    ``allowance`` mm on both ends of every dexel) and measure the result against ``design``.
+
+    Returns ``(deviation dict, summary dict, machined DexelModel, (vertices, faces) of the machined
+    mesh)``."""
+    say = progress or (lambda _: None)
+    t0 = time.perf_counter()
+    if allowance is not None and not (np.isfinite(allowance) and allowance >= 0):
+        raise InputError(f"--allowance must be a number of mm >= 0, got {allowance}")
+    if not (np.isfinite(tolerance) and tolerance >= 0):
+        raise InputError(f"--tolerance must be a number of mm >= 0, got {tolerance}")
+    sb = _stock_bounds(design, stock, allowance)
+    bounds = np.array([np.minimum(sb[0], design.bounds[0]), np.maximum(sb[1], design.bounds[1])])
+    used = sorted(set(int(t) for t in toolpath.tool))
+    reach = max(tools[t].radius + tools[t].flute_length for t in used)
+    path_lo, path_hi = toolpath.tip.min(axis=0) - reach, toolpath.tip.max(axis=0) + reach
+    if (path_hi < sb[0]).any() or (path_lo > sb[1]).any():
+        raise InputError(f"the tool path (box {np.round(path_lo, 3).tolist()} .. {np.round(path_hi, 3).tolist()} "
+                         f"with the tool) never reaches the stock (box {np.round(sb[0], 3).tolist()} .. "
+                         f"{np.round(sb[1], 3).tolist()}): check the units and the origin")
+    warnings = []
+    smallest = min(tools[t].radius for t in used)
+    if step > smallest:
+        warnings.append(f"--step {step:g} mm is coarser than the smallest tool radius ({smallest:g} mm): "
+                        "scallops and small features are not resolved")
+    design_model = dexelize(design, step, bounds=bounds)
+    say(f"design: {sum(design_model.dexel_count(a) for a in range(3)):,} dexels")
+    if allowance is not None:
+        stock_model = design_model
+    elif stock == "box":
+        stock_model = dexelize(shapes.box(*design.bounds), step, bounds=bounds)
+    else:
+        stock_model = dexelize(stock, step, bounds=bounds)
+    st = cutting.stock_from_model(stock_model, allowance or 0.0)
+    stock_volume = st.to_model().volume
+    outside = difference_volume(design_model, st.to_model())
+    if outside > 1e-6 * max(design_model.volume, 1.0):
+        warnings.append(f"{outside:.3f} mm^3 of the design lies outside the stock; it counts as gouged")
+    build_s = time.perf_counter() - t0
+    moves = cutting.toolpath_moves(toolpath, tools, mode)
+    say(f"cutting {len(moves):,} moves ({len(toolpath):,} points, mode {mode})")
+    result = cutting.cut(st, moves, progress=say)
+    machined = st.to_model()
+    t1 = time.perf_counter()
+    pts, e = deviations(machined, design_model, design)
+    params = surface_parameters(pts, e, tolerance)
+    removed = stock_volume - machined.volume
+    remaining = difference_volume(machined, design_model)
+    gouged = difference_volume(design_model, machined)
+    deviation_s = time.perf_counter() - t1
+    t2 = time.perf_counter()
+    verts, faces, stride = machined_mesh(machined)
+    mesh_s = time.perf_counter() - t2
+    deviation = {k: params[k] for k in DEVIATION_KEYS if k in params}
+    deviation.update(removed_volume=removed, remaining_volume=remaining)
+    deviation = {k: deviation[k] for k in DEVIATION_KEYS}
+    deviation.update(units="mm, mm^3", tolerance=tolerance, gouge_at=params["gouge_at"],
+                     excess_at=params["excess_at"], gouged_volume=gouged, samples=params["samples"])
+    if result["rapid_cuts"]:
+        lines = [int(toolpath.line[i]) for i in result["rapid_cuts"][:20]]
+        warnings.append(f"{len(result['rapid_cuts'])} rapid move(s) cut material (source lines {lines})")
+    summary = {
+        "mode": mode,
+        "step": step,
+        "lattice": machined.summary(),
+        "moves": len(toolpath),
+        "pieces_cut": len(moves),
+        "rapid_moves_cutting": len(result["rapid_cuts"]),
+        "rapid_cutting_points": result["rapid_cuts"][:1000],
+        "volumes_mm3": {"design": design_model.volume, "stock": stock_volume, "machined": machined.volume,
+                        "removed": removed, "remaining": remaining, "gouged": gouged},
+        "deviation": deviation,
+        "machined_mesh": {"vertices": int(len(verts)), "triangles": int(len(faces)),
+                          "lattice_stride": int(stride)},
+        "warnings": warnings,
+        "seconds": {"models": round(build_s, 4), "cut": result["seconds"], "deviation": round(deviation_s, 4),
+                    "mesh": round(mesh_s, 4), "total": round(time.perf_counter() - t0, 4)},
+    }
+    return deviation, summary, machined, (verts, faces)

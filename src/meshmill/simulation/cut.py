@@ -1,0 +1,236 @@
+"""Material removal: a stock held as triple dexels, cut by the volume each move of a tool path
+sweeps (exact per move, :mod:`meshmill.kernels.sweep`), or by the tool at the path's points only
+(the seed's mode, kept for comparison).
+
+A move goes from one CL point to the next, tip interpolated linearly and the tool axis by the
+normalised linear interpolation of the two axes (a 5-axis controller's interpolation of its
+rotary joints differs from this by less than the path tolerance for the small angle steps of a
+finishing path). A move whose axis turns is split into pieces (:func:`turn_pieces`) over which the
+cut stays within ``SWEEP_TOL`` of the swept volume.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from ..kernels.cpu_dexel import TILE, bin_moves, cut_tiles
+from .dexel import DexelModel, compact
+
+SWEEP_TOL = 1e-3  # mm: largest gap between the cut and the true swept volume of a turning tool
+MAX_TURN = 0.05  # rad: largest turn of a piece of a flat or bull-nose move (searched over poses)
+RAPID_CUT = 1e-3  # mm of a dexel a rapid move must remove to count as cutting
+SLACK = 2  # spare interval slots a line starts with
+
+
+@dataclass
+class Stock:
+    """Mutable triple dexels on a model's lattice: per direction ``iv (cap, 2)`` with the room of
+    line ``i`` at ``off[i]:off[i+1]`` and ``count (n_lines,)`` intervals in use."""
+
+    lo: np.ndarray
+    step: float
+    n: np.ndarray
+    iv: list
+    off: list
+    count: list
+
+    def to_model(self, name="machined") -> DexelModel:
+        starts, ivs = [], []
+        for a in range(3):
+            s, v = _compact_sparse(self.iv[a], self.off[a], self.count[a])
+            starts.append(s)
+            ivs.append(v)
+        return DexelModel(lo=self.lo.copy(), step=self.step, n=self.n.copy(), start=starts, iv=ivs, name=name)
+
+
+@numba.njit(cache=True)
+def _compact_sparse(iv, off, count):
+    dense_start = np.zeros(count.shape[0] + 1, np.int64)
+    for i in range(count.shape[0]):
+        dense_start[i + 1] = dense_start[i] + count[i]
+    out = np.empty((dense_start[-1], 2))
+    for i in range(count.shape[0]):
+        for k in range(count[i]):
+            out[dense_start[i] + k, 0] = iv[off[i] + k, 0]
+            out[dense_start[i] + k, 1] = iv[off[i] + k, 1]
+    return dense_start, out
+
+
+@numba.njit(cache=True)
+def _spread(start, src, allowance, slack):
+    """Per-line room ``count + slack`` and the intervals widened by ``allowance`` at both ends
+    (merged where they then overlap)."""
+    n = start.shape[0] - 1
+    off = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        off[i + 1] = off[i] + (start[i + 1] - start[i]) + slack
+    iv = np.zeros((off[n], 2))
+    count = np.zeros(n, np.int64)
+    for i in range(n):
+        c = 0
+        for k in range(start[i], start[i + 1]):
+            s = src[k, 0] - allowance
+            e = src[k, 1] + allowance
+            if c > 0 and s <= iv[off[i] + c - 1, 1]:
+                iv[off[i] + c - 1, 1] = max(e, iv[off[i] + c - 1, 1])
+            else:
+                iv[off[i] + c, 0] = s
+                iv[off[i] + c, 1] = e
+                c += 1
+        count[i] = c
+    return iv, off, count
+
+
+def stock_from_model(model: DexelModel, allowance: float = 0.0) -> Stock:
+    """A stock from a dexel model, every dexel lengthened by ``allowance`` mm at both ends (the
+    seed's "both ends" stock allowance: an offset of ``allowance * |n.a|`` of a surface)."""
+    ivs, offs, counts = [], [], []
+    for a in range(3):
+        iv, off, count = _spread(model.start[a], model.iv[a], float(allowance), SLACK)
+        ivs.append(iv)
+        offs.append(off)
+        counts.append(count)
+    return Stock(lo=model.lo.copy(), step=model.step, n=model.n.copy(), iv=ivs, off=offs, count=counts)
+
+
+def _grow(stock: Stock, a: int, lines: np.ndarray) -> None:
+    """Double the room of the given lines of direction ``a``."""
+    room = np.diff(stock.off[a])
+    room[lines] *= 2
+    off = np.zeros(len(room) + 1, np.int64)
+    np.cumsum(room, out=off[1:])
+    iv = np.zeros((off[-1], 2))
+    old_off = stock.off[a]
+    counts = stock.count[a]
+    for_copy = np.nonzero(counts)[0]
+    idx_new = np.concatenate([np.arange(off[i], off[i] + counts[i]) for i in for_copy]) if len(for_copy) else np.empty(0, np.int64)
+    idx_old = np.concatenate([np.arange(old_off[i], old_off[i] + counts[i]) for i in for_copy]) if len(for_copy) else np.empty(0, np.int64)
+    iv[idx_new] = stock.iv[a][idx_old]
+    stock.iv[a] = iv
+    stock.off[a] = off
+
+
+@dataclass
+class Moves:
+    """Linear moves of one cutter each: tips ``pa, pb (k, 3)``, unit axes ``xa, xb (k, 3)``,
+    ``radius, corner, flutes (k,)`` mm, ``strips (k,)`` (see :func:`turn_pieces`), ``rapid (k,)
+    bool``, ``source (k,)`` index of the tool-path point each move ends at."""
+
+    pa: np.ndarray
+    pb: np.ndarray
+    xa: np.ndarray
+    xb: np.ndarray
+    radius: np.ndarray
+    corner: np.ndarray
+    flutes: np.ndarray
+    strips: np.ndarray
+    rapid: np.ndarray
+    source: np.ndarray
+
+    def __len__(self):
+        return len(self.pa)
+
+
+def toolpath_moves(toolpath, tools, mode="sweep") -> Moves:
+    """The moves to cut for a :class:`~meshmill.toolpath.model.Toolpath`.
+
+    ``mode="sweep"``: every move from point k-1 to point k with the tool of point k (the first
+    point is a move of length zero), split where the axis turns (see the module docstring).
+    ``mode="points"``: the tool placed at each point only; a ball-end mill is then its sphere only,
+    as in the seed."""
+    tip = np.asarray(toolpath.tip, float)
+    axis = np.asarray(toolpath.axis, float)
+    k = len(tip)
+    R = np.array([tools[t].radius for t in toolpath.tool])
+    r = np.array([tools[t].radius if tools[t].type == "ball" else tools[t].corner_radius for t in toolpath.tool])
+    F = np.array([max(tools[t].flute_length, 2 * r_) for t, r_ in zip(toolpath.tool, r)])
+    if mode == "points":
+        F = np.where(r >= R, 2 * R, F)
+        return Moves(tip, tip.copy(), axis, axis.copy(), R, r, F, np.ones(k, np.int64), toolpath.rapid.astype(bool),
+                     np.arange(k))
+    pa = np.vstack([tip[:1], tip[:-1]])
+    xa = np.vstack([axis[:1], axis[:-1]])
+    pieces, strips = turn_pieces(pa, tip, xa, axis, R, r, F)
+    if (pieces == 1).all():
+        return Moves(pa, tip, xa, axis.copy(), R, r, F, strips, toolpath.rapid.astype(bool), np.arange(k))
+    src = np.repeat(np.arange(k), pieces)
+    first = np.repeat(np.cumsum(pieces) - pieces, pieces)
+    j = np.arange(len(src)) - first
+    t0 = (j / pieces[src])[:, None]
+    t1 = ((j + 1) / pieces[src])[:, None]
+
+    def at(t):
+        p = pa[src] + t * (tip[src] - pa[src])
+        x = xa[src] + t * (axis[src] - xa[src])
+        return p, x / np.linalg.norm(x, axis=1, keepdims=True)
+
+    p0, x0 = at(t0)
+    p1, x1 = at(t1)
+    return Moves(p0, p1, x0, x1, R[src], r[src], F[src], strips[src], toolpath.rapid[src].astype(bool), src)
+
+
+def turn_pieces(pa, pb, xa, xb, R, r, F) -> tuple[np.ndarray, np.ndarray]:
+    """How to split moves so that a turning tool's cut stays within ``SWEEP_TOL`` of its swept
+    volume: ``(pieces (k,), strips (k,))``. Pieces bound the ball centre's arc against its chord
+    ((R + H) θ²/8 over a piece) and, for flat and bull-nose cutters (searched over their poses),
+    the turn to ``MAX_TURN``; strips bound the twist of the ruled surface a ball-end's axis sweeps
+    over a piece (H θ⊥/4, θ⊥ the turn out of the plane of motion)."""
+    angle = np.arccos(np.clip(np.einsum("ij,ij->i", xa, xb), -1.0, 1.0))
+    H = np.maximum(0.0, F - 2 * r)
+    chord = angle * np.sqrt((R + H) / (8 * SWEEP_TOL))
+    pieces = np.maximum(1, np.ceil(np.where(r >= R, chord, np.maximum(chord, angle / MAX_TURN)) - 1e-9)).astype(np.int64)
+    centre_move = (pb + r[:, None] * xb) - (pa + r[:, None] * xa)
+    normal = np.cross(centre_move, xa)
+    size = np.linalg.norm(normal, axis=1)
+    normal = np.divide(normal, size[:, None], out=np.zeros_like(normal), where=size[:, None] > 1e-12)
+    twist = H * np.abs(np.einsum("ij,ij->i", xb - xa, normal)) / (4 * SWEEP_TOL)
+    strips = np.maximum(1, np.ceil(twist / pieces - 1e-9)).astype(np.int64)
+    return pieces, strips
+
+
+def _boxes(m: Moves) -> np.ndarray:
+    """``(k, 2, 3)`` boxes holding each move's swept volume."""
+    pts = np.stack([m.pa, m.pb, m.pa + m.flutes[:, None] * m.xa, m.pa + m.flutes[:, None] * m.xb,
+                    m.pb + m.flutes[:, None] * m.xa, m.pb + m.flutes[:, None] * m.xb], axis=1)
+    R = m.radius[:, None]
+    return np.stack([pts.min(axis=1) - R, pts.max(axis=1) + R], axis=1)
+
+
+def cut(stock: Stock, moves: Moves, progress=None) -> dict:
+    """Remove every move's swept volume from ``stock`` (in place). Returns ``{"rapid_cuts":
+    sorted tool-path point indices whose rapid move cut material, "seconds": ...}``."""
+    t0 = time.perf_counter()
+    boxes = _boxes(moves)
+    rapid_hit = np.zeros(len(moves), np.uint8)
+    rapid = moves.rapid.astype(np.uint8)
+    for a in range(3):
+        u, v = (a + 1) % 3, (a + 2) % 3
+        perm = [u, v, a]
+        nu, nv = int(stock.n[u]), int(stock.n[v])
+        lu, lv = float(stock.lo[u]), float(stock.lo[v])
+        box = np.ascontiguousarray(np.column_stack([boxes[:, 0, u], boxes[:, 1, u], boxes[:, 0, v], boxes[:, 1, v],
+                                                    boxes[:, 0, a], boxes[:, 1, a]]))
+        pa, pb = np.ascontiguousarray(moves.pa[:, perm]), np.ascontiguousarray(moves.pb[:, perm])
+        xa, xb = np.ascontiguousarray(moves.xa[:, perm]), np.ascontiguousarray(moves.xb[:, perm])
+        tile_start, tile_moves = bin_moves(box, lu, lv, stock.step, nu, nv)
+        tiles = np.nonzero(np.diff(tile_start))[0]
+        np.random.default_rng(0).shuffle(tiles)  # spread the busy tiles over the threads
+        tv = (nv + TILE - 1) // TILE
+        while len(tiles):
+            overflow = np.zeros(len(tile_start) - 1, np.uint8)
+            cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, tile_start,
+                      tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips, box, rapid,
+                      RAPID_CUT, rapid_hit, overflow)
+            tiles = np.nonzero(overflow)[0]
+            if len(tiles):
+                full = np.nonzero(stock.count[a] == np.diff(stock.off[a]))[0]
+                ti, tj = (full // nv) // TILE, (full % nv) // TILE
+                _grow(stock, a, full[overflow[ti * tv + tj] == 1])
+        if progress:
+            progress(f"cut lines along {'XYZ'[a]}")
+    hits = np.unique(moves.source[rapid_hit == 1])
+    return {"rapid_cuts": [int(i) for i in hits], "seconds": round(time.perf_counter() - t0, 4)}

@@ -1,0 +1,291 @@
+"""Material-removal simulation: swept volumes against sampled references, analytic removed
+volumes, scallops, gouges, rapid moves, the machined mesh and the command line."""
+import json
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from meshmill.cli import main
+from meshmill.geometry.shapes import box
+from meshmill.kernels.cpu_dexel import swp
+from meshmill.ops.simulate import simulate
+from meshmill.simulation.cut import SWEEP_TOL, cut, stock_from_model, toolpath_moves, turn_pieces
+from meshmill.simulation.dexel import dexelize
+from meshmill.simulation.surface import machined_mesh
+from meshmill.toolpath.model import Toolpath
+from meshmill.tools.table import Tool
+
+BALL = Tool("B6", "ball", 6.0, 3.0, 12.0, 40.0, 6.0)
+FLAT = Tool("F6", "flat", 6.0, 0.0, 12.0, 40.0, 6.0)
+BULL = Tool("R6", "bull", 6.0, 1.0, 12.0, 40.0, 6.0)
+
+
+def tool_gap(p, tip, x, R, r, F, axes=None):
+    """Reference: how far points p (k, 3) lie outside the cutter model at one pose (<= 0 inside);
+    with ``axes (k, 3)`` one pose per point instead."""
+    q = p - tip
+    a = q @ x if axes is None else np.einsum("ij,ij->i", q, axes)
+    x = x if axes is None else axes
+    rad = np.linalg.norm(q - a[:, None] * x, axis=1)
+    H = max(0.0, F - 2 * r)
+    ax = a - r
+    gap = np.maximum(0, np.maximum(-ax, ax - H))
+    return np.sqrt(np.maximum(0, rad - (R - r)) ** 2 + gap ** 2) - r
+
+
+def inside_tool(p, tip, x, R, r, F):
+    return tool_gap(p, tip, x, R, r, F) <= 1e-12
+
+
+@pytest.mark.parametrize("tool", [BALL, FLAT, BULL])
+@pytest.mark.parametrize("turn", [0.0, 0.01])
+def test_swept_interval_matches_dense_sampling(tool, turn):
+    """Line against the swept volume of a move (split as the simulation splits turning moves)
+    equals the union of densely sampled poses, within the sampling and SWEEP_TOL."""
+    rng = np.random.default_rng(7)
+    R, r, F = tool.radius, (tool.radius if tool.type == "ball" else tool.corner_radius), tool.flute_length
+    w = np.linspace(-20, 20, 2001)
+    for _ in range(15):
+        pa = rng.uniform(-2, 2, 3)
+        pb = pa + rng.normal(size=3) * rng.choice([0.0, 0.3, 3.0])
+        xa = np.array([0.0, 0.0, 1.0]) if rng.random() < 0.5 else rng.normal(size=3)
+        xa /= np.linalg.norm(xa)
+        k = np.cross(xa, rng.normal(size=3))
+        k /= np.linalg.norm(k)
+        xb = xa * math.cos(turn) + k * math.sin(turn)
+        m, strips = turn_pieces(pa[None], pb[None], xa[None], xb[None], np.array([R]), np.array([r]), np.array([F]))
+        m, strips = int(m[0]), int(strips[0])
+        ts = np.linspace(0, 1, m + 1)
+        poses = [(pa + t * (pb - pa), (xa + t * (xb - xa)) / np.linalg.norm(xa + t * (xb - xa))) for t in ts]
+        dense = np.linspace(0, 1, 101)
+        for _ in range(4):
+            u0, v0 = rng.uniform(-5, 5, 2)
+            lo, hi = math.inf, -math.inf
+            for (p0, x0), (p1, x1) in zip(poses[:-1], poses[1:]):
+                a, b = swp.tool_move(u0, v0, p0, p1, x0, x1, R, r, F, strips)
+                lo, hi = min(lo, a), max(hi, b)
+            pts = np.column_stack([np.full_like(w, u0), np.full_like(w, v0), w])
+            hit = np.zeros(len(w), bool)
+            for t in dense:
+                x = xa + t * (xb - xa)
+                hit |= inside_tool(pts, pa + t * (pb - pa), x / np.linalg.norm(x), R, r, F)
+            if not hit.any():
+                assert lo > hi or hi - lo < 0.1
+                continue
+            # every sampled point lies in the interval (up to SWEEP_TOL), and its ends lie on the
+            # swept volume (distance to the nearest of 4001 poses, which are at most |D|/4000 apart)
+            assert lo - SWEEP_TOL <= w[hit].min() and w[hit].max() <= hi + SWEEP_TOL
+            fine = np.linspace(0, 1, 4001)[:, None]
+            x = xa + fine * (xb - xa)
+            x /= np.linalg.norm(x, axis=1, keepdims=True)
+            tips = pa + fine * (pb - pa)
+            gap = [min(tool_gap(np.array([[u0, v0, e]]) - tips + 0.0, np.zeros(3), None, R, r, F, x)) for e in (lo, hi)]
+            gap = np.array(gap)
+            assert (gap <= SWEEP_TOL + np.linalg.norm(pb - pa) / 4000 + 1e-6).all()
+
+
+def slot_removed(tool, depth, step=0.1):
+    d = dexelize(box((0, 0, 0), (40, 20, 10)), step)
+    tip = np.array([[-10, 10, 10 - depth], [50, 10, 10 - depth]], float)
+    tp = Toolpath(tip, np.tile([0, 0, 1.0], (2, 1)), np.zeros(2, bool), np.zeros(2, int))
+    st = stock_from_model(d)
+    cut(st, toolpath_moves(tp, [tool]))
+    return d.volume - st.to_model().volume
+
+
+def test_slots_remove_the_analytic_volume():
+    R, h = 3.0, 2.0
+    ball = R * R * math.acos((R - h) / R) - (R - h) * math.sqrt(2 * R * h - h * h)
+    assert slot_removed(BALL, h) == pytest.approx(40 * ball, rel=0.01)
+    assert slot_removed(FLAT, h) == pytest.approx(40 * 2 * R * h, rel=0.01)
+    r = 1.0
+    bull = 2 * R * (h - r) + 2 * (R - r) * r + math.pi * r * r / 2
+    assert slot_removed(BULL, h) == pytest.approx(40 * bull, rel=0.01)
+
+
+def test_points_mode_cuts_only_at_the_points():
+    d = dexelize(box((0, 0, 0), (40, 20, 10)), 0.2)
+    tip = np.array([[0, 10, 8.0], [20, 10, 8.0], [40, 10, 8.0]])
+    tp = Toolpath(tip, np.tile([0, 0, 1.0], (3, 1)), np.zeros(3, bool), np.zeros(3, int))
+    removed = {}
+    for mode in ("sweep", "points"):
+        st = stock_from_model(d)
+        cut(st, toolpath_moves(tp, [BALL], mode))
+        removed[mode] = d.volume - st.to_model().volume
+    cap = math.pi * 2 ** 2 * (3 * 3 - 2) / 3  # spherical cap of height 2
+    assert removed["points"] == pytest.approx(cap * 2, rel=0.01)  # half, whole, half a cap
+    assert removed["sweep"] > 5 * removed["points"]
+
+
+def grid_positions(model, axis):
+    return model.lo[axis] + (np.arange(model.n[axis]) + 0.5) * model.step
+
+
+def test_parallel_passes_leave_the_scallop_height(tmp_path):
+    """Ball passes along X, stepover s on a plane: Sp is the scallop h = R - sqrt(R^2 - s^2/4)."""
+    design = box((0, 0, 0), (10, 10, 5))
+    stock = box((0, 0, 0), (10, 10, 6))
+    step, R, s = 0.05, 3.0, 1.5
+    ref = dexelize(design, step, bounds=np.array([[0, 0, 0], [10, 10, 6]]))
+    cusp = grid_positions(ref, 1)[np.argmin(np.abs(grid_positions(ref, 1) - 5.0))]  # a Z line on a cusp
+    ys = cusp + s / 2 + s * np.arange(-6, 6)
+    pts = []
+    for k, y in enumerate(ys):
+        xs = (-5.0, 15.0) if k % 2 == 0 else (15.0, -5.0)
+        pts += [(xs[0], y, 5.0), (xs[1], y, 5.0)]
+    pts = np.array([(-5.0, ys[0], 9.0)] + pts + [(pts[-1][0], ys[-1], 9.0)])
+    rapid = np.zeros(len(pts), bool)
+    rapid[[1, -1]] = True
+    tp = Toolpath(pts, np.tile([0, 0, 1.0], (len(pts), 1)), rapid, np.zeros(len(pts), int))
+    dev, summary, machined, (v, f) = simulate(design, tp, [BALL], step, stock=stock, tolerance=0.01)
+    h = R - math.sqrt(R * R - s * s / 4)
+    assert dev["Sp"] == pytest.approx(h, rel=0.05)
+    assert dev["gouge_max"] < 1e-6 and summary["rapid_moves_cutting"] == 0
+    assert dev["removed_volume"] == pytest.approx(100.0 - dev["remaining_volume"], rel=0.01)
+    assert trimesh.Trimesh(v, f).is_watertight
+
+
+def test_a_dip_into_the_design_is_reported_where_it_is():
+    design = box((0, 0, 0), (40, 20, 10))
+    step = 0.1
+    ref = dexelize(design, step)
+    x0 = grid_positions(ref, 0)[np.argmin(np.abs(grid_positions(ref, 0) - 20.0))]
+    y0 = grid_positions(ref, 1)[np.argmin(np.abs(grid_positions(ref, 1) - 10.0))]
+    pts = np.array([[-5, y0, 10.0], [x0, y0, 9.8], [45, y0, 10.0]])
+    tp = Toolpath(pts, np.tile([0, 0, 1.0], (3, 1)), np.zeros(3, bool), np.zeros(3, int))
+    dev, *_ = simulate(design, tp, [BALL], step, allowance=0.5)
+    assert dev["gouge_max"] == pytest.approx(0.2, abs=2e-3)
+    np.testing.assert_allclose(dev["gouge_at"], [x0, y0, 9.8], atol=step)
+    assert dev["excess_max"] == pytest.approx(0.5, abs=1e-6)  # the allowance left elsewhere
+
+
+def test_rapid_move_through_material_is_reported():
+    design = box((0, 0, 0), (20, 20, 10))
+    pts = np.array([[-5, 10, 20.0], [-5, 10, 5.0], [25, 10, 5.0]])
+    tp = Toolpath(pts, np.tile([0, 0, 1.0], (3, 1)), np.array([True, True, True]), np.zeros(3, int))
+    _, summary, *_ = simulate(design, tp, [BALL], 0.25)
+    assert summary["rapid_cutting_points"] == [2]
+
+
+def test_five_axis_turning_tool_cuts_a_block():
+    """A ball tool tilting from vertical to 30 degrees along one move removes what the same motion
+    cut as 3000 short moves removes."""
+    d = dexelize(box((0, 0, 0), (30, 20, 10)), 0.1)
+    n = 2
+    tips = np.array([[0.0, 10, 8.5], [30.0, 10, 8.5]])
+    ang = np.radians([0.0, 30.0])
+    axes = np.column_stack([np.sin(ang), np.zeros(n), np.cos(ang)])
+    tp = Toolpath(tips, axes, np.zeros(n, bool), np.zeros(n, int))
+    st = stock_from_model(d)
+    moves = toolpath_moves(tp, [BALL])
+    assert len(moves) > 10  # split where the axis turns
+    cut(st, moves)
+    swept = d.volume - st.to_model().volume
+    t = np.linspace(0, 1, 3001)
+    x = np.column_stack([(1 - t) * axes[0, 0] + t * axes[1, 0], np.zeros_like(t), (1 - t) * axes[0, 2] + t * axes[1, 2]])
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    dense = Toolpath(tips[0] + t[:, None] * (tips[1] - tips[0]), x, np.zeros(len(t), bool), np.zeros(len(t), int))
+    st2 = stock_from_model(d)
+    cut(st2, toolpath_moves(dense, [BALL]))
+    assert swept == pytest.approx(d.volume - st2.to_model().volume, rel=1e-3)
+
+
+def test_machined_mesh_is_watertight_and_keeps_the_volume():
+    d = dexelize(box((0, 0, 0), (20, 10, 10)), 0.2)
+    pts = np.array([[-5, 5, 7.0], [25, 5, 7.0]])
+    tp = Toolpath(pts, np.tile([0, 0, 1.0], (2, 1)), np.zeros(2, bool), np.zeros(2, int))
+    st = stock_from_model(d)
+    cut(st, toolpath_moves(tp, [BALL]))
+    m = st.to_model()
+    v, f, stride = machined_mesh(m)
+    tm = trimesh.Trimesh(v, f)
+    assert stride == 1 and tm.is_watertight and tm.volume == pytest.approx(m.volume, rel=0.01)
+
+
+def test_simulate_command(tmp_path, capsys):
+    b = box((0, 0, 0), (30, 20, 10))
+    trimesh.Trimesh(b.vertices, b.faces).export(tmp_path / "part.stl")
+    (tmp_path / "tools.toml").write_text('[[tools]]\nname="B6"\ntype="ball"\ndiameter=6\nflute_length=12\n'
+                                         'gauge_length=40\n')
+    (tmp_path / "p.cl").write_text("CUTTER/6, 3\nRAPID\nGOTO/-5, 10, 20\nGOTO/-5, 10, 9\nGOTO/35, 10, 9\nFINI\n")
+    (tmp_path / "p.nc").write_text("T1 M6\nG0 X-5 Y10 Z20\nG1 Z9\nG1 X35\nM30\n")
+    for path in ("p.cl", "p.nc"):
+        out = tmp_path / ("sim_" + path)
+        rc = main(["simulate", "--design", str(tmp_path / "part.stl"), "--toolpath", str(tmp_path / path),
+                   "--tools", str(tmp_path / "tools.toml"), "--step", "0.25", "--allowance", "1", "--out", str(out),
+                   "--quiet"])
+        assert rc == 0
+        dev = json.loads((out / "deviation.json").read_text())
+        assert set(["Sa", "Sq", "Sp", "Sv", "Sz", "gouge_max", "excess_max", "within_tolerance", "removed_volume",
+                    "remaining_volume"]) <= set(dev)
+        assert dev["gouge_max"] == pytest.approx(1.0, abs=0.01)
+        assert trimesh.load(out / "machined.stl").is_watertight
+    bad = [
+        (["--toolpath", str(tmp_path / "missing.cl")], "no such CL file"),
+        (["--toolpath", str(tmp_path / "tools.toml")], "unknown tool-path format"),
+        (["--toolpath", str(tmp_path / "p.cl"), "--step", "-1"], "--step"),
+        (["--toolpath", str(tmp_path / "p.cl"), "--allowance", "nan"], "--allowance"),
+    ]
+    for extra, message in bad:
+        argv = ["simulate", "--design", str(tmp_path / "part.stl"), "--tools", str(tmp_path / "tools.toml"),
+                "--step", "0.5", "--out", str(tmp_path / "x")] + extra
+        capsys.readouterr()
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0]
+    # a path in inches against a part in mm never reaches the stock
+    (tmp_path / "far.cl").write_text("CUTTER/6, 3\nGOTO/500, 500, 500\nGOTO/600, 500, 500\nFINI\n")
+    capsys.readouterr()
+    assert main(["simulate", "--design", str(tmp_path / "part.stl"), "--toolpath", str(tmp_path / "far.cl"),
+                 "--tools", str(tmp_path / "tools.toml"), "--step", "0.5", "--out", str(tmp_path / "y")]) == 2
+    assert "never reaches the stock" in capsys.readouterr().err
+
+
+def test_dexel_command(tmp_path, capsys):
+    b = box((0, 0, 0), (3, 2, 1))
+    trimesh.Trimesh(b.vertices, b.faces).export(tmp_path / "b.stl")
+    assert main(["dexel", str(tmp_path / "b.stl"), "--step", "0.25", "--index", "kmeans", "--partitions", "3",
+                 "--out", str(tmp_path / "o" / "b.npz"), "--quiet"]) == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["volume_mm3"] == pytest.approx(6.0) and s["index"]["partitions"] == 3
+    assert main(["dexel", str(tmp_path / "b.stl"), "--step", "0.25", "--out", str(tmp_path / "b.td"), "--quiet"]) == 0
+    assert (tmp_path / "b.td").read_text().startswith("# TD v1")
+    open_box = trimesh.Trimesh(b.vertices, b.faces[:-1])
+    open_box.export(tmp_path / "open.stl")
+    capsys.readouterr()
+    assert main(["dexel", str(tmp_path / "open.stl"), "--step", "0.25"]) == 2
+    assert "open" in capsys.readouterr().err
+    assert main(["dexel", str(tmp_path / "b.stl"), "--step", "0"]) == 2
+
+
+def test_ball_fast_path_cuts_what_the_whole_tool_cuts():
+    """Ball-end moves are cut with the ball alone unless material lies where only the flutes
+    reach: on random lines with random material, both give the same material left."""
+    from meshmill.kernels.cpu_dexel import material_outside
+
+    rng = np.random.default_rng(11)
+    R, F = 3.0, 12.0
+    checked = 0
+    for _ in range(400):
+        pa = rng.uniform(-2, 2, 3)
+        pb = pa + rng.normal(size=3) * rng.choice([0.0, 0.5, 3.0])
+        xa = rng.normal(size=3)
+        xa /= np.linalg.norm(xa)
+        xb = xa if rng.random() < 0.5 else xa + 0.01 * rng.normal(size=3)
+        xb = xb / np.linalg.norm(xb)
+        u0, v0 = rng.uniform(-4, 4, 2)
+        lo, hi = swp.tool_move(u0, v0, pa, pb, xa, xb, R, R, F, 3)
+        blo, bhi = swp.ball_part(u0, v0, pa, pb, xa, xb, R)
+        flo, fhi = swp.flute_range(u0, v0, pa, pb, xa, xb, R, F)
+        ends = np.sort(rng.uniform(-20, 20, 2 * rng.integers(1, 4)))
+        iv = ends.reshape(-1, 2)
+        if not material_outside(iv, 0, len(iv), max(flo, -30.0), min(fhi, 30.0), blo, bhi):
+            full = [(max(s, -30), min(e, lo)) for s, e in iv] + [(max(s, hi), e) for s, e in iv]
+            fast = [(max(s, -30), min(e, blo)) for s, e in iv] + [(max(s, bhi), e) for s, e in iv]
+            left = lambda parts: sum(max(0.0, e - s) for s, e in parts)  # noqa: E731
+            if lo <= hi:
+                assert left(fast) == pytest.approx(left(full), abs=1e-9)
+            checked += 1
+    assert checked > 100
