@@ -277,8 +277,8 @@ def test_ball_fast_path_cuts_what_the_whole_tool_cuts():
         xb = xb / np.linalg.norm(xb)
         u0, v0 = rng.uniform(-4, 4, 2)
         lo, hi = swp.tool_move(u0, v0, pa, pb, xa, xb, R, R, F, 3)
-        blo, bhi = swp.ball_part(u0, v0, pa, pb, xa, xb, R)
-        flo, fhi = swp.flute_range(u0, v0, pa, pb, xa, xb, R, F)
+        blo, bhi = swp.capsule(u0, v0, *(pa + R * xa), *(pb + R * xb), R)
+        flo, fhi = swp.flute_range(u0, v0, *swp.flute_plane(pa, pb, xa, xb, R, F))
         ends = np.sort(rng.uniform(-20, 20, 2 * rng.integers(1, 4)))
         iv = ends.reshape(-1, 2)
         if not material_outside(iv, 0, len(iv), max(flo, -30.0), min(fhi, 30.0), blo, bhi):

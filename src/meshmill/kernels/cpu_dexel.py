@@ -85,7 +85,8 @@ def cast_lines(a, lu, lv, step, nu, nv, index):
 
 swp = sweep.build(numba.njit(fastmath=False, cache=True))
 _tool_move = swp.tool_move
-_ball_part = swp.ball_part
+_capsule = swp.capsule
+_flute_plane = swp.flute_plane
 _flute_range = swp.flute_range
 TILE = 16  # lines a side of the tiles that cutting runs in parallel over
 MIN_PIECE = 1e-9  # mm: a dexel piece shorter than this is removed
@@ -145,6 +146,22 @@ def subtract(iv, off, count, line, lo, hi):
             iv[base + m - shift, 1] = iv[base + m, 1]
         count[line] = n - shift
     return removed
+
+
+@numba.njit(cache=True)
+def material_outside(iv, base, n, a, b, lo, hi):
+    """Whether the line's intervals ``iv[base:base+n]`` hold material in ``[a, b]`` outside
+    ``[lo, hi]`` (an empty ``[lo, hi]``, lo > hi, excludes nothing)."""
+    if a > b:
+        return False
+    for k in range(base, base + n):
+        s = max(iv[k, 0], a)
+        e = min(iv[k, 1], b)
+        if s >= e:
+            continue
+        if lo > hi or s < lo or e > hi:
+            return True
+    return False
 
 
 @numba.njit(cache=True)
@@ -229,6 +246,23 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
             j1 = min(j1, tj * TILE + TILE - 1)
             wlo = box[m, 4]
             whi = box[m, 5]
+            pam = pa[m]
+            pbm = pb[m]
+            xam = xa[m]
+            xbm = xb[m]
+            rm = radius[m]
+            cm = corner[m]
+            fm = flutes[m]
+            sm = strips[m]
+            ball = cm >= rm
+            # ball-end: the ball's centre chord, and the plane that bounds where the flutes reach
+            cau = pam[0] + cm * xam[0]
+            cav = pam[1] + cm * xam[1]
+            caw = pam[2] + cm * xam[2]
+            cbu = pbm[0] + cm * xbm[0]
+            cbv = pbm[1] + cm * xbm[1]
+            cbw = pbm[2] + cm * xbm[2]
+            f_u, f_v, f_w, f_k = _flute_plane(pam, pbm, xam, xbm, cm, fm)
             for i in range(i0, i1 + 1):
                 u0 = lu + (i + 0.5) * step
                 for j in range(j0, j1 + 1):
@@ -240,16 +274,14 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
                     if iv[base, 0] >= whi or iv[base + n - 1, 1] <= wlo:
                         continue
                     v0 = lv + (j + 0.5) * step
-                    if corner[m] >= radius[m]:
-                        # ball-end: the ball alone, unless material lies where only the flutes reach
-                        lo, hi = _ball_part(u0, v0, pa[m], pb[m], xa[m], xb[m], corner[m])
-                        flo, fhi = _flute_range(u0, v0, pa[m], pb[m], xa[m], xb[m], corner[m], flutes[m])
+                    if ball:
+                        # the ball alone, unless material lies where only the flutes reach
+                        lo, hi = _capsule(u0, v0, cau, cav, caw, cbu, cbv, cbw, cm)
+                        flo, fhi = _flute_range(u0, v0, f_u, f_v, f_w, f_k)
                         if material_outside(iv, base, n, max(flo, wlo), min(fhi, whi), lo, hi):
-                            lo, hi = _tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], corner[m],
-                                                flutes[m], strips[m])
+                            lo, hi = _tool_move(u0, v0, pam, pbm, xam, xbm, rm, cm, fm, sm)
                     else:
-                        lo, hi = _tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], corner[m], flutes[m],
-                                            strips[m])
+                        lo, hi = _tool_move(u0, v0, pam, pbm, xam, xbm, rm, cm, fm, sm)
                     if lo >= hi:
                         continue
                     removed = subtract(iv, off, count, line, lo, hi)

@@ -367,18 +367,12 @@ def build(jit):
         return -best if upper else best
 
     @jit
-    def ball_part(u0, v0, pa, pb, xa, xb, r):
-        """Line against the volume the ball of a ball-end mill (radius r) sweeps: the capsule
-        along its centre's chord."""
-        return capsule(u0, v0, pa[0] + r * xa[0], pa[1] + r * xa[1], pa[2] + r * xa[2],
-                       pb[0] + r * xb[0], pb[1] + r * xb[1], pb[2] + r * xb[2], r)
-
-    @jit
-    def flute_range(u0, v0, pa, pb, xa, xb, r, F):
-        """Where on the line a ball-end mill's flutes may cut beyond its ball: the flutes lie on
-        the shank side of the plane through the ball centre normal to the axis, for every pose;
-        over a move that is the half-space ``(p - c_a).x_a >= -m`` (m covers the move and its turn).
-        Returns ``(lo, hi)``, possibly infinite, or empty."""
+    def flute_plane(pa, pb, xa, xb, r, F):
+        """Where a ball-end mill's flutes may cut beyond its ball, for every line of a move: the
+        flutes lie on the shank side of the plane through the ball centre normal to the axis, for
+        every pose; over a move that is the half-space ``(p - c_a).x_a >= -m`` (m covers the
+        move and its turn). Returns ``(xu, xv, xw, k)``: the line at (u0, v0) is in the
+        half-space where ``u0 xu + v0 xv + w xw + k >= 0``."""
         cu = pa[0] + r * xa[0]
         cv = pa[1] + r * xa[1]
         cw = pa[2] + r * xa[2]
@@ -389,12 +383,17 @@ def build(jit):
         turn = math.sqrt((xb[0] - xa[0]) ** 2 + (xb[1] - xa[1]) ** 2 + (xb[2] - xa[2]) ** 2)
         m = max(0.0, -(du * xa[0] + dv * xa[1] + dw * xa[2])) if turn == 0.0 else dist + (dist + F + r) * turn
         m += 1e-9
-        # (u0 - cu) xa0 + (v0 - cv) xa1 + (w - cw) xa2 >= -m
-        a0 = (u0 - cu) * xa[0] + (v0 - cv) * xa[1] - cw * xa[2] + m
-        if xa[2] > 1e-12:
-            return -a0 / xa[2], INF
-        if xa[2] < -1e-12:
-            return -INF, -a0 / xa[2]
+        return xa[0], xa[1], xa[2], m - cu * xa[0] - cv * xa[1] - cw * xa[2]
+
+    @jit
+    def flute_range(u0, v0, xu, xv, xw, k):
+        """``(lo, hi)`` of the line inside the half-space of :func:`flute_plane` (may be infinite
+        or empty)."""
+        a0 = u0 * xu + v0 * xv + k
+        if xw > 1e-12:
+            return -a0 / xw, INF
+        if xw < -1e-12:
+            return -INF, -a0 / xw
         if a0 >= 0.0:
             return -INF, INF
         return INF, -INF
@@ -449,4 +448,4 @@ def build(jit):
 
     return SimpleNamespace(sphere=sphere, capsule=capsule, pgram_ball=pgram_ball, core_dist2=core_dist2,
                            rounded_sweep=rounded_sweep, pose=pose,
-                           ball_part=ball_part, flute_range=flute_range, tool_move=tool_move)
+                           flute_plane=flute_plane, flute_range=flute_range, tool_move=tool_move)

@@ -193,11 +193,15 @@ def turn_pieces(pa, pb, xa, xb, R, r, F) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _boxes(m: Moves) -> np.ndarray:
-    """``(k, 2, 3)`` boxes holding each move's swept volume."""
-    pts = np.stack([m.pa, m.pb, m.pa + m.flutes[:, None] * m.xa, m.pa + m.flutes[:, None] * m.xb,
-                    m.pb + m.flutes[:, None] * m.xa, m.pb + m.flutes[:, None] * m.xb], axis=1)
-    R = m.radius[:, None]
-    return np.stack([pts.min(axis=1) - R, pts.max(axis=1) + R], axis=1)
+    """``(k, 2, 3)`` boxes holding each move's swept volume: the hull of the core segment's ends
+    (from c = tip + r x up H = F - 2r) widened by the disk and the corner radius, plus SWEEP_TOL."""
+    r, rho = m.corner[:, None], (m.radius - m.corner)[:, None]
+    H = np.maximum(0.0, m.flutes - 2 * m.corner)[:, None]
+    ca, cb = m.pa + r * m.xa, m.pb + r * m.xb
+    pts = np.stack([ca, cb, ca + H * m.xa, cb + H * m.xb, ca + H * m.xb, cb + H * m.xa], axis=1)
+    disk = rho * np.maximum(np.sqrt(np.clip(1 - m.xa ** 2, 0, 1)), np.sqrt(np.clip(1 - m.xb ** 2, 0, 1)))
+    ext = disk + r + SWEEP_TOL
+    return np.stack([pts.min(axis=1) - ext, pts.max(axis=1) + ext], axis=1)
 
 
 def cut(stock: Stock, moves: Moves, progress=None) -> dict:
