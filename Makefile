@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DATA   := src/meshmill/data
 
-.PHONY: venv demo test bench bench-3axis clean
+.PHONY: venv demo test bench bench-3axis bench-dexel clean
 
 venv: $(STAMP)
 
@@ -19,7 +19,8 @@ demo: venv
 	$(BIN)/meshmill verify $(DATA)/vase.stl demo-out/toolpath.cl --tools $(DATA)/tools.toml --out demo-out/verify.json
 	$(BIN)/meshmill waterline $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool B4 --step-down 2 --out demo-out/waterline
 	$(BIN)/meshmill raster $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool R6 --scallop 0.01 --angle 45 --out demo-out/raster
-	@echo "demo results in demo-out/: 5-axis finishing (toolpath.cl, summary.json, verify.json), 3-axis waterline/ and raster/"
+	$(BIN)/meshmill simulate --design $(DATA)/vase.stl --allowance 0.5 --toolpath demo-out/toolpath.cl --tools $(DATA)/tools.toml --step 0.2 --out demo-out/simulate
+	@echo "demo results in demo-out/: 5-axis finishing (toolpath.cl, summary.json, verify.json), 3-axis waterline/ and raster/, simulate/ (what the 5-axis path cuts: deviation.json, machined.stl)"
 
 test: venv
 	$(BIN)/python -m pytest
@@ -29,6 +30,9 @@ bench: venv
 
 bench-3axis: venv
 	$(BIN)/python bench/three_axis_vs_ocl.py
+
+bench-dexel: venv
+	$(BIN)/python bench/dexel_seed_tables.py
 
 clean:
 	rm -rf $(VENV) demo-out bench/out .pytest_cache

@@ -135,9 +135,8 @@ def test_tool_selection_errors(tmp_path, tools, body, kw, message):
     ("G0 X0 Y0 Z nan\n", "p.nc:2: NaN"),
     ("G0 X2000000 Y0 Z0\n", "p.nc:2: X 2e\\+06 is out of range"),
     ("G20 G0 X50000 Y0 Z0\n", "p.nc:2: X 1.27e\\+06 is out of range"),
-    ("G0 X0 Y0\n", "p.nc:2: first move does not give X, Y and Z"),
-    ("G0 Z5\nX0 Y0\n", "p.nc:2: first move does not give X, Y and Z"),
-    ("G91 G0 X0 Y0 Z5\n", "p.nc:2: first move does not give X, Y and Z"),
+    ("G0 X0 Y0\n", "no moves"),
+    ("G91 G0 X0 Y0 Z5\n", "no moves"),
     ("G2 X0 Y0 Z0 I1\n", "p.nc:2: an arc cannot be the first move"),
     ("X0 Y0 Z0\n", "p.nc:2: coordinates without G0"),
     ("G0 X0 Y0 Z0\nG2 X5 Y0 I1\n", "p.nc:3: .*not on its circle"),
@@ -190,3 +189,12 @@ def test_chord_tol_must_be_positive(tmp_path, tools):
 def test_dwell_does_not_move(tmp_path, tools):
     tp, _ = read(tmp_path, tools, "T1\nG0 X0 Y0 Z5\nG4 X2\nG1 Z0\n")
     np.testing.assert_array_equal(tp.tip, [[0, 0, 5], [0, 0, 0]])
+
+
+def test_start_known_once_x_y_and_z_are_given(tmp_path, tools):
+    from meshmill.toolpath.gcode import read_gcode
+
+    (tmp_path / "p.nc").write_text("G21 G90\nT1 M6\nG0 Z5\nG0 X1 Y2\nG1 Z-1\nG1 X4\n")
+    tp, _ = read_gcode(tmp_path / "p.nc", tools)
+    np.testing.assert_allclose(tp.tip, [[1, 2, 5], [1, 2, -1], [4, 2, -1]])
+    assert list(tp.rapid) == [True, False, False] and list(tp.line) == [4, 5, 6]

@@ -232,6 +232,10 @@ def cmd_simulate(args):
         trimesh.Trimesh(verts, faces, process=False).export(os.path.join(out, "machined.stl"))
     for w in summary["warnings"]:
         _say(args, f"warning: {w}")
+    for e in summary["errors"][:10]:
+        print(f"error: {e}", file=sys.stderr)
+    if len(summary["errors"]) > 10:
+        print(f"error: ... {len(summary['errors']) - 10} more in summary.json", file=sys.stderr)
     _say(args, f"Sa {deviation['Sa']:.4f}  Sq {deviation['Sq']:.4f}  Sp {deviation['Sp']:.4f}  Sv {deviation['Sv']:.4f}  "
                f"Sz {deviation['Sz']:.4f} mm; within ±{args.tolerance:g} mm: {100 * deviation['within_tolerance']:.1f} %")
     _say(args, f"gouge max {deviation['gouge_max']:.4f} mm at {deviation['gouge_at']}; excess max "

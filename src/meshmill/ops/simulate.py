@@ -129,9 +129,8 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     deviation = {k: deviation[k] for k in DEVIATION_KEYS}
     deviation.update(units="mm, mm^3", tolerance=tolerance, gouge_at=params["gouge_at"],
                      excess_at=params["excess_at"], gouged_volume=gouged, samples=params["samples"])
-    if result["rapid_cuts"]:
-        lines = [int(toolpath.line[i]) for i in result["rapid_cuts"][:20]]
-        warnings.append(f"{len(result['rapid_cuts'])} rapid move(s) cut material (source lines {lines})")
+    errors = [f"rapid move to point {i} (source line {int(toolpath.line[i])}) cuts material"
+              for i in result["rapid_cuts"][:1000]]
     summary = {
         "mode": mode,
         "step": step,
@@ -140,6 +139,7 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
         "pieces_cut": len(moves),
         "rapid_moves_cutting": len(result["rapid_cuts"]),
         "rapid_cutting_points": result["rapid_cuts"][:1000],
+        "errors": errors,
         "volumes_mm3": {"design": design_model.volume, "stock": stock_volume, "machined": machined.volume,
                         "removed": removed, "remaining": remaining, "gouged": gouged},
         "deviation": deviation,

@@ -21,8 +21,9 @@ Read:
 Refused with :class:`InputError` naming ``file:line``: ``G18``/``G19`` arcs, ``G41``/``G42``
 cutter compensation, canned cycles ``G81``-``G89``, ``G28``/``G30``/``G53`` (machine coordinates
 are unknown), other G codes and letters, malformed or non-finite numbers, values beyond 1e6 mm.
-The machine starts at an unknown place: every programmed end point is a move, and the first move
-must give X, Y and Z (an arc cannot be first).
+The machine starts at an unknown place: the path starts at the first point where X, Y and Z have
+all been given (absolutely, by ``G0``/``G1``, over one or more lines); an arc cannot come before it,
+and a program that never gives all three has no moves.
 """
 from __future__ import annotations
 
@@ -274,7 +275,14 @@ def read_gcode(path, tools, tool_name=None, chord_tol=0.001) -> tuple[Toolpath, 
             continue
         if modes.motion is None:
             raise InputError(f"{where}: coordinates without G0, G1, G2 or G3")
-        points = _move(modes, pos, words, chord_tol, where)
+        if any(math.isnan(v) for v in pos) and modes.motion in ("G0", "G1"):
+            # the start is unknown until X, Y and Z have all been given absolutely
+            pos = [words[a] if a in words and modes.absolute else pos[i] for i, a in enumerate("XYZ")]
+            if any(math.isnan(v) for v in pos):
+                continue
+            points = [pos]
+        else:
+            points = _move(modes, pos, words, chord_tol, where)
         tips += points
         rapid += [modes.motion == "G0"] * len(points)
         tool_idx += [tool] * len(points)
