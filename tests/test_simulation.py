@@ -289,3 +289,29 @@ def test_ball_fast_path_cuts_what_the_whole_tool_cuts():
                 assert left(fast) == pytest.approx(left(full), abs=1e-9)
             checked += 1
     assert checked > 100
+
+
+def test_subtract_cases_and_growing_room():
+    from meshmill.kernels.cpu_dexel import subtract
+    from meshmill.simulation.cut import _grow
+
+    def run(intervals, lo, hi, room=4):
+        iv = np.zeros((room, 2))
+        iv[:len(intervals)] = intervals
+        count = np.array([len(intervals)])
+        removed = subtract(iv, np.array([0, room]), count, 0, lo, hi)
+        return removed, iv[:count[0]].tolist()
+
+    assert run([[0, 10]], 12, 15) == (0.0, [[0, 10]])  # miss
+    assert run([[0, 10]], -1, 11) == (10.0, [])  # whole
+    assert run([[0, 10]], 8, 12) == (2.0, [[0, 8]])  # end
+    assert run([[0, 10]], -2, 3) == (3.0, [[3, 10]])  # start
+    assert run([[0, 10]], 4, 6) == (2.0, [[0, 4], [6, 10]])  # split
+    assert run([[0, 2], [3, 5], [6, 9]], 1, 7) == (4.0, [[0, 1], [7, 9]])  # across three
+    assert run([[0, 10]], 4, 6, room=1) == (-1.0, [[0, 10]])  # no room: unchanged
+    st = stock_from_model(dexelize(box((0, 0, 0), (2, 2, 2)), 0.5))
+    before = st.to_model()
+    full = np.nonzero(st.count[2])[0]
+    _grow(st, 2, full)
+    assert (np.diff(st.off[2])[full] == 2 * (1 + 2)).all()
+    np.testing.assert_array_equal(st.to_model().iv[2], before.iv[2])

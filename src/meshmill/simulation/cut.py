@@ -103,13 +103,10 @@ def _grow(stock: Stock, a: int, lines: np.ndarray) -> None:
     room[lines] *= 2
     off = np.zeros(len(room) + 1, np.int64)
     np.cumsum(room, out=off[1:])
-    iv = np.zeros((off[-1], 2))
-    old_off = stock.off[a]
     counts = stock.count[a]
-    for_copy = np.nonzero(counts)[0]
-    idx_new = np.concatenate([np.arange(off[i], off[i] + counts[i]) for i in for_copy]) if len(for_copy) else np.empty(0, np.int64)
-    idx_old = np.concatenate([np.arange(old_off[i], old_off[i] + counts[i]) for i in for_copy]) if len(for_copy) else np.empty(0, np.int64)
-    iv[idx_new] = stock.iv[a][idx_old]
+    within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    iv = np.zeros((off[-1], 2))
+    iv[np.repeat(off[:-1], counts) + within] = stock.iv[a][np.repeat(stock.off[a][:-1], counts) + within]
     stock.iv[a] = iv
     stock.off[a] = off
 
