@@ -245,6 +245,57 @@ def cmd_simulate(args):
     return 1 if summary["rapid_moves_cutting"] else 0
 
 
+def cmd_analyze(args):
+    import numpy as np
+
+    from .geometry import analysis
+    from .geometry.bvh import build_bvh
+
+    try:
+        direction = [float(v) for v in args.direction.split(",")]
+    except ValueError:
+        raise InputError(f"--direction must be three numbers X,Y,Z, got '{args.direction}'") from None
+    if len(direction) != 3:
+        raise InputError(f"--direction must be three numbers X,Y,Z, got '{args.direction}'")
+    mesh = _load_part(args, args.part)
+    out = _out_dir(args.out)
+    t0 = time.perf_counter()
+    bvh = build_bvh(mesh.vertices, mesh.faces)
+    tri = analysis.triangle_parameters(mesh)
+    normals = analysis.vertex_normals(mesh, args.weighting)
+    flags = analysis.visibility(mesh, direction, args.weighting, bvh)
+    seconds = {"visibility": round(time.perf_counter() - t0, 4)}
+    summary = {
+        "part": {"file": os.path.abspath(args.part), **mesh.summary()},
+        "direction": analysis.unit_direction(direction).round(9).tolist(),
+        "weighting": args.weighting,
+        "area_mm2": {"total": float(tri["area"].sum()), "min": float(tri["area"].min()), "max": float(tri["area"].max())},
+        "boundary_edges": int((tri["neighbours"] < 0).sum()),
+        **{k: int(v.sum()) for k, v in flags.items()},
+    }
+    arrays = {"vertex_normals": normals, **tri, **flags}
+    if args.theta_step is not None:
+        t1 = time.perf_counter()
+        dirs = analysis.hemisphere(args.theta_step, args.delta_step)
+        share, reached = analysis.accessibility_map(mesh, dirs, bvh)
+        seconds["map"] = round(time.perf_counter() - t1, 4)
+        summary["map"] = {"directions": len(dirs), "best_direction": dirs[int(np.argmax(share))].round(9).tolist(),
+                          "best_share": float(share.max()), "never_reached_triangles": int((reached == 0).sum())}
+        arrays.update(map_directions=dirs, map_share=share, triangles_reached=reached)
+    summary["seconds"] = seconds
+    np.savez_compressed(os.path.join(out, "analysis.npz"), **arrays)
+    _write_json(os.path.join(out, "summary.json"), summary)
+    _say(args, f"{summary['visible_triangles']} of {len(mesh.faces)} triangles visible along {summary['direction']}, "
+               f"{summary['accessible_triangles']} accessible; {summary['accessible_vertices']} of {len(mesh.vertices)} "
+               f"vertices accessible ({seconds['visibility']:.2f} s)")
+    if "map" in summary:
+        m = summary["map"]
+        _say(args, f"map over {m['directions']} directions: best {m['best_direction']} reaches {100 * m['best_share']:.1f} % "
+                   f"of the area; {m['never_reached_triangles']} triangles reached by none")
+    _say(args, f"wrote analysis.npz and summary.json in {out}")
+    return 0
+
+
 def build_parser():
     p = _Parser(prog="meshmill", description="Exact, verified multi-axis milling tool paths from triangle meshes.")
     p.add_argument("--version", action="version", version=f"meshmill {__version__}")
@@ -332,6 +383,16 @@ def build_parser():
     s.add_argument("--out", default="sim", help="output folder (sim)")
     s.add_argument("--quiet", action="store_true", help="print nothing but errors")
     s.set_defaults(func=cmd_simulate)
+
+    n = sub.add_parser("analyze", help="triangle and vertex parameters, visibility and accessibility")
+    n.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
+    n.add_argument("--direction", default="0,0,1", help="direction X,Y,Z (0,0,1)")
+    n.add_argument("--weighting", choices=("area", "angle", "uniform"), default="area", help="vertex normals (area)")
+    n.add_argument("--theta-step", type=float, default=None, help="also map accessibility over the hemisphere, degrees")
+    n.add_argument("--delta-step", type=float, default=10.0, help="azimuth step of the map, degrees (10)")
+    n.add_argument("--out", default="analysis", help="output folder (analysis)")
+    n.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    n.set_defaults(func=cmd_analyze)
     return p
 
 

@@ -20,6 +20,7 @@ ray = raycast.build(numba.njit(fastmath=False, cache=True))
 _bvh_hits = ray.bvh_line_hits
 _box_hits = ray.box_line_hits
 _intervals = ray.intervals_from_hits
+_ray_blocked = ray.ray_blocked
 LINE_CHUNK = 256
 MAX_HITS = 512  # crossings a line may have; more is reported as an error
 
@@ -63,6 +64,25 @@ def _cast_boxes(a, lu, lv, step, nu, nv, cap, box_lo, box_hi, box_start, tris):
             else:
                 count[line] = _intervals(hw, hs, n, out, line, cap)
     return out, count
+
+
+@numba.njit(parallel=True, cache=True)
+def _rays_blocked(origins, d, tmin, node_lo, node_hi, node_child, node_range, tris):
+    out = np.zeros(origins.shape[0], np.bool_)
+    n_chunks = (origins.shape[0] + LINE_CHUNK - 1) // LINE_CHUNK
+    for c in prange(n_chunks):
+        stack = np.empty(STACK_SIZE, np.int32)
+        for i in range(c * LINE_CHUNK, min(origins.shape[0], (c + 1) * LINE_CHUNK)):
+            out[i] = _ray_blocked(origins[i, 0], origins[i, 1], origins[i, 2], d[0], d[1], d[2], tmin,
+                                  node_lo, node_hi, node_child, node_range, tris, stack)
+    return out
+
+
+def rays_blocked(origins, direction, tmin, bvh):
+    """``(k,) bool``: whether the ray from each of ``origins (k, 3)`` along the unit ``direction``
+    meets the mesh beyond ``tmin`` mm (``bvh`` is ``BVH.arrays``)."""
+    return _rays_blocked(np.ascontiguousarray(origins, np.float64), np.asarray(direction, np.float64),
+                         float(tmin), *bvh)
 
 
 def cast_lines(a, lu, lv, step, nu, nv, index):

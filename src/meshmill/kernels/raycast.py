@@ -167,5 +167,67 @@ def build(jit):
                     n += 1
         return n
 
+    @jit
+    def ray_blocked(ox, oy, oz, dx, dy, dz, tmin, node_lo, node_hi, node_child, node_range, tris, stack):
+        """Whether the ray o + t d, t > tmin, meets a triangle (Moller-Trumbore, both faces,
+        edges included); an any-hit query through the BVH."""
+        stack[0] = 0
+        sp = 1
+        while sp > 0:
+            sp -= 1
+            k = stack[sp]
+            t0 = tmin
+            t1 = 1e300
+            for c in range(3):
+                o = ox if c == 0 else (oy if c == 1 else oz)
+                d = dx if c == 0 else (dy if c == 1 else dz)
+                if d == 0.0:
+                    if o < node_lo[k, c] or o > node_hi[k, c]:
+                        t0 = 1.0
+                        t1 = 0.0
+                else:
+                    a = (node_lo[k, c] - o) / d
+                    b = (node_hi[k, c] - o) / d
+                    t0 = max(t0, min(a, b))
+                    t1 = min(t1, max(a, b))
+            if t0 > t1:
+                continue
+            left = node_child[k, 0]
+            if left >= 0:
+                stack[sp] = left
+                stack[sp + 1] = node_child[k, 1]
+                sp += 2
+                continue
+            first = node_range[k, 0]
+            for t in range(first, first + node_range[k, 1]):
+                e1x = tris[t, 3] - tris[t, 0]
+                e1y = tris[t, 4] - tris[t, 1]
+                e1z = tris[t, 5] - tris[t, 2]
+                e2x = tris[t, 6] - tris[t, 0]
+                e2y = tris[t, 7] - tris[t, 1]
+                e2z = tris[t, 8] - tris[t, 2]
+                px = dy * e2z - dz * e2y
+                py = dz * e2x - dx * e2z
+                pz = dx * e2y - dy * e2x
+                det = e1x * px + e1y * py + e1z * pz
+                if abs(det) < 1e-300:
+                    continue
+                inv = 1.0 / det
+                tx = ox - tris[t, 0]
+                ty = oy - tris[t, 1]
+                tz = oz - tris[t, 2]
+                u = (tx * px + ty * py + tz * pz) * inv
+                if u < 0.0 or u > 1.0:
+                    continue
+                qx = ty * e1z - tz * e1y
+                qy = tz * e1x - tx * e1z
+                qz = tx * e1y - ty * e1x
+                v = (dx * qx + dy * qy + dz * qz) * inv
+                if v < 0.0 or u + v > 1.0:
+                    continue
+                if (e2x * qx + e2y * qy + e2z * qz) * inv > tmin:
+                    return True
+        return False
+
     return SimpleNamespace(edge_side=edge_side, hit=hit, intervals_from_hits=intervals_from_hits,
-                           bvh_line_hits=bvh_line_hits, box_line_hits=box_line_hits)
+                           bvh_line_hits=bvh_line_hits, box_line_hits=box_line_hits, ray_blocked=ray_blocked)
