@@ -94,7 +94,7 @@ def cmd_finish(args):
 
 
 def _three_axis(args, run):
-    """Shared tail of raster and waterline: load, run, write toolpath.cl and summary.json."""
+    """Shared tail of raster, waterline and plunge: load, run, write toolpath.cl and summary.json."""
     from .tools.table import load_tools
     from .toolpath.cldata import write_apt
 
@@ -136,6 +136,14 @@ def cmd_waterline(args):
         return tp, summary
 
     return _three_axis(args, run)
+
+
+def cmd_plunge(args):
+    from .ops.plunge import PlungeParams, plunge3
+
+    params = PlungeParams(radial_step=args.radial_step, engagement=args.engagement, allowance=args.allowance,
+                          clearance=args.clearance)
+    return _three_axis(args, lambda mesh, tools: plunge3(mesh, tools, args.tool, params, progress=_progress(args)))
 
 
 def cmd_verify(args):
@@ -343,6 +351,18 @@ def build_parser():
     w.add_argument("--out", default="out", help="output folder (out)")
     w.add_argument("--quiet", action="store_true", help="print nothing but errors")
     w.set_defaults(func=cmd_waterline)
+
+    pl = sub.add_parser("plunge", help="3-axis plunge roughing (tréflage)")
+    pl.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
+    pl.add_argument("--tools", required=True, help="TOML tool table")
+    pl.add_argument("--tool", required=True, help="name of the tool in the table")
+    pl.add_argument("--radial-step", type=float, required=True, help="distance between plunges along a contour, mm")
+    pl.add_argument("--engagement", type=float, required=True, help="radial engagement between contours, mm")
+    pl.add_argument("--allowance", type=float, required=True, help="material left on the part, mm")
+    pl.add_argument("--clearance", type=float, default=5.0, help="clearance plane above the stock, mm (5)")
+    pl.add_argument("--out", default="out", help="output folder (out)")
+    pl.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    pl.set_defaults(func=cmd_plunge)
 
     v = sub.add_parser("verify", help="check an APT CL file for gouges and collisions")
     v.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")

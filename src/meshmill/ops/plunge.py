@@ -1,0 +1,151 @@
+"""Plunge roughing (tréflage, seed 001): the tool feeds along its own axis into the stock, one
+plunge at a time, down to the lowest position that keeps ``allowance`` mm from the part.
+
+3-axis: the stock is the part's box; plunge points lie on nested rectangles shrunk from its
+outline by ``k * engagement`` (k = 0, 1, ...) while they enclose anything, ``radial_step`` mm apart
+along each perimeter. The depth at a point is exact: the drop-cutter of the 3-axis kernels with
+the whole tool grown by the allowance (the Minkowski sum of the cutter with a ball of radius
+``allowance`` is a bull-nose of radius R + a and corner r + a whose tip is a below the real one;
+shank and holder grown likewise), never below the stock bottom. Plunges whose depth is not below
+the stock top remove nothing and are skipped. Each plunge: rapid to the clearance plane above
+the point, feed down, rapid retract; contours from the outside in. The path is verified like every
+path we write (gouge and shank/holder collision along every move).
+
+The seed's own depth (the nearest sampled surface point in a square around the point, no
+allowance) can gouge; see its notes §4.9.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry.bvh import build_bvh
+from ..kernels import cpu
+from ..tolerances import GOUGE_TOL
+from ..toolpath.model import Toolpath
+from .dropcutter import pick_tool
+from .verify import DEFAULT_STEP, verify_toolpath
+
+@dataclass
+class PlungeParams:
+    """Plunge roughing settings, mm."""
+
+    radial_step: float
+    engagement: float
+    allowance: float
+    clearance: float = 5.0
+
+    def check(self):
+        for name, v, low in (("--radial-step", self.radial_step, 1e-3), ("--engagement", self.engagement, 1e-3),
+                             ("--allowance", self.allowance, 0.0), ("--clearance", self.clearance, 0.0)):
+            if not (math.isfinite(v) and v >= low):
+                raise InputError(f"{name} must be a number of mm >= {low:g}, got {v}")
+
+
+def rectangle_points(x0, y0, x1, y1, step) -> np.ndarray:
+    """``(k, 2)`` points every ``step`` mm along the perimeter of the rectangle, from (x0, y0)
+    up the side x = x0 first; a degenerate rectangle (a segment or a point) is walked once."""
+    w, h = x1 - x0, y1 - y0
+    if w <= 0 and h <= 0:
+        return np.array([[x0, y0]])
+    if w <= 0 or h <= 0:
+        length = max(w, h)
+        s = np.arange(0.0, length + 1e-9, step)
+        return np.column_stack([x0 + s * (w > 0), y0 + s * (h > 0)])
+    s = np.arange(0.0, 2 * (w + h) - 1e-9, step)
+    x = np.select([s < h, s < h + w, s < 2 * h + w], [np.full_like(s, x0), x0 + (s - h), np.full_like(s, x1)],
+                  x1 - (s - 2 * h - w))
+    y = np.select([s < h, s < h + w, s < 2 * h + w], [y0 + s, np.full_like(s, y1), y1 - (s - h - w)], np.full_like(s, y0))
+    return np.column_stack([x, y])
+
+
+def contours(bounds, engagement, step) -> list[np.ndarray]:
+    """Plunge points of the nested rectangles, outermost first."""
+    (x0, y0, _), (x1, y1, _) = bounds
+    out = []
+    k = 0
+    while x0 + k * engagement <= x1 - k * engagement + 1e-9 and y0 + k * engagement <= y1 - k * engagement + 1e-9:
+        e = k * engagement
+        out.append(rectangle_points(x0 + e, y0 + e, max(x0 + e, x1 - e), max(y0 + e, y1 - e), step))
+        k += 1
+    return out
+
+
+def grown_tool_drop(tool, allowance, bvh, floor):
+    """Drop heights of the real tip of ``tool`` kept ``allowance`` mm from the mesh: a callable
+    ``xy (k, 2) -> (k,)``, never below ``floor``."""
+    a = allowance
+    body_r = [0.5 * tool.shank_diameter + a]
+    body_t = [tool.flute_length]
+    if tool.holder_diameter > 0:
+        body_r.append(0.5 * tool.holder_diameter + a)
+        body_t.append(tool.gauge_length)
+    body = (np.array(body_r), np.array(body_t))
+
+    def drop(xy):
+        z, _ = cpu.drop_cutter(xy, tool.radius + a, tool.corner_radius + a, floor - a, bvh.arrays, body)
+        return z + a
+
+    return drop
+
+
+def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
+    """3-axis plunge roughing of ``mesh`` from its box. Returns ``(toolpath, summary)``."""
+    params.check()
+    say = progress or (lambda stage: None)
+    index, tool = pick_tool(tools, tool_name)
+    t0 = time.perf_counter()
+    bounds = mesh.bounds
+    z_min, z_max = float(bounds[0, 2]), float(bounds[1, 2])
+    if params.engagement > 2 * tool.radius:
+        raise InputError(f"--engagement {params.engagement:g} mm is wider than the tool ({tool.diameter:g} mm): "
+                         "stock would be left between the contours")
+    rings = contours(bounds, params.engagement, params.radial_step)
+    n_points = sum(len(r) for r in rings)
+    if n_points > 5_000_000:
+        raise InputError(f"{n_points:,} plunge points: use a larger --radial-step or --engagement")
+    say(f"{len(rings)} contours, {n_points} plunge points")
+    bvh = build_bvh(mesh.vertices, mesh.faces)
+    drop = grown_tool_drop(tool, params.allowance, bvh, z_min)
+    clear_z = z_max + params.clearance
+    tips, rapid, contour_of = [], [], []
+    depths = []
+    for k, xy in enumerate(rings):
+        z = drop(xy)
+        keep = z < z_max - 1e-9
+        for (x, y), zz in zip(xy[keep], z[keep]):
+            tips += [(x, y, clear_z), (x, y, zz), (x, y, clear_z)]
+            rapid += [True, False, True]
+            depths.append(z_max - zz)
+            contour_of.append(k)
+    if not tips:
+        raise InputError("no plunge removes stock: the part fills its box (nothing to rough) or the allowance is too large")
+    tip = np.array(tips)
+    tp = Toolpath(tip, np.tile([0.0, 0.0, 1.0], (len(tip), 1)), np.array(rapid), np.full(len(tip), index, np.int64))
+    depths = np.array(depths)
+    say("verify")
+    report = verify_toolpath(bvh, tp, tools, GOUGE_TOL, DEFAULT_STEP)
+    report.pop("problem_moves")
+    summary = {
+        "operation": "plunge",
+        "axes": 3,
+        "tool": tool.name,
+        "stock": bounds.round(6).tolist(),
+        "contours": len(rings),
+        "plunges": int(n_points),
+        "valid_plunges": int(len(depths)),
+        "valid_per_contour": np.bincount(contour_of, minlength=len(rings)).tolist(),
+        "depth_mm": {"min": float(depths.min()), "max": float(depths.max()), "mean": float(depths.mean())},
+        "clearance_z": clear_z,
+        "cl_points": len(tp),
+        "moves": len(tp),
+        "cutting_length": tp.cutting_length(),
+        "verify": report,
+        "seconds": {"total": round(time.perf_counter() - t0, 4)},
+        **{k: getattr(params, k) for k in ("radial_step", "engagement", "allowance", "clearance")},
+    }
+    return tp, summary

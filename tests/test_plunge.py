@@ -1,0 +1,102 @@
+"""3-axis plunge roughing: exact depths with the allowance, contours, the command."""
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from meshmill.cli import main
+from meshmill.geometry.bvh import build_bvh
+from meshmill.geometry.mesh import mesh_from_arrays
+from meshmill.geometry.shapes import box, sphere
+from meshmill.kernels.cpu import mesh_distances
+from meshmill.ops.plunge import PlungeParams, contours, plunge3, rectangle_points
+from meshmill.tools.table import Tool
+
+FLAT = Tool("F6", "flat", 6.0, 0.0, 40.0, 60.0, 6.0)
+BULL = Tool("R8", "bull", 8.0, 1.0, 40.0, 60.0, 8.0)
+
+
+def stepped_block():
+    """Steps of 10 mm: z 10 for x in [40, 60], 20 for [20, 40], 30 for [0, 20]; y in [0, 30]."""
+    parts = [box((0, 0, 0), (60, 30, 10)), box((0, 0, 10), (40, 30, 20)), box((0, 0, 20), (20, 30, 30))]
+    v = np.concatenate([p.vertices for p in parts])
+    f = np.concatenate([p.faces + 8 * i for i, p in enumerate(parts)])
+    return mesh_from_arrays(v, f, "steps")
+
+
+def plunges(tp):
+    """(x, y, z) of every plunge bottom (the feed moves)."""
+    return tp.tip[~tp.rapid]
+
+
+@pytest.mark.parametrize("allowance", [0.0, 0.5])
+def test_depths_on_a_stepped_block_equal_the_steps(allowance):
+    m = stepped_block()
+    tp, s = plunge3(m, [FLAT], "F6", PlungeParams(radial_step=2.0, engagement=5.0, allowance=allowance))
+    bottoms = plunges(tp)
+    x = bottoms[:, 0]
+    reach = FLAT.radius + allowance
+    over_a = x > 40 + reach + 1e-9
+    over_b = (x > 20 + reach + 1e-9) & (x < 40 - reach - 1e-9)
+    assert over_a.sum() > 10 and over_b.sum() > 10
+    np.testing.assert_allclose(bottoms[over_a, 2], 10 + allowance, atol=1e-9)
+    np.testing.assert_allclose(bottoms[over_b, 2], 20 + allowance, atol=1e-9)
+    assert (x >= 20 - reach - 1e-9).all()  # over the top step nothing is removed: skipped
+    assert s["verify"]["ok"] and s["valid_plunges"] == len(bottoms) < s["plunges"]
+    # every plunge: rapid down to the clearance plane, feed, rapid up
+    assert (tp.tip[tp.rapid][:, 2] == 35.0).all() and len(tp) == 3 * len(bottoms)
+
+
+def tool_points(tip, R, n_ring=720, spacing=0.1, height=10.0):
+    """Points on the boundary of a flat cylinder standing at tip: the bottom disc and the side."""
+    g = np.arange(-R, R + 1e-9, spacing)
+    X, Y = np.meshgrid(g, g)
+    inside = X ** 2 + Y ** 2 <= R * R
+    disc = np.column_stack([X[inside], Y[inside], np.zeros(inside.sum())])
+    a = np.linspace(0, 2 * np.pi, n_ring, endpoint=False)
+    side = [np.column_stack([R * np.cos(a), R * np.sin(a), np.full_like(a, h)]) for h in np.arange(0, height, 0.25)]
+    return np.concatenate([disc] + side) + tip
+
+
+def test_no_plunge_comes_closer_than_the_allowance():
+    m = sphere(20.0, rings=24, segments=48, center=(0, 0, 0))
+    allowance = 1.0
+    tp, s = plunge3(m, [FLAT], "F6", PlungeParams(radial_step=4.0, engagement=4.0, allowance=allowance))
+    bvh = build_bvh(m.vertices, m.faces).arrays
+    floor = m.bounds[0, 2]
+    for tip in plunges(tp):
+        d = mesh_distances(tool_points(tip, FLAT.radius), bvh).min()
+        assert d >= allowance - 1e-6
+        if tip[2] > floor + 1e-6:  # resting on the grown tool's contact: exactly the allowance away
+            assert d <= allowance + 0.02
+
+
+def test_bull_nose_and_bad_values():
+    m = sphere(20.0, rings=24, segments=48)
+    tp, s = plunge3(m, [BULL], "R8", PlungeParams(radial_step=5.0, engagement=6.0, allowance=0.5))
+    assert s["verify"]["ok"] and s["valid_plunges"] > 0
+    with pytest.raises(Exception, match="wider than the tool"):
+        plunge3(m, [BULL], "R8", PlungeParams(radial_step=5.0, engagement=9.0, allowance=0.5))
+    with pytest.raises(Exception, match="--radial-step"):
+        plunge3(m, [BULL], "R8", PlungeParams(radial_step=0.0, engagement=6.0, allowance=0.5))
+
+
+def test_contours_and_perimeter_points():
+    pts = rectangle_points(0, 0, 4, 2, 1.0)
+    assert len(pts) == 12 and pts[0].tolist() == [0, 0] and pts[2].tolist() == [0, 2] and pts[6].tolist() == [4, 2]
+    rings = contours(np.array([[0, 0, 0], [10, 4, 1]]), 1.5, 1.0)
+    assert len(rings) == 2 and rings[1][0].tolist() == [1.5, 1.5]  # 2nd: 7 x 1 mm; a 3rd would be empty
+    assert len(rectangle_points(1, 1, 1, 1, 0.5)) == 1
+
+
+def test_plunge_command(tmp_path, tools_file):
+    m = stepped_block()
+    trimesh.Trimesh(m.vertices, m.faces).export(tmp_path / "steps.stl")
+    rc = main(["plunge", str(tmp_path / "steps.stl"), "--tools", str(tools_file), "--tool", "B6", "--radial-step", "3",
+               "--engagement", "4", "--allowance", "0.5", "--out", str(tmp_path / "o"), "--quiet"])
+    assert rc == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["valid_plunges"] > 0 and (tmp_path / "o" / "toolpath.cl").read_text().count("GOTO") == s["moves"]
+    assert main(["plunge", str(tmp_path / "steps.stl"), "--tools", str(tools_file), "--tool", "B6", "--radial-step",
+                 "3", "--engagement", "4", "--allowance", "-1", "--out", str(tmp_path / "o"), "--quiet"]) == 2
