@@ -100,3 +100,45 @@ def test_plunge_command(tmp_path, tools_file):
     assert s["valid_plunges"] > 0 and (tmp_path / "o" / "toolpath.cl").read_text().count("GOTO") == s["moves"]
     assert main(["plunge", str(tmp_path / "steps.stl"), "--tools", str(tools_file), "--tool", "B6", "--radial-step",
                  "3", "--engagement", "4", "--allowance", "-1", "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert main(["plunge", str(tmp_path / "steps.stl"), "--tools", str(tools_file), "--tool", "B6", "--axes", "5",
+                 "--theta-step", "45", "--delta-step", "90", "--allowance", "0.5", "--out", str(tmp_path / "o5"),
+                 "--quiet"]) == 0
+    s5 = json.loads((tmp_path / "o5" / "summary.json").read_text())
+    assert s5["axes"] == 5 and s5["plunges"] == 9 and s5["verify"]["ok"]
+
+
+def test_seed_tool_frame():
+    from meshmill.ops.plunge import tool_frame
+
+    t1, t2 = tool_frame(np.array([0.25, 0.433, 0.866]) / np.linalg.norm([0.25, 0.433, 0.866]))
+    np.testing.assert_allclose(t1, [0.961, 0.000, -0.277], atol=1e-3)
+    np.testing.assert_allclose(t2, [-0.120, 0.901, -0.416], atol=1e-3)
+    t1, t2 = tool_frame(np.array([0.0, 1.0, 0.0]))  # along y: the fallback
+    assert np.isclose(np.linalg.norm(t1), 1) and np.isclose(t1 @ [0, 1, 0], 0) and np.isclose(t2 @ t1, 0)
+
+
+def tool_points_along(tip, u, R, height=10.0):
+    from meshmill.ops.plunge import tool_frame
+
+    t1, t2 = tool_frame(u)
+    local = tool_points(np.zeros(3), R, n_ring=360, spacing=0.2, height=height)
+    return tip + local[:, :1] * t1 + local[:, 1:2] * t2 + local[:, 2:] * u
+
+
+def test_five_axis_plunges_keep_the_allowance():
+    from meshmill.ops.plunge import plunge5
+
+    m = sphere(15.0, rings=24, segments=48)
+    allowance = 1.0
+    tp, s = plunge5(m, [FLAT], "F6", PlungeParams(radial_step=1, engagement=1, allowance=allowance, theta_step=30,
+                                                   delta_step=60))
+    assert s["plunges"] == 1 + 3 * 6 and 0 < s["valid_plunges"] <= s["plunges"] and s["verify"]["ok"]
+    bvh = build_bvh(m.vertices, m.faces).arrays
+    feed = ~tp.rapid
+    for tip, u in zip(tp.tip[feed], tp.axis[feed]):
+        d = mesh_distances(tool_points_along(tip, u, FLAT.radius), bvh).min()
+        assert allowance - 1e-6 <= d <= allowance + 0.05  # a sphere always stops the tool
+    # linking moves stay outside the stock box
+    lo, hi = m.bounds
+    rap = tp.tip[tp.rapid]
+    assert (np.any(rap < lo - 1, axis=1) | np.any(rap > hi + 1, axis=1)).all()

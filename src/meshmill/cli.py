@@ -139,11 +139,12 @@ def cmd_waterline(args):
 
 
 def cmd_plunge(args):
-    from .ops.plunge import PlungeParams, plunge3
+    from .ops.plunge import PlungeParams, plunge3, plunge5
 
     params = PlungeParams(radial_step=args.radial_step, engagement=args.engagement, allowance=args.allowance,
-                          clearance=args.clearance)
-    return _three_axis(args, lambda mesh, tools: plunge3(mesh, tools, args.tool, params, progress=_progress(args)))
+                          clearance=args.clearance, theta_step=args.theta_step, delta_step=args.delta_step)
+    run = plunge3 if args.axes == 3 else plunge5
+    return _three_axis(args, lambda mesh, tools: run(mesh, tools, args.tool, params, progress=_progress(args)))
 
 
 def cmd_verify(args):
@@ -352,12 +353,15 @@ def build_parser():
     w.add_argument("--quiet", action="store_true", help="print nothing but errors")
     w.set_defaults(func=cmd_waterline)
 
-    pl = sub.add_parser("plunge", help="3-axis plunge roughing (tréflage)")
+    pl = sub.add_parser("plunge", help="3- or 5-axis plunge roughing (tréflage)")
     pl.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
     pl.add_argument("--tools", required=True, help="TOML tool table")
     pl.add_argument("--tool", required=True, help="name of the tool in the table")
-    pl.add_argument("--radial-step", type=float, required=True, help="distance between plunges along a contour, mm")
-    pl.add_argument("--engagement", type=float, required=True, help="radial engagement between contours, mm")
+    pl.add_argument("--axes", type=int, choices=(3, 5), default=3, help="3: nested contours; 5: hemisphere (3)")
+    pl.add_argument("--radial-step", type=float, default=5.0, help="3-axis: distance between plunges along a contour, mm (5)")
+    pl.add_argument("--engagement", type=float, default=5.0, help="3-axis: radial engagement between contours, mm (5)")
+    pl.add_argument("--theta-step", type=float, default=15.0, help="5-axis: tilt step of the directions, degrees (15)")
+    pl.add_argument("--delta-step", type=float, default=30.0, help="5-axis: azimuth step, degrees (30)")
     pl.add_argument("--allowance", type=float, required=True, help="material left on the part, mm")
     pl.add_argument("--clearance", type=float, default=5.0, help="clearance plane above the stock, mm (5)")
     pl.add_argument("--out", default="out", help="output folder (out)")

@@ -11,8 +11,19 @@ the stock top remove nothing and are skipped. Each plunge: rapid to the clearanc
 the point, feed down, rapid retract; contours from the outside in. The path is verified like every
 path we write (gouge and shank/holder collision along every move).
 
-The seed's own depth (the nearest sampled surface point in a square around the point, no
-allowance) can gouge; see its notes §4.9.
+5-axis (seed 001's half-sphere): directions U over the upper hemisphere (theta from the pole by
+``theta_step``, around by ``delta_step``); the tool starts at PI = C + r U outside the stock (C its
+centre, r its half-diagonal plus the clearance) with axis U and plunges along -U toward C. The
+depth is exact as in 3-axis, in the tool frame (T1, T2, U), T1 = y x U normalised (x x U when
+U is along y), T2 = U x T1: the part turned into that frame and the grown tool dropped on it,
+shank and holder included, never past the point where the axis leaves the stock. A plunge is kept
+when its tip gets past the point where the axis enters the stock (it removes stock). Between
+plunges the tool moves along the sphere (chords of at most ``ARC_STEP``), which stays outside the
+stock.
+
+The seed's own depths (the nearest sampled surface point in a square around the point, no
+allowance; in 5-axis a test that can never be true and an allowance added the wrong way) can
+gouge; see its notes §4.9-4.10.
 """
 from __future__ import annotations
 
@@ -30,20 +41,35 @@ from ..toolpath.model import Toolpath
 from .dropcutter import pick_tool
 from .verify import DEFAULT_STEP, verify_toolpath
 
+ARC_STEP = math.radians(5.0)  # largest angle of a chord of the 5-axis linking moves
+
+
 @dataclass
 class PlungeParams:
-    """Plunge roughing settings, mm."""
+    """Plunge roughing settings, mm (steps of the 5-axis hemisphere in degrees)."""
 
     radial_step: float
     engagement: float
     allowance: float
     clearance: float = 5.0
+    theta_step: float = 15.0
+    delta_step: float = 30.0
 
     def check(self):
         for name, v, low in (("--radial-step", self.radial_step, 1e-3), ("--engagement", self.engagement, 1e-3),
                              ("--allowance", self.allowance, 0.0), ("--clearance", self.clearance, 0.0)):
             if not (math.isfinite(v) and v >= low):
                 raise InputError(f"{name} must be a number of mm >= {low:g}, got {v}")
+
+
+def tool_frame(u) -> tuple[np.ndarray, np.ndarray]:
+    """``(T1, T2)`` completing the unit axis ``u`` (3,) to a right-handed frame: T1 = y x u
+    normalised (x x u when u is along y), T2 = u x T1 (seed 001's frame)."""
+    t1 = np.cross([0.0, 1.0, 0.0], u)
+    if np.linalg.norm(t1) < 1e-9:
+        t1 = np.cross([1.0, 0.0, 0.0], u)
+    t1 /= np.linalg.norm(t1)
+    return t1, np.cross(u, t1)
 
 
 def rectangle_points(x0, y0, x1, y1, step) -> np.ndarray:
@@ -147,5 +173,93 @@ def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
         "verify": report,
         "seconds": {"total": round(time.perf_counter() - t0, 4)},
         **{k: getattr(params, k) for k in ("radial_step", "engagement", "allowance", "clearance")},
+    }
+    return tp, summary
+
+
+def _slab(c, u, lo, hi):
+    """``(t_in, t_out)``: the line c + t u against the box [lo, hi] (c inside)."""
+    with np.errstate(divide="ignore"):
+        a = (lo - c) / u
+        b = (hi - c) / u
+    return float(np.max(np.minimum(a, b))), float(np.min(np.maximum(a, b)))
+
+
+def _arc(a, b, centre, radius):
+    """Points after ``a`` up to ``b`` along the great circle of the sphere through both."""
+    ua, ub = (a - centre) / radius, (b - centre) / radius
+    angle = math.acos(max(-1.0, min(1.0, float(ua @ ub))))
+    n = max(1, math.ceil(angle / ARC_STEP))
+    if angle < 1e-12:
+        return [b]
+    out = []
+    for k in range(1, n + 1):
+        t = k / n
+        w = (math.sin((1 - t) * angle) * ua + math.sin(t * angle) * ub) / math.sin(angle)
+        out.append(centre + radius * w)
+    return out
+
+
+def plunge5(mesh, tools, tool_name, params: PlungeParams, progress=None):
+    """5-axis plunge roughing from the hemisphere of directions. Returns ``(toolpath, summary)``."""
+    from ..geometry.analysis import hemisphere
+
+    params.check()
+    say = progress or (lambda stage: None)
+    index, tool = pick_tool(tools, tool_name)
+    t0 = time.perf_counter()
+    lo, hi = mesh.bounds
+    centre = 0.5 * (lo + hi)
+    radius = float(np.linalg.norm(hi - centre)) + params.clearance + tool.radius
+    dirs = hemisphere(params.theta_step, params.delta_step)
+    say(f"{len(dirs)} plunge directions")
+    tips, axes, rapid, depths = [], [], [], []
+    last = None
+    for u in dirs:
+        t1, t2 = tool_frame(u)
+        frame = np.stack([t1, t2, u])
+        turned = (mesh.vertices - centre) @ frame.T
+        t_in, t_out = _slab(centre, u, lo, hi)  # along u from the centre: exit behind (t_in < 0), entry ahead
+        drop = grown_tool_drop(tool, params.allowance, build_bvh(turned, mesh.faces), t_in)
+        h = float(drop(np.zeros((1, 2)))[0])
+        if h >= t_out - 1e-9:
+            continue  # the tip never gets into the stock
+        start = centre + radius * u
+        if last is not None:
+            for p in _arc(last, start, centre, radius):
+                tips.append(p)
+                axes.append((p - centre) / radius)
+                rapid.append(True)
+        else:
+            tips.append(start)
+            axes.append(u)
+            rapid.append(True)
+        tips += [centre + h * u, start]
+        axes += [u, u]
+        rapid += [False, True]
+        depths.append(t_out - h)
+        last = start
+    if not tips:
+        raise InputError("no plunge direction removes stock: the part fills its box or the allowance is too large")
+    tp = Toolpath(np.array(tips), np.array(axes), np.array(rapid), np.full(len(tips), index, np.int64))
+    say("verify")
+    report = verify_toolpath(build_bvh(mesh.vertices, mesh.faces), tp, tools, GOUGE_TOL, DEFAULT_STEP)
+    report.pop("problem_moves")
+    depths = np.array(depths)
+    summary = {
+        "operation": "plunge",
+        "axes": 5,
+        "tool": tool.name,
+        "stock": np.array([lo, hi]).round(6).tolist(),
+        "sphere": {"centre": centre.round(6).tolist(), "radius": radius},
+        "plunges": len(dirs),
+        "valid_plunges": int(len(depths)),
+        "depth_mm": {"min": float(depths.min()), "max": float(depths.max()), "mean": float(depths.mean())},
+        "cl_points": len(tp),
+        "moves": len(tp),
+        "cutting_length": tp.cutting_length(),
+        "verify": report,
+        "seconds": {"total": round(time.perf_counter() - t0, 4)},
+        **{k: getattr(params, k) for k in ("allowance", "clearance", "theta_step", "delta_step")},
     }
     return tp, summary
