@@ -1,9 +1,10 @@
 """Plunge roughing (seed 001) on the stand-in parts, and accessibility speed.
 
 For the double wave and the handle (``standin_parts.py``), a flat end mill of 10 mm: 3-axis
-plunging (radial step 3 mm, engagement 6 mm) and 5-axis half-sphere plunging (15° / 30°), 1 mm
-allowance; plunge counts, seconds, and what the dexel simulation (0.5 mm) says is left of the
-stock box over the design. Then visibility and accessibility along three directions of the blade
+plunging (radial step 3 mm, engagement 6 mm) and 5-axis half-sphere plunging (15° / 30°; the
+seed's one plunge a direction, and 8 regions each from its best direction), 1 mm allowance;
+plunge counts, seconds, and what the dexel simulation (0.5 mm) says is left of the stock box over
+the design. Then visibility and accessibility along three directions of the blade
 (26 528 triangles) and of a 30 000-triangle sphere, timed end to end.
 
     .venv/bin/python bench/plunge_roughing.py [--out bench/out/plunge_roughing.json]
@@ -33,18 +34,20 @@ def roughing_rows(step=0.5):
     rows = []
     for name, make in (("double_wave", double_wave), ("handle", handle)):
         m = mesh_from_arrays(*make(), name)
-        for axes, run in ((3, plunge3), (5, plunge5)):
-            params = PlungeParams(radial_step=3.0, engagement=6.0, allowance=1.0, theta_step=15.0, delta_step=30.0)
+        for axes, run, regions in ((3, plunge3, 0), (5, plunge5, 0), (5, plunge5, 8)):
+            params = PlungeParams(radial_step=3.0, engagement=6.0, allowance=1.0, theta_step=15.0, delta_step=30.0,
+                                  regions=regions)
             t = time.perf_counter()
             tp, s = run(m, [FLAT], "F10", params)
             seconds = time.perf_counter() - t
             dev, sim, *_ = simulate(m, tp, [FLAT], step, stock="box")
-            rows.append({"part": name, "axes": axes, "plunges": s["plunges"], "valid": s["valid_plunges"],
+            rows.append({"part": name, "axes": axes, "regions": regions, "plunges": s["plunges"], "valid": s["valid_plunges"],
                          "seconds": seconds, "verify_ok": s["verify"]["ok"], "stock_mm3": sim["volumes_mm3"]["stock"],
                          "left_mm3": dev["remaining_volume"], "gouged_mm3": sim["volumes_mm3"]["gouged"],
                          "simulate_s": sim["seconds"]["total"]})
             r = rows[-1]
-            print(f"  {name} {axes}-axis: {r['valid']}/{r['plunges']} plunges, {r['seconds']:.2f} s", flush=True)
+            print(f"  {name} {axes}-axis regions {regions}: {r['valid']}/{r['plunges']} plunges, {r['seconds']:.2f} s",
+                  flush=True)
     return rows
 
 
@@ -69,10 +72,10 @@ def main(argv=None):
     mach = machine()
     print(f"machine: {mach['cpu_model'] or mach['processor']}, {mach['cpu_count']} CPUs, {mach['numba_threads']} numba threads")
     rough = roughing_rows()
-    print("\n| part | axes | plunges (valid / all) | seconds | verify | stock mm³ | left over the design mm³ | gouged mm³ |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("\n| part | axes | regions | plunges (valid / all) | seconds | verify | stock mm³ | left over the design mm³ | gouged mm³ |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rough:
-        print(f"| {r['part']} | {r['axes']} | {r['valid']} / {r['plunges']} | {r['seconds']:.2f} | "
+        print(f"| {r['part']} | {r['axes']} | {r['regions'] or 'seed'} | {r['valid']} / {r['plunges']} | {r['seconds']:.2f} | "
               f"{'ok' if r['verify_ok'] else 'PROBLEMS'} | {r['stock_mm3']:.0f} | {r['left_mm3']:.0f} | {r['gouged_mm3']:.2f} |")
     access = access_rows()
     print("\n| part | triangles | direction | visible | accessible | seconds |")

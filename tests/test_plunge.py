@@ -142,3 +142,29 @@ def test_five_axis_plunges_keep_the_allowance():
     lo, hi = m.bounds
     rap = tp.tip[tp.rapid]
     assert (np.any(rap < lo - 1, axis=1) | np.any(rap > hi + 1, axis=1)).all()
+
+
+def test_region_mode_reaches_under_an_overhang_and_removes_more():
+    from meshmill.ops.plunge import plunge5
+    from meshmill.ops.simulate import simulate
+    from test_analysis import mushroom
+
+    m = mushroom()
+    allowance = 0.5
+    base = dict(radial_step=3.0, engagement=3.0, allowance=allowance, theta_step=30, delta_step=45)
+    tp_r, s_r = plunge5(m, [FLAT], "F6", PlungeParams(**base, regions=6))
+    tp_s, s_s = plunge5(m, [FLAT], "F6", PlungeParams(**base))
+    assert s_r["verify"]["ok"] and s_r["regions"] == 6 and s_r["valid_plunges"] > s_s["valid_plunges"]
+    bvh = build_bvh(m.vertices, m.faces).arrays
+    feed = ~tp_r.rapid
+    for tip, u in zip(tp_r.tip[feed], tp_r.axis[feed]):
+        assert mesh_distances(tool_points_along(tip, u, FLAT.radius, height=6.0), bvh).min() >= allowance - 1e-6
+    # some plunge ends under the cap (r < 14, below z 25), which no vertical plunge can reach
+    under = (np.hypot(tp_r.tip[feed, 0], tp_r.tip[feed, 1]) < 13) & (tp_r.tip[feed, 2] < 20)
+    assert under.any() and (tp_r.axis[feed][under, 2] < 0.99).all()
+    left = {}
+    for name, tp in (("regions", tp_r), ("seed", tp_s)):
+        dev, *_ = simulate(m, tp, [FLAT], 0.5, stock="box")
+        left[name] = dev["remaining_volume"]
+        assert dev["gouge_max"] < 0.05
+    assert left["regions"] < left["seed"]

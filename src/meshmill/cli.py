@@ -142,7 +142,8 @@ def cmd_plunge(args):
     from .ops.plunge import PlungeParams, plunge3, plunge5
 
     params = PlungeParams(radial_step=args.radial_step, engagement=args.engagement, allowance=args.allowance,
-                          clearance=args.clearance, theta_step=args.theta_step, delta_step=args.delta_step)
+                          clearance=args.clearance, theta_step=args.theta_step, delta_step=args.delta_step,
+                          regions=args.regions)
     run = plunge3 if args.axes == 3 else plunge5
     return _three_axis(args, lambda mesh, tools: run(mesh, tools, args.tool, params, progress=_progress(args)))
 
@@ -362,6 +363,9 @@ def build_parser():
     pl.add_argument("--engagement", type=float, default=5.0, help="3-axis: radial engagement between contours, mm (5)")
     pl.add_argument("--theta-step", type=float, default=15.0, help="5-axis: tilt step of the directions, degrees (15)")
     pl.add_argument("--delta-step", type=float, default=30.0, help="5-axis: azimuth step, degrees (30)")
+    pl.add_argument("--regions", type=int, default=0,
+                    help="5-axis: split the part into K regions, each plunged from its best direction (0: the seed's "
+                         "one plunge a direction through the stock centre)")
     pl.add_argument("--allowance", type=float, required=True, help="material left on the part, mm")
     pl.add_argument("--clearance", type=float, default=5.0, help="clearance plane above the stock, mm (5)")
     pl.add_argument("--out", default="out", help="output folder (out)")

@@ -54,12 +54,15 @@ class PlungeParams:
     clearance: float = 5.0
     theta_step: float = 15.0
     delta_step: float = 30.0
+    regions: int = 0
 
     def check(self):
         for name, v, low in (("--radial-step", self.radial_step, 1e-3), ("--engagement", self.engagement, 1e-3),
                              ("--allowance", self.allowance, 0.0), ("--clearance", self.clearance, 0.0)):
             if not (math.isfinite(v) and v >= low):
                 raise InputError(f"{name} must be a number of mm >= {low:g}, got {v}")
+        if not (isinstance(self.regions, int) and self.regions >= 0):
+            raise InputError(f"--regions must be a whole number >= 0, got {self.regions}")
 
 
 def tool_frame(u) -> tuple[np.ndarray, np.ndarray]:
@@ -213,6 +216,8 @@ def plunge5(mesh, tools, tool_name, params: PlungeParams, progress=None):
     radius = float(np.linalg.norm(hi - centre)) + params.clearance + tool.radius
     dirs = hemisphere(params.theta_step, params.delta_step)
     say(f"{len(dirs)} plunge directions")
+    if params.regions:
+        return _plunge_regions(mesh, tools, index, tool, params, dirs, centre, radius, say, t0)
     tips, axes, rapid, depths = [], [], [], []
     last = None
     for u in dirs:
@@ -263,3 +268,119 @@ def plunge5(mesh, tools, tool_name, params: PlungeParams, progress=None):
         **{k: getattr(params, k) for k in ("allowance", "clearance", "theta_step", "delta_step")},
     }
     return tp, summary
+
+
+def _direction_plunges(mesh, tool, params, u, centre, lo, hi):
+    """Plunges along -u on a grid of ``radial_step`` over the stock's shadow: ``(xy (k, 2) in the
+    tool frame, tip (k,) and entry (k,) along u from the centre, contact (k, 3) world, NaN: none)``,
+    only those that get into the stock."""
+    t1, t2 = tool_frame(u)
+    frame = np.stack([t1, t2, u])
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    shadow = (corners - centre) @ frame[:2].T
+    a = np.arange(shadow[:, 0].min(), shadow[:, 0].max() + 1e-9, params.radial_step)
+    b = np.arange(shadow[:, 1].min(), shadow[:, 1].max() + 1e-9, params.radial_step)
+    X, Y = np.meshgrid(a, b, indexing="ij")
+    Y[1::2] = Y[1::2, ::-1]  # serpentine: short moves between neighbours
+    xy = np.column_stack([X.ravel(), Y.ravel()])
+    origin = centre + xy[:, :1] * t1 + xy[:, 1:] * t2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta = (lo - origin) / u
+        tb = (hi - origin) / u
+    t_exit = np.max(np.where(u != 0, np.minimum(ta, tb), -np.inf), axis=1)
+    t_entry = np.min(np.where(u != 0, np.maximum(ta, tb), np.inf), axis=1)
+    inside_slab = np.all((u != 0) | ((origin >= lo) & (origin <= hi)), axis=1)
+    crosses = inside_slab & (t_exit < t_entry)
+    xy, t_exit, t_entry = xy[crosses], t_exit[crosses], t_entry[crosses]
+    if not len(xy):
+        return xy, t_exit, t_entry, np.empty((0, 3))
+    turned = (mesh.vertices - centre) @ frame.T
+    bvh = build_bvh(turned, mesh.faces)
+    a_ = params.allowance
+    body_r = [0.5 * tool.shank_diameter + a_] + ([0.5 * tool.holder_diameter + a_] if tool.holder_diameter > 0 else [])
+    body_t = [tool.flute_length] + ([tool.gauge_length] if tool.holder_diameter > 0 else [])
+    z, contact = cpu.drop_cutter(xy, tool.radius + a_, tool.corner_radius + a_, float(t_exit.min()) - a_, bvh.arrays,
+                                 (np.array(body_r), np.array(body_t)))
+    tip = np.maximum(z + a_, t_exit)
+    contact = np.where(np.isnan(contact), np.nan, centre + contact @ frame)
+    contact[tip <= t_exit + 1e-12] = np.nan  # resting on the stock's far side, not on the part
+    keep = tip < t_entry - 1e-9
+    return xy[keep], tip[keep], t_entry[keep], contact[keep]
+
+
+def _plunge_regions(mesh, tools, index, tool, params, dirs, centre, radius, say, t0):
+    """Region mode: the part's triangles in ``params.regions`` k-means regions; every direction
+    plunges a grid over the stock's shadow; each region keeps the direction whose plunges resting
+    on it remove the most stock (axial length in the stock); plunges touching no part go with the
+    direction that has the most of them."""
+    from scipy.spatial import cKDTree
+
+    from ..simulation.partition import kmeans_labels
+
+    lo, hi = mesh.bounds
+    cent = mesh.vertices[mesh.faces].mean(axis=1)
+    k = min(params.regions, len(cent))
+    labels = kmeans_labels(cent, k)
+    tree = cKDTree(cent)
+    per_dir = []
+    gain = np.zeros((len(dirs), k + 1))  # last column: plunges resting on no part
+    for d, u in enumerate(dirs):
+        xy, tip, entry, contact = _direction_plunges(mesh, tool, params, u, centre, lo, hi)
+        region = np.full(len(xy), k)
+        touched = ~np.isnan(contact[:, 0])
+        if touched.any():
+            region[touched] = labels[tree.query(contact[touched])[1]]
+        np.add.at(gain[d], region, entry - tip)
+        per_dir.append((xy, tip, entry, region))
+    best = np.argmax(gain, axis=0)
+    say(f"{k} regions; {len(set(best.tolist()))} directions chosen")
+    tips, axes, rapid, depths = [], [], [], []
+    last = None
+    for d, u in enumerate(dirs):
+        xy, tip, entry, region = per_dir[d]
+        chosen = np.isin(region, np.nonzero(best == d)[0]) & (gain[d, region] > 0)
+        if not chosen.any():
+            continue
+        t1, t2 = tool_frame(u)
+        pole = centre + radius * u
+        if last is not None:  # across the last plane to its pole, along the sphere, then in this plane
+            tips.append(last[0])
+            axes.append(last[1])
+            rapid.append(True)
+            for p in _arc(last[0], pole, centre, radius):
+                tips.append(p)
+                axes.append((p - centre) / radius)
+                rapid.append(True)
+        for (x, y), h, e in zip(xy[chosen], tip[chosen], entry[chosen]):
+            above = centre + x * t1 + y * t2
+            tips += [above + radius * u, above + h * u, above + radius * u]
+            axes += [u, u, u]
+            rapid += [True, False, True]
+            depths.append(e - h)
+        last = (pole, u)
+    if not tips:
+        raise InputError("no plunge direction removes stock: the part fills its box or the allowance is too large")
+    tp = Toolpath(np.array(tips), np.array(axes), np.array(rapid), np.full(len(tips), index, np.int64))
+    say("verify")
+    report = verify_toolpath(build_bvh(mesh.vertices, mesh.faces), tp, tools, GOUGE_TOL, DEFAULT_STEP)
+    report.pop("problem_moves")
+    depths = np.array(depths)
+    return tp, {
+        "operation": "plunge",
+        "axes": 5,
+        "mode": "regions",
+        "tool": tool.name,
+        "stock": np.array([lo, hi]).round(6).tolist(),
+        "regions": k,
+        "directions": len(dirs),
+        "region_directions": [dirs[b].round(6).tolist() if gain[b, j] > 0 else None for j, b in enumerate(best[:k])],
+        "plunges": int(sum(len(p[0]) for p in per_dir)),
+        "valid_plunges": int(len(depths)),
+        "depth_mm": {"min": float(depths.min()), "max": float(depths.max()), "mean": float(depths.mean())},
+        "cl_points": len(tp),
+        "moves": len(tp),
+        "cutting_length": tp.cutting_length(),
+        "verify": report,
+        "seconds": {"total": round(time.perf_counter() - t0, 4)},
+        **{k_: getattr(params, k_) for k_ in ("radial_step", "allowance", "clearance", "theta_step", "delta_step")},
+    }
