@@ -315,3 +315,29 @@ def test_subtract_cases_and_growing_room():
     _grow(st, 2, full)
     assert (np.diff(st.off[2])[full] == 2 * (1 + 2)).all()
     np.testing.assert_array_equal(st.to_model().iv[2], before.iv[2])
+
+
+def test_review_cases_turning_flat_empty_stock_and_bad_axes():
+    # a flat cutter whose axis turns by 1e-6 rad along a long move cuts the whole slot
+    d = dexelize(box((0, 0, 0), (40, 20, 10)), 0.2)
+    tip = np.array([[-10, 10, 8.0], [50, 10, 8.0]])
+    for axes in (np.array([[0, 0, 1.0], [0, 0, 1.0]]), np.array([[0, 0, 1.0], [1e-6, 0, 1.0]]),
+                 np.array([[0, 0, 1.0], [1e-3, 0, 1.0]])):
+        axes = axes / np.linalg.norm(axes, axis=1, keepdims=True)
+        st = stock_from_model(d)
+        cut(st, toolpath_moves(Toolpath(tip, axes, np.zeros(2, bool), np.zeros(2, int)), [FLAT]))
+        removed = d.volumes() - st.to_model().volumes()
+        assert removed[2] == pytest.approx(40 * 6 * 2, rel=0.01)
+    # a path that removes the whole design reports it as gouged, without a traceback
+    design = box((0, 0, 0), (10, 10, 5))
+    big = Tool("F40", "flat", 40.0, 0.0, 30.0, 60.0, 40.0)
+    tp = Toolpath(np.array([[-30, 5, -1.0], [40, 5, -1.0]]), np.tile([0, 0, 1.0], (2, 1)), np.zeros(2, bool),
+                  np.zeros(2, int))
+    dev, summary, *_ = simulate(design, tp, [big], 0.5)
+    assert summary["volumes_mm3"]["machined"] == 0 and dev["gouge_max"] >= 5.0  # whole dexels gone
+    assert summary["volumes_mm3"]["gouged"] == pytest.approx(500.0)
+    # opposite axes in one move: a clear error
+    tp = Toolpath(np.array([[0, 0, 20.0], [1, 0, 20.0]]), np.array([[1, 0, 0.0], [-1, 0, 0.0]]), np.zeros(2, bool),
+                  np.zeros(2, int))
+    with pytest.raises(Exception, match="turns by 180"):
+        toolpath_moves(tp, [BALL])

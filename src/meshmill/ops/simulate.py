@@ -12,7 +12,7 @@ from ..geometry import shapes
 from ..simulation import cut as cutting
 from ..simulation import partition
 from ..simulation.deviation import deviations, difference_volume, surface_parameters
-from ..simulation.dexel import DexelModel, dexelize, lattice
+from ..simulation.dexel import MAX_PARTITIONS, DexelModel, dexelize, lattice
 from ..simulation.surface import machined_mesh
 
 TOOLPATH_APT = (".cl", ".apt", ".cls", ".aptsource")
@@ -29,6 +29,8 @@ def dexel_model(mesh, step, index="bvh", partitions="1", init="k-means++", minib
     if partitions == "auto":
         if index == "bvh":
             raise InputError("--partitions auto needs --index cells or kmeans")
+        if not 1 <= k_max <= MAX_PARTITIONS:
+            raise InputError(f"--kmax must be a whole number from 1 to {MAX_PARTITIONS}, got {k_max}")
         lo, n = lattice(mesh.bounds, step)
         tris = mesh.vertices[mesh.faces].reshape(-1, 9)
         k, rows = partition.k_optimal(tris, lo, step, n, k_max, index, init, minibatch)
@@ -92,6 +94,11 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
                          f"with the tool) never reaches the stock (box {np.round(sb[0], 3).tolist()} .. "
                          f"{np.round(sb[1], 3).tolist()}): check the units and the origin")
     warnings = []
+    short = [tools[t].name for t in used if tools[t].flute_length < 2 * (tools[t].radius if tools[t].type == "ball"
+                                                                         else tools[t].corner_radius)]
+    if short:
+        warnings.append(f"tool(s) {', '.join(short)}: flute_length below twice the corner radius; the cutter is "
+                        "modelled as its whole rounded end, up to twice the corner radius")
     smallest = min(tools[t].radius for t in used)
     if step > smallest:
         warnings.append(f"--step {step:g} mm is coarser than the smallest tool radius ({smallest:g} mm): "

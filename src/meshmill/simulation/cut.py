@@ -17,11 +17,15 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ..errors import InputError
 from ..kernels.cpu_dexel import TILE, bin_moves, cut_tiles
+from ..kernels.sweep import SEARCH_SAMPLES
 from .dexel import DexelModel, compact
 
 SWEEP_TOL = 1e-3  # mm: largest gap between the cut and the true swept volume of a turning tool
 MAX_TURN = 0.05  # rad: largest turn of a piece of a flat or bull-nose move (searched over poses)
+SAME_AXIS = 1e-9  # rad: axes closer than this are one axis (the move is cut with a fixed axis)
+MAX_MOVE_TURN = 179.0  # degrees: a larger turn in one move has no interpolation (the axis passes 0)
 RAPID_CUT = 1e-3  # mm of a dexel a rapid move must remove to count as cutting
 SLACK = 2  # spare interval slots a line starts with
 
@@ -151,6 +155,15 @@ def toolpath_moves(toolpath, tools, mode="sweep") -> Moves:
                      np.arange(k))
     pa = np.vstack([tip[:1], tip[:-1]])
     xa = np.vstack([axis[:1], axis[:-1]])
+    axis = axis.copy()
+    cos = np.einsum("ij,ij->i", xa, axis)
+    flip = np.nonzero(cos < math.cos(math.radians(MAX_MOVE_TURN)))[0]
+    if len(flip):
+        i = int(flip[0])
+        raise InputError(f"the tool axis turns by {math.degrees(math.acos(max(-1.0, cos[i]))):.1f} degrees in the move to "
+                         f"point {i} (source line {int(toolpath.line[i])}): no interpolation of the axis is defined there")
+    same = cos > math.cos(SAME_AXIS)  # numerically the same axis: cut as a fixed-axis move, exactly
+    axis[same] = xa[same]
     pieces, strips = turn_pieces(pa, tip, xa, axis, R, r, F)
     if (pieces == 1).all():
         return Moves(pa, tip, xa, axis.copy(), R, r, F, strips, toolpath.rapid.astype(bool), np.arange(k))
@@ -174,12 +187,16 @@ def turn_pieces(pa, pb, xa, xb, R, r, F) -> tuple[np.ndarray, np.ndarray]:
     """How to split moves so that a turning tool's cut stays within ``SWEEP_TOL`` of its swept
     volume: ``(pieces (k,), strips (k,))``. Pieces bound the ball centre's arc against its chord
     ((R + H) θ²/8 over a piece) and, for flat and bull-nose cutters (searched over their poses),
-    the turn to ``MAX_TURN``; strips bound the twist of the ruled surface a ball-end's axis sweeps
+    the turn to ``MAX_TURN`` and the distance between sampled poses; strips bound the twist of the ruled surface a ball-end's axis sweeps
     over a piece (H θ⊥/4, θ⊥ the turn out of the plane of motion)."""
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", xa, xb), -1.0, 1.0))
     H = np.maximum(0.0, F - 2 * r)
     chord = angle * np.sqrt((R + H) / (8 * SWEEP_TOL))
-    pieces = np.maximum(1, np.ceil(np.where(r >= R, chord, np.maximum(chord, angle / MAX_TURN)) - 1e-9)).astype(np.int64)
+    # flat and bull-nose: the poses sampled along a piece are at most sqrt(8 R SWEEP_TOL) apart, so a
+    # line the search misses lies within SWEEP_TOL of the side of the swept volume
+    spacing = np.linalg.norm(pb - pa, axis=1) / (SEARCH_SAMPLES * np.sqrt(8 * R * SWEEP_TOL))
+    other = np.where(angle > 0, np.maximum(np.maximum(chord, angle / MAX_TURN), spacing), 1.0)
+    pieces = np.maximum(1, np.ceil(np.where(r >= R, chord, other) - 1e-9)).astype(np.int64)
     centre_move = (pb + r[:, None] * xb) - (pa + r[:, None] * xa)
     normal = np.cross(centre_move, xa)
     size = np.linalg.norm(normal, axis=1)

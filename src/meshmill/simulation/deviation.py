@@ -4,7 +4,10 @@ areal height parameters over them, volumes left and gouged.
 Each dexel end of the machined model is a point of its surface. Its deviation is the exact
 distance to the design mesh (through the BVH), positive where the point lies outside the design
 (material left: excess) and negative inside it (gouge); inside/outside comes from the design's
-own dexels on the same line. Every end counts as one sample of the surface.
+own dexels on the same line. A dexel end of the design that the cut left without material (a wall
+cut through has no machined end) is a gouge sample too, as deep as the nearest machined surface
+sample (a dexel end, so within about a step of the surface) or the machined material along its
+line, whichever is nearer. Every end counts as one sample.
 
 ISO 25178-2 amplitude parameters of the deviations e: ``Sa`` mean |e|, ``Sq`` RMS, ``Sp`` highest
 peak, ``Sv`` depth of the deepest pit as a positive number (0 without pits), ``Sz = Sp + Sv``. The
@@ -34,6 +37,33 @@ def _inside(start, iv, dstart, div, out_inside):
                         inside = True
                         break
                 out_inside[2 * k + e] = inside
+
+
+@numba.njit(cache=True)
+def _cut_away(dstart, div, mstart, miv, depth):
+    """For every interval end of the design (dstart, div) that no machined interval holds: how far
+    along the line, into the design dexel, the nearest machined material is (the dexel's length
+    when none is left in it); NaN where the end is still covered."""
+    for line in range(dstart.shape[0] - 1):
+        for k in range(dstart[line], dstart[line + 1]):
+            s = div[k, 0]
+            e = div[k, 1]
+            for end in range(2):
+                w = div[k, end]
+                covered = False
+                for q in range(mstart[line], mstart[line + 1]):
+                    if miv[q, 0] <= w <= miv[q, 1]:
+                        covered = True
+                        break
+                if covered:
+                    continue
+                best = e - s
+                for q in range(mstart[line], mstart[line + 1]):
+                    lo = max(miv[q, 0], s)
+                    hi = min(miv[q, 1], e)
+                    if lo <= hi:
+                        best = min(best, abs(lo - w), abs(hi - w))
+                depth[2 * k + end] = best
 
 
 @numba.njit(cache=True)
@@ -81,8 +111,10 @@ def end_points(model: DexelModel, a: int) -> np.ndarray:
 def deviations(machined: DexelModel, design_model: DexelModel, design_mesh) -> tuple[np.ndarray, np.ndarray]:
     """``(points (k, 3), e (k,))``: every dexel end of ``machined`` and its signed distance to the
     design, mm (excess > 0, gouge < 0)."""
+    from scipy.spatial import cKDTree
+
     bvh = build_bvh(design_mesh.vertices, design_mesh.faces).arrays
-    pts, devs = [], []
+    pts, devs, gone_pts, gone_depth = [], [], [], []
     for a in range(3):
         p = end_points(machined, a)
         inside = np.zeros(len(p), np.bool_)
@@ -90,14 +122,27 @@ def deviations(machined: DexelModel, design_model: DexelModel, design_mesh) -> t
         d = mesh_distances(p, bvh)
         pts.append(p)
         devs.append(np.where(inside, -d, d))
-    return np.concatenate(pts), np.concatenate(devs)
+        # design surface points cut away (a wall cut through leaves no machined end to measure)
+        q = end_points(design_model, a)
+        depth = np.full(len(q), np.nan)
+        _cut_away(design_model.start[a], design_model.iv[a], machined.start[a], machined.iv[a], depth)
+        gone = ~np.isnan(depth)
+        gone_pts.append(q[gone])
+        gone_depth.append(depth[gone])
+    machined_pts = np.concatenate(pts)
+    gone_pts, gone_depth = np.concatenate(gone_pts), np.concatenate(gone_depth)
+    if len(gone_pts) and len(machined_pts):
+        # how deep: the distance to the nearest machined surface sample, if nearer than along the line
+        gone_depth = np.minimum(gone_depth, cKDTree(machined_pts).query(gone_pts)[0])
+    return np.concatenate([machined_pts, gone_pts]), np.concatenate(devs + [-gone_depth])
 
 
 def surface_parameters(points: np.ndarray, e: np.ndarray, tolerance: float) -> dict:
     """ISO 25178 heights and the tolerance figures of deviations ``e (k,)`` at ``points (k, 3)``."""
     if len(e) == 0:
-        return {"Sa": 0.0, "Sq": 0.0, "Sp": 0.0, "Sv": 0.0, "Sz": 0.0, "gouge_max": 0.0, "excess_max": 0.0,
-                "within_tolerance": 1.0, "samples": 0}
+        return {"Sa": 0.0, "Sq": 0.0, "Sp": 0.0, "Sv": 0.0, "Sz": 0.0, "gouge_max": 0.0, "gouge_at": None,
+                "excess_max": 0.0, "excess_at": None, "within_tolerance": 1.0, "gouge_samples": 0,
+                "excess_samples": 0, "samples": 0}
     lo, hi = int(np.argmin(e)), int(np.argmax(e))
     sp = max(0.0, float(e[hi]))
     sv = max(0.0, -float(e[lo]))

@@ -22,11 +22,12 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry.bvh import build_bvh
-from ..kernels.cpu_dexel import cast_lines
+from ..kernels.cpu_dexel import MAX_HITS, cast_lines
 from . import partition
 
 MAX_LINES = 60_000_000  # all three grids together; about 1 GB of intervals at that size
 FORMAT = "meshmill-dexel-1"
+MAX_PARTITIONS = 4096  # the seed used up to 37; every line tests every partition box
 
 
 @dataclass
@@ -119,8 +120,8 @@ def mesh_index(mesh, index="bvh", partitions=1, init="k-means++", minibatch=Fals
         return ("bvh", bvh.arrays), {"index": "bvh", "nodes": int(len(bvh.node_lo))}
     if index not in ("cells", "kmeans"):
         raise InputError(f"--index must be bvh, cells or kmeans, got '{index}'")
-    if not (isinstance(partitions, int) and partitions >= 1):
-        raise InputError(f"--partitions must be a whole number >= 1, got {partitions}")
+    if not (isinstance(partitions, int) and 1 <= partitions <= MAX_PARTITIONS):
+        raise InputError(f"--partitions must be a whole number from 1 to {MAX_PARTITIONS}, got {partitions}")
     cent = tris.reshape(-1, 3, 3).mean(axis=1)
     if index == "cells":
         labels = partition.cell_labels(cent, partitions)
@@ -149,6 +150,9 @@ def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", min
     for a in range(3):
         u, v = (a + 1) % 3, (a + 2) % 3
         dense, count = cast_lines(a, lo[u], lo[v], step, n[u], n[v], idx)
+        if (count == -2).any():
+            raise InputError(f"{int((count == -2).sum())} line(s) along {'XYZ'[a]} cross the surface more than "
+                             f"{MAX_HITS} times: the mesh is too intricate for one line (or has many stacked shells)")
         bad = int((count < 0).sum())
         if bad:
             raise InputError(f"{bad} line(s) along {'XYZ'[a]} cross the surface an odd number of times: "
