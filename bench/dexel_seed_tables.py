@@ -179,7 +179,7 @@ def topo_rows(step=0.1, allowance=1.5):
         tp, tools = raster_path(m, float(R), float(s))
         dev, summary, machined, _ = simulate(m, tp, tools, step, allowance=allowance, tolerance=0.3)
         design = dexelize(m, step, bounds=m.bounds + np.array([[-allowance], [allowance]]))
-        pts, e = deviations(machined, design, m)
+        pts, e, _, _ = deviations(machined, design, m)
         lo, hi = m.bounds
         top = (pts[:, 2] > TOP_FROM) & (pts[:, 0] > lo[0] + R) & (pts[:, 0] < hi[0] - R) & \
               (pts[:, 1] > lo[1] + R) & (pts[:, 1] < hi[1] - R)

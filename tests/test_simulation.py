@@ -334,8 +334,9 @@ def test_review_cases_turning_flat_empty_stock_and_bad_axes():
     tp = Toolpath(np.array([[-30, 5, -1.0], [40, 5, -1.0]]), np.tile([0, 0, 1.0], (2, 1)), np.zeros(2, bool),
                   np.zeros(2, int))
     dev, summary, *_ = simulate(design, tp, [big], 0.5)
-    assert summary["volumes_mm3"]["machined"] == 0 and dev["gouge_max"] >= 5.0  # whole dexels gone
-    assert summary["volumes_mm3"]["gouged"] == pytest.approx(500.0)
+    assert summary["volumes_mm3"]["machined"] == 0 and dev["samples"] == 0
+    assert summary["volumes_mm3"]["gouged"] == pytest.approx(500.0) and dev["cut_away_depth_max"] >= 5.0
+    assert dev["design_ends_cut_away"] > 0 and any("cut away" in w for w in summary["warnings"])
     # opposite axes in one move: a clear error
     tp = Toolpath(np.array([[0, 0, 20.0], [1, 0, 20.0]]), np.array([[1, 0, 0.0], [-1, 0, 0.0]]), np.zeros(2, bool),
                   np.zeros(2, int))

@@ -121,21 +121,28 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     say(f"cutting {len(moves):,} moves ({len(toolpath):,} points, mode {mode})")
     result = cutting.cut(st, moves, progress=say)
     machined = st.to_model()
+    t2 = time.perf_counter()
+    verts, faces, stride = machined_mesh(machined)
+    mesh_s = time.perf_counter() - t2
     t1 = time.perf_counter()
-    pts, e = deviations(machined, design_model, design)
+    pts, e, cut_pts, cut_depth = deviations(machined, design_model, design)
     params = surface_parameters(pts, e, tolerance)
     removed = stock_volume - machined.volume
     remaining = difference_volume(machined, design_model)
     gouged = difference_volume(design_model, machined)
     deviation_s = time.perf_counter() - t1
-    t2 = time.perf_counter()
-    verts, faces, stride = machined_mesh(machined)
-    mesh_s = time.perf_counter() - t2
     deviation = {k: params[k] for k in DEVIATION_KEYS if k in params}
     deviation.update(removed_volume=removed, remaining_volume=remaining)
     deviation = {k: deviation[k] for k in DEVIATION_KEYS}
+    deep = int(np.argmax(cut_depth)) if len(cut_depth) else -1
     deviation.update(units="mm, mm^3", tolerance=tolerance, gouge_at=params["gouge_at"],
-                     excess_at=params["excess_at"], gouged_volume=gouged, samples=params["samples"])
+                     excess_at=params["excess_at"], gouged_volume=gouged, samples=params["samples"],
+                     design_ends_cut_away=int(len(cut_depth)),
+                     cut_away_depth_max=float(cut_depth[deep]) if deep >= 0 else 0.0,
+                     cut_away_at=cut_pts[deep].round(6).tolist() if deep >= 0 else None)
+    if deep >= 0 and cut_depth[deep] > max(tolerance, step):
+        warnings.append(f"{len(cut_depth)} design dexel end(s) cut away, up to {cut_depth[deep]:.3f} mm deep at "
+                        f"{cut_pts[deep].round(3).tolist()} (a bound; gouged volume {gouged:.3f} mm^3)")
     errors = [f"rapid move to point {i} (source line {int(toolpath.line[i])}) cuts material"
               for i in result["rapid_cuts"][:1000]]
     summary = {

@@ -4,10 +4,13 @@ areal height parameters over them, volumes left and gouged.
 Each dexel end of the machined model is a point of its surface. Its deviation is the exact
 distance to the design mesh (through the BVH), positive where the point lies outside the design
 (material left: excess) and negative inside it (gouge); inside/outside comes from the design's
-own dexels on the same line. A dexel end of the design that the cut left without material (a wall
-cut through has no machined end) is a gouge sample too, as deep as the nearest machined surface
-sample (a dexel end, so within about a step of the surface) or the machined material along its
-line, whichever is nearer. Every end counts as one sample.
+own dexels on the same line. Every end counts as one sample.
+
+A design dexel end that the cut left without material is reported apart (a wall cut through has
+no machined end to measure): how many, and an upper bound of how deep each was cut, the nearer of
+the machined material along its line and the nearest machined dexel end (both lie on the machined
+solid). It is only a bound: where a line grazes the design, a cut within tolerance can remove a
+short design dexel whole, and the bound is then up to about a lattice step.
 
 ISO 25178-2 amplitude parameters of the deviations e: ``Sa`` mean |e|, ``Sq`` RMS, ``Sp`` highest
 peak, ``Sv`` depth of the deepest pit as a positive number (0 without pits), ``Sz = Sp + Sv``. The
@@ -108,9 +111,11 @@ def end_points(model: DexelModel, a: int) -> np.ndarray:
     return p
 
 
-def deviations(machined: DexelModel, design_model: DexelModel, design_mesh) -> tuple[np.ndarray, np.ndarray]:
-    """``(points (k, 3), e (k,))``: every dexel end of ``machined`` and its signed distance to the
-    design, mm (excess > 0, gouge < 0)."""
+def deviations(machined: DexelModel, design_model: DexelModel, design_mesh):
+    """``(points (k, 3), e (k,), cut_points (j, 3), cut_depth (j,))``: every dexel end of
+    ``machined`` and its signed distance to the design, mm (excess > 0, gouge < 0); and the design's
+    dexel ends the cut left without material, with an upper bound of how deep they were cut (see
+    the module notes)."""
     from scipy.spatial import cKDTree
 
     bvh = build_bvh(design_mesh.vertices, design_mesh.faces).arrays
@@ -132,9 +137,9 @@ def deviations(machined: DexelModel, design_model: DexelModel, design_mesh) -> t
     machined_pts = np.concatenate(pts)
     gone_pts, gone_depth = np.concatenate(gone_pts), np.concatenate(gone_depth)
     if len(gone_pts) and len(machined_pts):
-        # how deep: the distance to the nearest machined surface sample, if nearer than along the line
+        # nearer than the material along the line: the nearest machined dexel end (on its surface)
         gone_depth = np.minimum(gone_depth, cKDTree(machined_pts).query(gone_pts)[0])
-    return np.concatenate([machined_pts, gone_pts]), np.concatenate(devs + [-gone_depth])
+    return machined_pts, np.concatenate(devs), gone_pts, gone_depth
 
 
 def surface_parameters(points: np.ndarray, e: np.ndarray, tolerance: float) -> dict:
