@@ -98,6 +98,13 @@ def test_plunge_command(tmp_path, tools_file):
     assert rc == 0
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["valid_plunges"] > 0 and (tmp_path / "o" / "toolpath.cl").read_text().count("GOTO") == s["moves"]
+    ball = sphere(15.0, rings=24, segments=48)
+    trimesh.Trimesh(ball.vertices, ball.faces).export(tmp_path / "ball.stl")
+    assert main(["plunge", str(tmp_path / "ball.stl"), "--tools", str(tools_file), "--tool", "B6", "--radial-step", "3",
+                 "--engagement", "4", "--allowance", "0.5", "--simulate", "0.5", "--out", str(tmp_path / "s"),
+                 "--quiet"]) == 0
+    sim = json.loads((tmp_path / "s" / "summary.json").read_text())["simulation"]
+    assert 0 < sim["removed_volume"] < sim["stock_volume"] and sim["gouged_volume"] < 1e-6
     assert main(["plunge", str(tmp_path / "steps.stl"), "--tools", str(tools_file), "--tool", "B6", "--radial-step",
                  "3", "--engagement", "4", "--allowance", "-1", "--out", str(tmp_path / "o"), "--quiet"]) == 2
     assert main(["plunge", str(tmp_path / "steps.stl"), "--tools", str(tools_file), "--tool", "B6", "--axes", "5",

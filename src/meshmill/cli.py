@@ -145,7 +145,24 @@ def cmd_plunge(args):
                           clearance=args.clearance, theta_step=args.theta_step, delta_step=args.delta_step,
                           regions=args.regions)
     run = plunge3 if args.axes == 3 else plunge5
-    return _three_axis(args, lambda mesh, tools: run(mesh, tools, args.tool, params, progress=_progress(args)))
+    if args.simulate is not None and not (math.isfinite(args.simulate) and args.simulate > 0):
+        raise InputError(f"--simulate must be a positive dexel step in mm, got {args.simulate}")
+
+    def plunge_and_simulate(mesh, tools):
+        tp, summary = run(mesh, tools, args.tool, params, progress=_progress(args))
+        if args.simulate is not None:
+            from .ops.simulate import simulate
+
+            dev, sim, *_ = simulate(mesh, tp, tools, args.simulate, stock="box", progress=_progress(args))
+            v = sim["volumes_mm3"]
+            summary["simulation"] = {"step": args.simulate, "stock_volume": v["stock"], "removed_volume": v["removed"],
+                                     "remaining_volume": v["remaining"], "gouged_volume": v["gouged"],
+                                     "gouge_max": dev["gouge_max"], "seconds": sim["seconds"]["total"]}
+            _say(args, f"simulated at {args.simulate:g} mm: removed {v['removed']:.1f} of {v['stock']:.1f} mm^3, "
+                       f"{v['remaining']:.1f} mm^3 left over the part")
+        return tp, summary
+
+    return _three_axis(args, plunge_and_simulate)
 
 
 def cmd_verify(args):
@@ -368,6 +385,8 @@ def build_parser():
                          "one plunge a direction through the stock centre)")
     pl.add_argument("--allowance", type=float, required=True, help="material left on the part, mm")
     pl.add_argument("--clearance", type=float, default=5.0, help="clearance plane above the stock, mm (5)")
+    pl.add_argument("--simulate", type=float, default=None,
+                    help="also cut the path from the part's box with dexels of this step, mm, and report the volumes")
     pl.add_argument("--out", default="out", help="output folder (out)")
     pl.add_argument("--quiet", action="store_true", help="print nothing but errors")
     pl.set_defaults(func=cmd_plunge)
