@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DATA   := src/meshmill/data
 
-.PHONY: venv demo test bench bench-3axis bench-dexel clean
+.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge clean
 
 venv: $(STAMP)
 
@@ -33,6 +33,9 @@ bench-3axis: venv
 
 bench-dexel: venv
 	$(BIN)/python bench/dexel_seed_tables.py
+
+bench-plunge: venv
+	$(BIN)/python bench/plunge_roughing.py
 
 clean:
 	rm -rf $(VENV) demo-out bench/out .pytest_cache
