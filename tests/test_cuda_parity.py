@@ -33,3 +33,30 @@ def test_cuda_build_matches_cpu():
     r = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     assert "parity" in r.stdout
+
+
+DEXEL_SCRIPT = textwrap.dedent("""
+    import numpy as np
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.geometry.shapes import box, sphere
+    from meshmill.simulation.dexel import dexelize
+
+    rng = np.random.default_rng(2)
+    s = sphere(5.0, rings=6, segments=10)
+    parts = [box((0, 0, 0), (4, 3, 2)), mesh_from_arrays(s.vertices + rng.uniform(-1, 1, 3), s.faces, "s")]
+    for m in parts:
+        a = dexelize(m, 1.0)
+        b = dexelize(m, 1.0, device="cuda")
+        for k in range(3):
+            assert np.array_equal(a.start[k], b.start[k]), k
+            assert np.array_equal(a.iv[k], b.iv[k]), k
+    print("dexel parity", sum(len(v) for v in a.iv), "dexels")
+""")
+
+
+def test_cuda_dexel_casting_matches_cpu():
+    env = dict(os.environ)
+    env.setdefault("NUMBA_ENABLE_CUDASIM", "1")
+    r = subprocess.run([sys.executable, "-c", DEXEL_SCRIPT], capture_output=True, text=True, env=env, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "dexel parity" in r.stdout

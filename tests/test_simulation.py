@@ -258,6 +258,15 @@ def test_dexel_command(tmp_path, capsys):
     assert main(["dexel", str(tmp_path / "open.stl"), "--step", "0.25"]) == 2
     assert "open" in capsys.readouterr().err
     assert main(["dexel", str(tmp_path / "b.stl"), "--step", "0"]) == 2
+    from meshmill.kernels.backend import cuda_available
+
+    if not cuda_available():  # no GPU: auto runs on the CPU, cuda is one clear line
+        assert main(["dexel", str(tmp_path / "b.stl"), "--step", "0.5", "--out", str(tmp_path / "c.npz"),
+                     "--quiet"]) == 0
+        assert json.loads((tmp_path / "summary.json").read_text())["index"]["device"] == "cpu"
+        capsys.readouterr()
+        assert main(["dexel", str(tmp_path / "b.stl"), "--step", "0.5", "--device", "cuda"]) == 2
+        assert "no usable CUDA GPU" in capsys.readouterr().err
 
 
 def test_ball_fast_path_cuts_what_the_whole_tool_cuts():

@@ -199,9 +199,13 @@ def cmd_dexel(args):
     from .ops.simulate import dexel_model
     from .simulation.dexel import export_td, save_npz
 
+    from .kernels.backend import resolve
+
+    device = resolve("cpu" if args.device == "auto" and args.index != "bvh" else args.device)
+    _say(args, f"device: {device}")
     mesh = _load_part(args, args.part)
     model, summary = dexel_model(mesh, args.step, args.index, args.partitions, args.init, args.minibatch,
-                                 args.kmax, progress=_progress(args))
+                                 args.kmax, progress=_progress(args), device=device)
     model.name = os.path.basename(args.part)
     out = args.out or os.path.splitext(os.path.basename(args.part))[0] + ".dexel.npz"
     folder = os.path.dirname(os.path.abspath(out))
@@ -411,6 +415,8 @@ def build_parser():
     d.add_argument("--kmax", type=int, default=27, help="largest K the K-optimal helper tries (27)")
     d.add_argument("--init", choices=("k-means++", "random"), default="k-means++", help="k-means initialisation")
     d.add_argument("--minibatch", action="store_true", help="mini-batch k-means")
+    d.add_argument("--device", choices=("cpu", "cuda", "auto"), default="auto",
+                   help="run the line casting on the CPU or an NVIDIA GPU; auto: the GPU when there is one (auto)")
     d.add_argument("--out", default=None, help="model file: .npz (compact binary) or .td (seed's ASCII) (PART.dexel.npz)")
     d.add_argument("--quiet", action="store_true", help="print nothing but errors")
     d.set_defaults(func=cmd_dexel)

@@ -15,6 +15,7 @@ from numba import prange
 
 from . import raycast, sweep
 from .geom import STACK_SIZE
+from .raycast import MAX_HITS
 
 ray = raycast.build(numba.njit(fastmath=False, cache=True))
 _bvh_hits = ray.bvh_line_hits
@@ -22,7 +23,6 @@ _box_hits = ray.box_line_hits
 _intervals = ray.intervals_from_hits
 _ray_blocked = ray.ray_blocked
 LINE_CHUNK = 256
-MAX_HITS = 512  # crossings a line may have; more is reported as an error
 
 
 @numba.njit(parallel=True, cache=True)

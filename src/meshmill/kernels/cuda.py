@@ -2,17 +2,19 @@
 with ``numba.cuda.jit(device=True)`` and run one thread per item.
 
 Imported only when asked for (it needs numba's CUDA target: a GPU, or ``NUMBA_ENABLE_CUDASIM=1``,
-the simulator the tests use). So far the point-distance and largest-ball queries; the rest of the
-operations move here with the GPU issue.
+the simulator the tests use). So far the point-distance and largest-ball queries and the casting of
+dexel lines; the rest of the operations move here with the GPU issue.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from numba import cuda, int32
+from numba import cuda, float64, int32, int64
 
+from . import raycast
 from .geom import STACK_SIZE, build
+from .raycast import MAX_HITS
 
 dev = build(cuda.jit(device=True))
 _point = dev.mesh_point_dist2
@@ -63,3 +65,41 @@ def largest_ball(cc, normals, radii, tol, bvh_dev):
                                               cuda.to_device(np.ascontiguousarray(radii, np.float64)),
                                               float(tol), *bvh_dev, out)
     return out.copy_to_host()
+
+
+ray = raycast.build(cuda.jit(device=True))
+_bvh_hits = ray.bvh_line_hits
+_intervals = ray.intervals_from_hits
+
+
+@cuda.jit
+def _cast_bvh(a, lu, lv, step, nu, nv, cap, node_lo, node_hi, node_child, node_range, tris, out, count):
+    line = cuda.grid(1)
+    if line < nu * nv:
+        stack = cuda.local.array(STACK_SIZE, int32)
+        hw = cuda.local.array(MAX_HITS, float64)
+        hs = cuda.local.array(MAX_HITS, int64)
+        u0 = lu + (line // nv + 0.5) * step
+        v0 = lv + (line % nv + 0.5) * step
+        n = _bvh_hits(a, u0, v0, node_lo, node_hi, node_child, node_range, tris, stack, hw, hs)
+        if n > MAX_HITS:
+            count[line] = -2
+        else:
+            count[line] = _intervals(hw, hs, n, out, line, cap)
+
+
+def cast_lines(a, lu, lv, step, nu, nv, bvh_dev):
+    """As :func:`meshmill.kernels.cpu_dexel.cast_lines` with the BVH index, on the GPU (the BVH
+    arrays from :func:`to_device`)."""
+    n_lines = int(nu) * int(nv)
+    cap = 4
+    while True:
+        out = cuda.device_array((n_lines, cap, 2), np.float64)
+        count = cuda.device_array(n_lines, np.int64)
+        _cast_bvh[_blocks(n_lines), THREADS](a, float(lu), float(lv), float(step), int(nu), int(nv), cap,
+                                            *bvh_dev, out, count)
+        c = count.copy_to_host()
+        need = int(c.max(initial=0))
+        if need <= cap:
+            return out.copy_to_host(), c
+        cap = need

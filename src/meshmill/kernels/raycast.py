@@ -19,6 +19,8 @@ from types import SimpleNamespace
 
 from .geom import STACK_SIZE  # noqa: F401  (callers size their traversal stacks with it)
 
+MAX_HITS = 512  # crossings a line may have (callers' buffers); more is reported as an error
+
 
 def build(jit):
     """Compile the device functions with ``jit`` and return them in a namespace."""

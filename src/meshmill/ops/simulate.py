@@ -22,7 +22,7 @@ DEVIATION_KEYS = ("Sa", "Sq", "Sp", "Sv", "Sz", "gouge_max", "excess_max", "with
 
 
 def dexel_model(mesh, step, index="bvh", partitions="1", init="k-means++", minibatch=False, k_max=27,
-                progress=None) -> tuple[DexelModel, dict]:
+                progress=None, device="cpu") -> tuple[DexelModel, dict]:
     """Dexel model of a part and its summary; ``partitions`` is a count or ``"auto"`` (the
     K-optimal helper over 1..k_max, whose table goes into the summary)."""
     summary = {}
@@ -42,7 +42,7 @@ def dexel_model(mesh, step, index="bvh", partitions="1", init="k-means++", minib
             raise InputError(f"--partitions must be a whole number or 'auto', got '{partitions}'") from None
         if k < 1:
             raise InputError(f"--partitions must be at least 1, got {k}")
-    model = dexelize(mesh, step, index, k, init, minibatch, progress=progress)
+    model = dexelize(mesh, step, index, k, init, minibatch, progress=progress, device=device)
     summary.update(model.summary())
     summary["index"] = model.info
     return model, summary

@@ -16,6 +16,7 @@ import math
 import os
 import time
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numba
 import numpy as np
@@ -135,9 +136,10 @@ def mesh_index(mesh, index="bvh", partitions=1, init="k-means++", minibatch=Fals
 
 
 def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", minibatch=False,
-             bounds=None, progress=None) -> DexelModel:
+             bounds=None, progress=None, device="cpu") -> DexelModel:
     """Triple-dexel model of a closed ``mesh`` at ``step`` mm over ``bounds (2, 3)`` (default: the
-    mesh's box with one empty cell around). Timings and the index used go to ``model.info``."""
+    mesh's box with one empty cell around). ``device``: ``"cpu"`` or ``"cuda"`` (BVH index only).
+    Timings, the index and the device go to ``model.info``."""
     if not mesh.closed:
         raise InputError("the mesh is open (not watertight): a dexel model needs a closed solid; "
                          "close the holes in the CAD export")
@@ -145,11 +147,21 @@ def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", min
     t0 = time.perf_counter()
     idx, info = mesh_index(mesh, index, partitions, init, minibatch)
     info["index_seconds"] = round(time.perf_counter() - t0, 4)
+    info["device"] = device
+    if device == "cuda":
+        if index != "bvh":
+            raise InputError("the cells and k-means indexes run on the CPU only: use --index bvh with --device cuda")
+        from ..kernels import cuda as gpu
+
+        bvh_dev = gpu.to_device(SimpleNamespace(arrays=idx[1]))
     starts, ivs = [], []
     t1 = time.perf_counter()
     for a in range(3):
         u, v = (a + 1) % 3, (a + 2) % 3
-        dense, count = cast_lines(a, lo[u], lo[v], step, n[u], n[v], idx)
+        if device == "cuda":
+            dense, count = gpu.cast_lines(a, lo[u], lo[v], step, n[u], n[v], bvh_dev)
+        else:
+            dense, count = cast_lines(a, lo[u], lo[v], step, n[u], n[v], idx)
         if (count == -2).any():
             raise InputError(f"{int((count == -2).sum())} line(s) along {'XYZ'[a]} cross the surface more than "
                              f"{MAX_HITS} times: the mesh is too intricate for one line (or has many stacked shells)")
