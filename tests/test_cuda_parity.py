@@ -27,12 +27,18 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
-def test_cuda_build_matches_cpu():
+def run_cuda(script, marker):
+    """Run ``script`` in a fresh interpreter with numba's CUDA target (the simulator unless the
+    environment says otherwise) and check it printed ``marker``."""
     env = dict(os.environ)
     env.setdefault("NUMBA_ENABLE_CUDASIM", "1")
-    r = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, env=env, timeout=600)
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
-    assert "parity" in r.stdout
+    assert marker in r.stdout
+
+
+def test_cuda_build_matches_cpu():
+    run_cuda(SCRIPT, "parity")
 
 
 DEXEL_SCRIPT = textwrap.dedent("""
@@ -55,8 +61,4 @@ DEXEL_SCRIPT = textwrap.dedent("""
 
 
 def test_cuda_dexel_casting_matches_cpu():
-    env = dict(os.environ)
-    env.setdefault("NUMBA_ENABLE_CUDASIM", "1")
-    r = subprocess.run([sys.executable, "-c", DEXEL_SCRIPT], capture_output=True, text=True, env=env, timeout=600)
-    assert r.returncode == 0, r.stderr[-2000:]
-    assert "dexel parity" in r.stdout
+    run_cuda(DEXEL_SCRIPT, "dexel parity")

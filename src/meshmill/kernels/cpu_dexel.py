@@ -18,7 +18,7 @@ from .geom import STACK_SIZE
 from .raycast import MAX_HITS
 
 ray = raycast.build(numba.njit(fastmath=False, cache=True))
-_bvh_hits = ray.bvh_line_hits
+_cast_bvh_line = ray.cast_bvh_line
 _box_hits = ray.box_line_hits
 _intervals = ray.intervals_from_hits
 _ray_blocked = ray.ray_blocked
@@ -36,13 +36,8 @@ def _cast_bvh(a, lu, lv, step, nu, nv, cap, node_lo, node_hi, node_child, node_r
         hw = np.empty(MAX_HITS)
         hs = np.empty(MAX_HITS, np.int64)
         for line in range(c * LINE_CHUNK, min(n_lines, (c + 1) * LINE_CHUNK)):
-            u0 = lu + (line // nv + 0.5) * step
-            v0 = lv + (line % nv + 0.5) * step
-            n = _bvh_hits(a, u0, v0, node_lo, node_hi, node_child, node_range, tris, stack, hw, hs)
-            if n > MAX_HITS:
-                count[line] = -2
-            else:
-                count[line] = _intervals(hw, hs, n, out, line, cap)
+            count[line] = _cast_bvh_line(a, line, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range,
+                                         tris, stack, hw, hs, out)
     return out, count
 
 

@@ -68,8 +68,7 @@ def largest_ball(cc, normals, radii, tol, bvh_dev):
 
 
 ray = raycast.build(cuda.jit(device=True))
-_bvh_hits = ray.bvh_line_hits
-_intervals = ray.intervals_from_hits
+_cast_bvh_line = ray.cast_bvh_line
 
 
 @cuda.jit
@@ -79,13 +78,8 @@ def _cast_bvh(a, lu, lv, step, nu, nv, cap, node_lo, node_hi, node_child, node_r
         stack = cuda.local.array(STACK_SIZE, int32)
         hw = cuda.local.array(MAX_HITS, float64)
         hs = cuda.local.array(MAX_HITS, int64)
-        u0 = lu + (line // nv + 0.5) * step
-        v0 = lv + (line % nv + 0.5) * step
-        n = _bvh_hits(a, u0, v0, node_lo, node_hi, node_child, node_range, tris, stack, hw, hs)
-        if n > MAX_HITS:
-            count[line] = -2
-        else:
-            count[line] = _intervals(hw, hs, n, out, line, cap)
+        count[line] = _cast_bvh_line(a, line, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range, tris,
+                                     stack, hw, hs, out)
 
 
 def cast_lines(a, lu, lv, step, nu, nv, bvh_dev):

@@ -151,6 +151,18 @@ def build(jit):
         return n
 
     @jit
+    def cast_bvh_line(a, line, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range, tris, stack, hw,
+                      hs, out):
+        """Cast grid line ``line`` (id i*nv + j) along axis a through the BVH into ``out[line]``;
+        returns its interval count, -1 (unbalanced crossings) or -2 (more than the buffers hold)."""
+        u0 = lu + (line // nv + 0.5) * step
+        v0 = lv + (line % nv + 0.5) * step
+        n = bvh_line_hits(a, u0, v0, node_lo, node_hi, node_child, node_range, tris, stack, hw, hs)
+        if n > hw.shape[0]:
+            return -2
+        return intervals_from_hits(hw, hs, n, out, line, cap)
+
+    @jit
     def box_line_hits(a, u0, v0, box_lo, box_hi, box_start, tris, hw, hs):
         """Every crossing of the line with the mesh, through a flat list of partition boxes
         (``box_start (K+1,)`` triangle ranges of ``tris`` in partition order)."""
@@ -232,4 +244,5 @@ def build(jit):
         return False
 
     return SimpleNamespace(edge_side=edge_side, hit=hit, intervals_from_hits=intervals_from_hits,
-                           bvh_line_hits=bvh_line_hits, box_line_hits=box_line_hits, ray_blocked=ray_blocked)
+                           bvh_line_hits=bvh_line_hits, cast_bvh_line=cast_bvh_line, box_line_hits=box_line_hits,
+                           ray_blocked=ray_blocked)
