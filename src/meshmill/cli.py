@@ -202,8 +202,8 @@ def cmd_dexel(args):
     from .kernels.backend import resolve
 
     device = resolve("cpu" if args.device == "auto" and args.index != "bvh" else args.device)
-    _say(args, f"device: {device}")
     mesh = _load_part(args, args.part)
+    _say(args, f"device: {device}")
     model, summary = dexel_model(mesh, args.step, args.index, args.partitions, args.init, args.minibatch,
                                  args.kmax, progress=_progress(args), device=device)
     model.name = os.path.basename(args.part)

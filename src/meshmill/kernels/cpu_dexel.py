@@ -19,8 +19,7 @@ from .raycast import MAX_HITS
 
 ray = raycast.build(numba.njit(fastmath=False, cache=True))
 _cast_bvh_line = ray.cast_bvh_line
-_box_hits = ray.box_line_hits
-_intervals = ray.intervals_from_hits
+_cast_box_line = ray.cast_box_line
 _ray_blocked = ray.ray_blocked
 LINE_CHUNK = 256
 
@@ -51,13 +50,8 @@ def _cast_boxes(a, lu, lv, step, nu, nv, cap, box_lo, box_hi, box_start, tris):
         hw = np.empty(MAX_HITS)
         hs = np.empty(MAX_HITS, np.int64)
         for line in range(c * LINE_CHUNK, min(n_lines, (c + 1) * LINE_CHUNK)):
-            u0 = lu + (line // nv + 0.5) * step
-            v0 = lv + (line % nv + 0.5) * step
-            n = _box_hits(a, u0, v0, box_lo, box_hi, box_start, tris, hw, hs)
-            if n > MAX_HITS:
-                count[line] = -2
-            else:
-                count[line] = _intervals(hw, hs, n, out, line, cap)
+            count[line] = _cast_box_line(a, line, lu, lv, step, nv, cap, box_lo, box_hi, box_start, tris, hw, hs,
+                                         out)
     return out, count
 
 
@@ -161,22 +155,6 @@ def subtract(iv, off, count, line, lo, hi):
             iv[base + m - shift, 1] = iv[base + m, 1]
         count[line] = n - shift
     return removed
-
-
-@numba.njit(cache=True)
-def material_outside(iv, base, n, a, b, lo, hi):
-    """Whether the line's intervals ``iv[base:base+n]`` hold material in ``[a, b]`` outside
-    ``[lo, hi]`` (an empty ``[lo, hi]``, lo > hi, excludes nothing)."""
-    if a > b:
-        return False
-    for k in range(base, base + n):
-        s = max(iv[k, 0], a)
-        e = min(iv[k, 1], b)
-        if s >= e:
-            continue
-        if lo > hi or s < lo or e > hi:
-            return True
-    return False
 
 
 @numba.njit(cache=True)

@@ -137,6 +137,7 @@ def build(jit):
             left = node_child[k, 0]
             if left < 0:
                 first = node_range[k, 0]
+                # written out here and in box_line_hits: the innermost loop of line casting stays call-free
                 for t in range(first, first + node_range[k, 1]):
                     side, w = hit(tris, t, a, u0, v0)
                     if side != 0:
@@ -180,6 +181,16 @@ def build(jit):
                         hs[n] = side
                     n += 1
         return n
+
+    @jit
+    def cast_box_line(a, line, lu, lv, step, nv, cap, box_lo, box_hi, box_start, tris, hw, hs, out):
+        """As :func:`cast_bvh_line`, through partition boxes (see :func:`box_line_hits`)."""
+        u0 = lu + (line // nv + 0.5) * step
+        v0 = lv + (line % nv + 0.5) * step
+        n = box_line_hits(a, u0, v0, box_lo, box_hi, box_start, tris, hw, hs)
+        if n > hw.shape[0]:
+            return -2
+        return intervals_from_hits(hw, hs, n, out, line, cap)
 
     @jit
     def ray_blocked(ox, oy, oz, dx, dy, dz, tmin, node_lo, node_hi, node_child, node_range, tris, stack):
@@ -245,4 +256,5 @@ def build(jit):
 
     return SimpleNamespace(edge_side=edge_side, hit=hit, intervals_from_hits=intervals_from_hits,
                            bvh_line_hits=bvh_line_hits, cast_bvh_line=cast_bvh_line, box_line_hits=box_line_hits,
+                           cast_box_line=cast_box_line,
                            ray_blocked=ray_blocked)

@@ -178,6 +178,18 @@ def build(jit):
         return lo, hi
 
     @jit
+    def offset_dist2(s, su, sv, sw, eu, ev, ew, qa, Da, H, rho):
+        """Squared distance of :func:`core_dist2` to the core placed at fraction s of the move
+        (``su..`` the point's part normal to the axis, ``eu..`` the move's, ``qa, Da`` along it)."""
+        du = su - s * eu
+        dv = sv - s * ev
+        dw = sw - s * ew
+        radial = max(0.0, math.sqrt(du * du + dv * dv + dw * dw) - rho)
+        ax = qa - s * Da
+        gap = max(0.0, max(-ax, ax - H))
+        return radial * radial + gap * gap
+
+    @jit
     def core_dist2(pu, pv, pw, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho):
         """Squared distance from p to ``Disk(rho) + Parallelogram(c; D, H x)``, x the unit axis,
         the disk perpendicular to x."""
@@ -210,28 +222,15 @@ def build(jit):
             radial = max(0.0, math.sqrt(du * du + dv * dv + dw * dw) - rho)
             gap = max(0.0, max(-qa, qa - H))
             return radial * radial + gap * gap
-        # general: convex in s, golden-section search on [0, 1]
+        # general: convex in s, golden-section search on [0, 1], then the ends
         a = 0.0
         b = 1.0
         best = INF
         for _ in range(60):
             s1 = b - GOLDEN * (b - a)
             s2 = a + GOLDEN * (b - a)
-            f1 = 0.0
-            f2 = 0.0
-            for k in range(2):
-                s = s1 if k == 0 else s2
-                du = su - s * eu
-                dv = sv - s * ev
-                dw = sw - s * ew
-                radial = max(0.0, math.sqrt(du * du + dv * dv + dw * dw) - rho)
-                ax = qa - s * Da
-                gap = max(0.0, max(-ax, ax - H))
-                f = radial * radial + gap * gap
-                if k == 0:
-                    f1 = f
-                else:
-                    f2 = f
+            f1 = offset_dist2(s1, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
+            f2 = offset_dist2(s2, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
             best = min(best, min(f1, f2))
             if f1 <= f2:
                 b = s2
@@ -239,16 +238,21 @@ def build(jit):
                 a = s1
             if b - a < 1e-12:
                 break
-        for k in range(2):  # the ends of [0, 1]
-            s = float(k)
-            du = su - s * eu
-            dv = sv - s * ev
-            dw = sw - s * ew
-            radial = max(0.0, math.sqrt(du * du + dv * dv + dw * dw) - rho)
-            ax = qa - s * Da
-            gap = max(0.0, max(-ax, ax - H))
-            best = min(best, radial * radial + gap * gap)
+        best = min(best, offset_dist2(0.0, su, sv, sw, eu, ev, ew, qa, Da, H, rho))
+        best = min(best, offset_dist2(1.0, su, sv, sw, eu, ev, ew, qa, Da, H, rho))
         return best
+
+    @jit
+    def level_edge(w_out, w_in, u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2):
+        """Bisect between a line point outside (``w_out``) and one inside (``w_in``) the set
+        ``core_dist2 <= r2``; returns the inside end, within ``BISECT_TOL`` of the boundary."""
+        while abs(w_in - w_out) > BISECT_TOL:
+            m = 0.5 * (w_out + w_in)
+            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho) <= r2:
+                w_in = m
+            else:
+                w_out = m
+        return w_in
 
     @jit
     def rounded_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r):
@@ -291,24 +295,8 @@ def build(jit):
             ilo = inside
             ihi = inside
         # bisection for both ends of the level set
-        a = olo
-        b = ilo
-        while b - a > BISECT_TOL:
-            m = 0.5 * (a + b)
-            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho) <= r2:
-                b = m
-            else:
-                a = m
-        lo = b
-        a = ihi
-        b = ohi
-        while b - a > BISECT_TOL:
-            m = 0.5 * (a + b)
-            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho) <= r2:
-                a = m
-            else:
-                b = m
-        return lo, a
+        lo = level_edge(olo, ilo, u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2)
+        return lo, level_edge(ohi, ihi, u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2)
 
     @jit
     def pose(u0, v0, tu, tv, tw, xu, xv, xw, R, r, F):

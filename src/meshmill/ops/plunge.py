@@ -106,7 +106,8 @@ def contours(bounds, engagement, step) -> list[np.ndarray]:
 
 def grown_tool_drop(tool, allowance, bvh, floor):
     """Drop heights of the real tip of ``tool`` kept ``allowance`` mm from the mesh: a callable
-    ``xy (k, 2) -> (k,)``, never below ``floor``."""
+    ``xy (k, 2) -> (tip (k,), contact (k, 3))``, tips never below ``floor``, contacts the mesh
+    points touched (NaN where none is)."""
     a = allowance
     body_r = [0.5 * tool.shank_diameter + a]
     body_t = [tool.flute_length]
@@ -116,10 +117,50 @@ def grown_tool_drop(tool, allowance, bvh, floor):
     body = (np.array(body_r), np.array(body_t))
 
     def drop(xy):
-        z, _ = cpu.drop_cutter(xy, tool.radius + a, tool.corner_radius + a, floor - a, bvh.arrays, body)
-        return z + a
+        z, contact = cpu.drop_cutter(xy, tool.radius + a, tool.corner_radius + a, floor - a, bvh.arrays, body)
+        return z + a, contact
 
     return drop
+
+
+def _verified(mesh, tools, index, tips, axes, rapid, say):
+    """The tool path of the plunges and its verification report (a clear error when empty)."""
+    if not tips:
+        raise InputError("no plunge removes stock: the part fills its box (nothing to rough) or the allowance is too large")
+    tp = Toolpath(np.array(tips, np.float64), np.array(axes, np.float64), np.array(rapid),
+                  np.full(len(tips), index, np.int64))
+    say("verify")
+    report = verify_toolpath(build_bvh(mesh.vertices, mesh.faces), tp, tools, GOUGE_TOL, DEFAULT_STEP)
+    report.pop("problem_moves")
+    return tp, report
+
+
+def _summary(axes, tool, mesh, tp, report, depths, t0, params, fields, **extra):
+    """``summary.json`` of a plunge operation: the common figures, ``extra``, then the parameters."""
+    depths = np.asarray(depths)
+    return {
+        "operation": "plunge",
+        "axes": axes,
+        "tool": tool.name,
+        "stock": mesh.bounds.round(6).tolist(),
+        **extra,
+        "valid_plunges": int(len(depths)),
+        "depth_mm": {"min": float(depths.min()), "max": float(depths.max()), "mean": float(depths.mean())},
+        "cl_points": len(tp),
+        "moves": len(tp),
+        "cutting_length": tp.cutting_length(),
+        "verify": report,
+        "seconds": {"total": round(time.perf_counter() - t0, 4)},
+        **{k: getattr(params, k) for k in fields},
+    }
+
+
+def _turned_drop(mesh, tool, allowance, centre, u, floor):
+    """``(frame (3, 3), drop)``: the tool frame of axis u (rows T1, T2, U) and the grown-tool drop
+    over the part turned into it, about ``centre``, never below ``floor`` along u."""
+    frame = np.stack([*tool_frame(u), u])
+    turned = (mesh.vertices - centre) @ frame.T
+    return frame, grown_tool_drop(tool, allowance, build_bvh(turned, mesh.faces), floor)
 
 
 def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
@@ -144,40 +185,18 @@ def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
     tips, rapid, contour_of = [], [], []
     depths = []
     for k, xy in enumerate(rings):
-        z = drop(xy)
+        z = drop(xy)[0]
         keep = z < z_max - 1e-9
         for (x, y), zz in zip(xy[keep], z[keep]):
             tips += [(x, y, clear_z), (x, y, zz), (x, y, clear_z)]
             rapid += [True, False, True]
             depths.append(z_max - zz)
             contour_of.append(k)
-    if not tips:
-        raise InputError("no plunge removes stock: the part fills its box (nothing to rough) or the allowance is too large")
-    tip = np.array(tips)
-    tp = Toolpath(tip, np.tile([0.0, 0.0, 1.0], (len(tip), 1)), np.array(rapid), np.full(len(tip), index, np.int64))
-    depths = np.array(depths)
-    say("verify")
-    report = verify_toolpath(bvh, tp, tools, GOUGE_TOL, DEFAULT_STEP)
-    report.pop("problem_moves")
-    summary = {
-        "operation": "plunge",
-        "axes": 3,
-        "tool": tool.name,
-        "stock": bounds.round(6).tolist(),
-        "contours": len(rings),
-        "plunges": int(n_points),
-        "valid_plunges": int(len(depths)),
-        "valid_per_contour": np.bincount(contour_of, minlength=len(rings)).tolist(),
-        "depth_mm": {"min": float(depths.min()), "max": float(depths.max()), "mean": float(depths.mean())},
-        "clearance_z": clear_z,
-        "cl_points": len(tp),
-        "moves": len(tp),
-        "cutting_length": tp.cutting_length(),
-        "verify": report,
-        "seconds": {"total": round(time.perf_counter() - t0, 4)},
-        **{k: getattr(params, k) for k in ("radial_step", "engagement", "allowance", "clearance")},
-    }
-    return tp, summary
+    tp, report = _verified(mesh, tools, index, tips, np.tile([0.0, 0.0, 1.0], (len(tips), 1)), rapid, say)
+    return tp, _summary(3, tool, mesh, tp, report, depths, t0, params,
+                        ("radial_step", "engagement", "allowance", "clearance"), contours=len(rings),
+                        plunges=int(n_points), valid_per_contour=np.bincount(contour_of, minlength=len(rings)).tolist(),
+                        clearance_z=clear_z)
 
 
 def _slab(c, u, lo, hi):
@@ -221,12 +240,9 @@ def plunge5(mesh, tools, tool_name, params: PlungeParams, progress=None):
     tips, axes, rapid, depths = [], [], [], []
     last = None
     for u in dirs:
-        t1, t2 = tool_frame(u)
-        frame = np.stack([t1, t2, u])
-        turned = (mesh.vertices - centre) @ frame.T
         t_in, t_out = _slab(centre, u, lo, hi)  # along u from the centre: exit behind (t_in < 0), entry ahead
-        drop = grown_tool_drop(tool, params.allowance, build_bvh(turned, mesh.faces), t_in)
-        h = float(drop(np.zeros((1, 2)))[0])
+        _, drop = _turned_drop(mesh, tool, params.allowance, centre, u, t_in)
+        h = float(drop(np.zeros((1, 2)))[0][0])
         if h >= t_out - 1e-9:
             continue  # the tip never gets into the stock
         start = centre + radius * u
@@ -244,30 +260,10 @@ def plunge5(mesh, tools, tool_name, params: PlungeParams, progress=None):
         rapid += [False, True]
         depths.append(t_out - h)
         last = start
-    if not tips:
-        raise InputError("no plunge direction removes stock: the part fills its box or the allowance is too large")
-    tp = Toolpath(np.array(tips), np.array(axes), np.array(rapid), np.full(len(tips), index, np.int64))
-    say("verify")
-    report = verify_toolpath(build_bvh(mesh.vertices, mesh.faces), tp, tools, GOUGE_TOL, DEFAULT_STEP)
-    report.pop("problem_moves")
-    depths = np.array(depths)
-    summary = {
-        "operation": "plunge",
-        "axes": 5,
-        "tool": tool.name,
-        "stock": np.array([lo, hi]).round(6).tolist(),
-        "sphere": {"centre": centre.round(6).tolist(), "radius": radius},
-        "plunges": len(dirs),
-        "valid_plunges": int(len(depths)),
-        "depth_mm": {"min": float(depths.min()), "max": float(depths.max()), "mean": float(depths.mean())},
-        "cl_points": len(tp),
-        "moves": len(tp),
-        "cutting_length": tp.cutting_length(),
-        "verify": report,
-        "seconds": {"total": round(time.perf_counter() - t0, 4)},
-        **{k: getattr(params, k) for k in ("allowance", "clearance", "theta_step", "delta_step")},
-    }
-    return tp, summary
+    tp, report = _verified(mesh, tools, index, tips, axes, rapid, say)
+    return tp, _summary(5, tool, mesh, tp, report, depths, t0, params, ("allowance", "clearance", "theta_step",
+                                                                         "delta_step"),
+                        sphere={"centre": centre.round(6).tolist(), "radius": radius}, plunges=len(dirs))
 
 
 def _direction_plunges(mesh, tool, params, u, centre, lo, hi):
@@ -275,9 +271,8 @@ def _direction_plunges(mesh, tool, params, u, centre, lo, hi):
     tool frame, tip (k,) and entry (k,) along u from the centre, contact (k, 3) world, NaN: none)``,
     only those that get into the stock."""
     t1, t2 = tool_frame(u)
-    frame = np.stack([t1, t2, u])
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    shadow = (corners - centre) @ frame[:2].T
+    shadow = (corners - centre) @ np.stack([t1, t2]).T
     a = np.arange(shadow[:, 0].min(), shadow[:, 0].max() + 1e-9, params.radial_step)
     b = np.arange(shadow[:, 1].min(), shadow[:, 1].max() + 1e-9, params.radial_step)
     X, Y = np.meshgrid(a, b, indexing="ij")
@@ -294,14 +289,9 @@ def _direction_plunges(mesh, tool, params, u, centre, lo, hi):
     xy, t_exit, t_entry = xy[crosses], t_exit[crosses], t_entry[crosses]
     if not len(xy):
         return xy, t_exit, t_entry, np.empty((0, 3))
-    turned = (mesh.vertices - centre) @ frame.T
-    bvh = build_bvh(turned, mesh.faces)
-    a_ = params.allowance
-    body_r = [0.5 * tool.shank_diameter + a_] + ([0.5 * tool.holder_diameter + a_] if tool.holder_diameter > 0 else [])
-    body_t = [tool.flute_length] + ([tool.gauge_length] if tool.holder_diameter > 0 else [])
-    z, contact = cpu.drop_cutter(xy, tool.radius + a_, tool.corner_radius + a_, float(t_exit.min()) - a_, bvh.arrays,
-                                 (np.array(body_r), np.array(body_t)))
-    tip = np.maximum(z + a_, t_exit)
+    frame, drop = _turned_drop(mesh, tool, params.allowance, centre, u, float(t_exit.min()))
+    z, contact = drop(xy)
+    tip = np.maximum(z, t_exit)
     contact = np.where(np.isnan(contact), np.nan, centre + contact @ frame)
     contact[tip <= t_exit + 1e-12] = np.nan  # resting on the stock's far side, not on the part
     keep = tip < t_entry - 1e-9
@@ -358,29 +348,10 @@ def _plunge_regions(mesh, tools, index, tool, params, dirs, centre, radius, say,
             rapid += [True, False, True]
             depths.append(e - h)
         last = (pole, u)
-    if not tips:
-        raise InputError("no plunge direction removes stock: the part fills its box or the allowance is too large")
-    tp = Toolpath(np.array(tips), np.array(axes), np.array(rapid), np.full(len(tips), index, np.int64))
-    say("verify")
-    report = verify_toolpath(build_bvh(mesh.vertices, mesh.faces), tp, tools, GOUGE_TOL, DEFAULT_STEP)
-    report.pop("problem_moves")
-    depths = np.array(depths)
-    return tp, {
-        "operation": "plunge",
-        "axes": 5,
-        "mode": "regions",
-        "tool": tool.name,
-        "stock": np.array([lo, hi]).round(6).tolist(),
-        "regions": k,
-        "directions": len(dirs),
-        "region_directions": [dirs[b].round(6).tolist() if gain[b, j] > 0 else None for j, b in enumerate(best[:k])],
-        "plunges": int(sum(len(p[0]) for p in per_dir)),
-        "valid_plunges": int(len(depths)),
-        "depth_mm": {"min": float(depths.min()), "max": float(depths.max()), "mean": float(depths.mean())},
-        "cl_points": len(tp),
-        "moves": len(tp),
-        "cutting_length": tp.cutting_length(),
-        "verify": report,
-        "seconds": {"total": round(time.perf_counter() - t0, 4)},
-        **{k_: getattr(params, k_) for k_ in ("radial_step", "allowance", "clearance", "theta_step", "delta_step")},
-    }
+    tp, report = _verified(mesh, tools, index, tips, axes, rapid, say)
+    return tp, _summary(5, tool, mesh, tp, report, depths, t0, params,
+                        ("radial_step", "allowance", "clearance", "theta_step", "delta_step"), mode="regions",
+                        regions=k, directions=len(dirs),
+                        region_directions=[dirs[b].round(6).tolist() if gain[b, j] > 0 else None
+                                           for j, b in enumerate(best[:k])],
+                        plunges=int(sum(len(p[0]) for p in per_dir)))

@@ -112,8 +112,9 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     else:
         stock_model = dexelize(stock, step, bounds=bounds)
     st = cutting.stock_from_model(stock_model, allowance or 0.0)
-    stock_volume = st.to_model().volume
-    outside = difference_volume(design_model, st.to_model())
+    start_model = st.to_model()
+    stock_volume = start_model.volume
+    outside = difference_volume(design_model, start_model)
     if outside > 1e-6 * max(design_model.volume, 1.0):
         warnings.append(f"{outside:.3f} mm^3 of the design lies outside the stock; it counts as gouged")
     build_s = time.perf_counter() - t0

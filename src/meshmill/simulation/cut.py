@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import InputError
 from ..kernels.cpu_dexel import TILE, bin_moves, cut_tiles
 from ..kernels.sweep import SEARCH_SAMPLES
-from .dexel import DexelModel, compact
+from .dexel import DexelModel, compact_lines
 
 SWEEP_TOL = 1e-3  # mm: largest gap between the cut and the true swept volume of a turning tool
 MAX_TURN = 0.05  # rad: largest turn of a piece of a flat or bull-nose move (searched over poses)
@@ -45,23 +45,10 @@ class Stock:
     def to_model(self, name="machined") -> DexelModel:
         starts, ivs = [], []
         for a in range(3):
-            s, v = _compact_sparse(self.iv[a], self.off[a], self.count[a])
+            s, v = compact_lines(self.iv[a], self.off[a], self.count[a])
             starts.append(s)
             ivs.append(v)
         return DexelModel(lo=self.lo.copy(), step=self.step, n=self.n.copy(), start=starts, iv=ivs, name=name)
-
-
-@numba.njit(cache=True)
-def _compact_sparse(iv, off, count):
-    dense_start = np.zeros(count.shape[0] + 1, np.int64)
-    for i in range(count.shape[0]):
-        dense_start[i + 1] = dense_start[i] + count[i]
-    out = np.empty((dense_start[-1], 2))
-    for i in range(count.shape[0]):
-        for k in range(count[i]):
-            out[dense_start[i] + k, 0] = iv[off[i] + k, 0]
-            out[dense_start[i] + k, 1] = iv[off[i] + k, 1]
-    return dense_start, out
 
 
 @numba.njit(cache=True)

@@ -95,22 +95,26 @@ def lattice(bounds: np.ndarray, step: float, pad: int = 1) -> tuple[np.ndarray, 
 
 
 @numba.njit(cache=True)
-def _compact(dense, count):
-    n = count.shape[0]
-    start = np.zeros(n + 1, np.int64)
-    for i in range(n):
-        start[i + 1] = start[i] + max(count[i], 0)
-    iv = np.empty((start[n], 2))
-    for i in range(n):
-        for k in range(max(count[i], 0)):
-            iv[start[i] + k, 0] = dense[i, k, 0]
-            iv[start[i] + k, 1] = dense[i, k, 1]
-    return start, iv
+def compact_lines(iv, off, count):
+    """CSR ``(start, iv)`` of per-line intervals stored with room: line i's ``count[i]``
+    intervals at ``iv[off[i]:]``."""
+    start = np.zeros(count.shape[0] + 1, np.int64)
+    for i in range(count.shape[0]):
+        start[i + 1] = start[i] + count[i]
+    out = np.empty((start[-1], 2))
+    for i in range(count.shape[0]):
+        for k in range(count[i]):
+            out[start[i] + k, 0] = iv[off[i] + k, 0]
+            out[start[i] + k, 1] = iv[off[i] + k, 1]
+    return start, out
 
 
 def compact(dense: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """CSR ``(start, iv)`` of dense per-line intervals ``(n_lines, cap, 2)`` with ``count (n_lines,)``."""
-    return _compact(dense, count.astype(np.int64))
+    """CSR ``(start, iv)`` of dense per-line intervals ``(n_lines, cap, 2)`` with ``count (n_lines,)``
+    (negative counts, lines in error, hold nothing)."""
+    cap = dense.shape[1]
+    return compact_lines(dense.reshape(-1, 2), np.arange(len(count) + 1, dtype=np.int64) * cap,
+                         np.maximum(count, 0).astype(np.int64))
 
 
 def mesh_index(mesh, index="bvh", partitions=1, init="k-means++", minibatch=False):

@@ -43,6 +43,20 @@ def write_apt(path, toolpath: Toolpath, tools, partno="meshmill") -> None:
         fh.write("\n".join(lines) + "\n")
 
 
+def read_text(path, kind, text_kind=None) -> str:
+    """The UTF-8 text of a tool-path file; a missing, unreadable or binary file is an
+    :class:`InputError` naming it as a ``kind`` file (``text_kind`` in the binary case)."""
+    if not os.path.exists(path):
+        raise InputError(f"{path}: no such {kind} file")
+    try:
+        with open(path, encoding="utf-8", errors="strict") as fh:
+            return fh.read()
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text {text_kind or kind} file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+
+
 def _statements(text):
     """Yield ``(line_number, statement)`` with comments removed and continuations joined."""
     pending = ""
@@ -95,15 +109,7 @@ def read_apt(path, tools) -> tuple[Toolpath, list[str]]:
     """Read an APT CL file; moves refer to ``tools`` by ``LOADTL/n`` or, failing that, by
     matching ``CUTTER/`` diameter and corner radius. Returns the tool path and warnings."""
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise InputError(f"{path}: no such CL file")
-    try:
-        with open(path, encoding="utf-8", errors="strict") as fh:
-            text = fh.read()
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text APT CL file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    text = read_text(path, "CL", "APT CL")
     name = os.path.basename(path)
     tips, axes, rapid, tool_idx, lines = [], [], [], [], []
     warnings = []

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from .cldata import MAX_COORDINATE
+from .cldata import MAX_COORDINATE, read_text
 from .model import Toolpath
 
 MOTION = ("G0", "G1", "G2", "G3")
@@ -73,15 +73,7 @@ class _Modes:
 
 
 def _read_text(path):
-    if not os.path.exists(path):
-        raise InputError(f"{path}: no such G-code file")
-    try:
-        with open(path, encoding="utf-8", errors="strict") as fh:
-            text = fh.read()
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text G-code file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    text = read_text(path, "G-code")
     if "\x00" in text:
         raise InputError(f"{path}: not a text G-code file")
     if not text.strip():
