@@ -1,47 +1,91 @@
-"""The CUDA build of the device functions gives the CPU's answers (numba's CUDA simulator, so it
-runs on any machine; on a GPU machine the same check runs on the device)."""
+"""The CUDA build of the kernels gives the CPU's answers, bit for bit: numba's CUDA simulator runs
+the same device functions on any machine (on a GPU machine, set NUMBA_ENABLE_CUDASIM=0 to run the
+same checks on the device). Inputs are small: the simulator interprets every thread in Python."""
 import os
 import subprocess
 import sys
 import textwrap
 
-SCRIPT = textwrap.dedent("""
+KERNELS = textwrap.dedent("""
     import numpy as np
     from meshmill.geometry.bvh import build_bvh
     from meshmill.geometry.shapes import post_with_fillet
     from meshmill.geometry.slicing import slice_contours
-    from meshmill.kernels import cpu, cuda as gpu
+    from meshmill.kernels import cpu, cuda
+    from meshmill.kernels.backend import MeshKernels
 
     m = post_with_fillet(arc_steps=6, segments=24)
     bvh = build_bvh(m.vertices, m.faces)
-    con = slice_contours(m, np.array([2.0, 8.0]), 2.0, 0.3)
+    c, g = MeshKernels(bvh, "cpu"), MeshKernels(bvh, "cuda")
+    con = slice_contours(m, np.array([0.0, 2.0, 8.0]), 2.0, 0.3)  # z = 0: exactly on the plate's flat top
     radii = np.array([10.0, 5.0, 3.0, 1.0])
-    dev = gpu.to_device(bvh)
-    a = cpu.largest_ball(con.points, con.normals, radii, 0.01, bvh.arrays)
-    b = gpu.largest_ball(con.points, con.normals, radii, 0.01, dev)
-    assert (a == b).all(), (a, b)
-    p = np.random.default_rng(0).uniform(-45, 45, (64, 3))
-    d = np.abs(cpu.mesh_distances(p, bvh.arrays) - gpu.mesh_distances(p, dev)).max()
-    assert d < 1e-12, d
-    print("parity", len(a), "points")
+    assert np.array_equal(c.largest_ball(con.points, con.normals, radii, 0.01),
+                          g.largest_ball(con.points, con.normals, radii, 0.01))
+    rng = np.random.default_rng(0)
+    p = rng.uniform(-45, 45, (64, 3))
+    assert np.array_equal(c.mesh_distances(p), g.mesh_distances(p))
+    # drop-cutter on grid lines through the axis and the plate's edge (x = 0, y = 40), a bull-nose with body
+    xs = np.linspace(-45, 45, 19)
+    xy = np.array([(x, y) for x in xs for y in (0.0, 40.0, 13.7)])
+    body = (np.array([8.0, 16.0]), np.array([20.0, 40.0]))
+    for R, r in ((3.0, 1.0), (4.0, 4.0), (5.0, 0.0)):
+        zc, cc = c.drop_cutter(xy, R, r, -10.0, body)
+        zg, cg = cuda.drop_cutter(xy, R, r, -10.0, g.mesh, body, chunk=cpu.CHUNK)
+        assert np.array_equal(zc, zg) and np.array_equal(cc, cg, equal_nan=True), (R, r)
+        assert np.array_equal(zc, g.drop_cutter(xy, R, r, -10.0, body)[0])  # the GPU's own chunks
+    # touch points between points above and below z = 10 (the post's wall is at radius 10)
+    inside = np.column_stack([np.zeros(12), np.linspace(-9, 9, 12)])
+    ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    outside = 30.0 * np.column_stack([np.cos(ang), np.sin(ang)])
+    fi = c.drop_cutter(inside, 3.0, 1.0, -10.0)[0] - 10.0
+    fo = c.drop_cutter(outside, 3.0, 1.0, -10.0)[0] - 10.0
+    args = (inside, outside, fi, fo, 10.0, 3.0, 1.0, -10.0, 1e-6, 1e-4, 80)
+    assert np.array_equal(c.touch_points(*args), g.touch_points(*args))
+    # rays: from every vertex (some on the plate's top, some under the post) straight up
+    for d in ((0.0, 0.0, 1.0), (0.6, 0.0, 0.8)):
+        assert np.array_equal(c.rays_blocked(m.vertices, np.array(d), 1e-6), g.rays_blocked(m.vertices, np.array(d), 1e-6))
+    print("kernel parity")
 """)
 
+CUT = textwrap.dedent("""
+    import numpy as np
+    from meshmill.geometry.shapes import box
+    from meshmill.simulation import cut as cutting
+    from meshmill.simulation.dexel import dexelize
+    from meshmill.toolpath.model import Toolpath
 
-def run_cuda(script, marker):
-    """Run ``script`` in a fresh interpreter with numba's CUDA target (the simulator unless the
-    environment says otherwise) and check it printed ``marker``."""
-    env = dict(os.environ)
-    env.setdefault("NUMBA_ENABLE_CUDASIM", "1")
-    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
-    assert r.returncode == 0, r.stderr[-2000:]
-    assert marker in r.stdout
+    # no spare room: the slots split lines, so tiles overflow, grow and run again
+    cutting.SLACK = 0
+    model = dexelize(box((0, 0, 0), (12, 10, 6)), 1.0)
 
+    class T:
+        def __init__(self, type, d, r):
+            self.type, self.radius, self.corner_radius, self.flute_length, self.name = type, d / 2, r, 8.0, type
 
-def test_cuda_build_matches_cpu():
-    run_cuda(SCRIPT, "parity")
+    tools = [T("ball", 2.0, 1.0), T("bull", 3.0, 0.5), T("flat", 2.0, 0.0)]
+    # ball moves (one turning), then a bull-nose and a flat end mill, each with one small turn
+    tip = np.array([[2.0, 2.0, 4.0], [10.0, 2.0, 4.0], [10.0, 8.0, 3.0], [2.0, 8.0, 3.5], [2.0, 5.0, 5.0],
+                    [4.0, 5.0, 5.0], [6.0, 6.0, 4.5], [8.0, 6.0, 4.5]])
+    axis = np.array([[0, 0, 1.0], [0, 0, 1.0], [0.3, 0, 0.95], [0, 0, 1.0], [0, 0, 1.0], [0.05, 0, 1.0],
+                     [0, 0, 1.0], [0, 0.05, 1.0]])
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    rapid = np.array([True, False, False, False, True, False, True, False])
+    tp = Toolpath(tip, axis, rapid, np.array([0, 0, 0, 0, 1, 1, 2, 2]))
+    moves = cutting.toolpath_moves(tp, tools)
+    stocks = []
+    for device in ("cpu", "cuda"):
+        st = cutting.stock_from_model(model)
+        res = cutting.cut(st, moves, device=device)
+        stocks.append((st.to_model(), res["rapid_cuts"]))
+    (a, ra), (b, rb) = stocks
+    assert ra == rb, (ra, rb)
+    for k in range(3):
+        assert np.array_equal(a.start[k], b.start[k]) and np.array_equal(a.iv[k], b.iv[k]), k
+    assert sum(len(v) for v in a.iv) > sum(len(v) for v in model.iv)  # the slots split dexels
+    print("cut parity", len(moves), "moves")
+""")
 
-
-DEXEL_SCRIPT = textwrap.dedent("""
+DEXEL = textwrap.dedent("""
     import numpy as np
     from meshmill.geometry.mesh import mesh_from_arrays
     from meshmill.geometry.shapes import box, sphere
@@ -59,6 +103,68 @@ DEXEL_SCRIPT = textwrap.dedent("""
     print("dexel parity", sum(len(v) for v in a.iv), "dexels")
 """)
 
+OPERATIONS = textwrap.dedent("""
+    import os
+    import numpy as np
+    import meshmill
+    from meshmill.geometry.shapes import post_with_fillet
+    from meshmill.tools.table import load_tools
+    from meshmill.ops.finish import FinishParams, finish
+    from meshmill.ops.raster import RasterParams, raster
+    from meshmill.ops.waterline import WaterlineParams, waterline
+    from meshmill.ops.plunge import PlungeParams, plunge3
+    from meshmill.ops.simulate import simulate
+
+    tools = load_tools(os.path.join(os.path.dirname(meshmill.__file__), "data", "tools.toml"))
+    m = post_with_fillet(post_radius=4.0, fillet=3.0, height=10.0, plate_radius=12.0, plate_thickness=2.0,
+                         arc_steps=3, segments=12)
+    runs = {
+        "finish": lambda dev: finish(m, tools, FinishParams(step_down=5.0, sample=4.0, tilt_step=30, max_tilt=60),
+                                     device=dev),
+        "raster": lambda dev: raster(m, tools, "R6", RasterParams(stepover=8.0, scallop=None, angle=30.0, sample=5.0),
+                                     device=dev),
+        "waterline": lambda dev: waterline(m, tools, "B10", WaterlineParams(step_down=6.0, sample=4.0), device=dev),
+        "plunge": lambda dev: plunge3(m, tools, "B10", PlungeParams(radial_step=6.0, engagement=6.0, allowance=1.0,
+                                                                   device=dev)),
+    }
+    paths = {}
+    for name, run in runs.items():
+        (a, sa, *_), (b, sb, *_) = run("cpu"), run("cuda")
+        assert len(a) > 20, name
+        for f in ("tip", "axis", "tool", "rapid"):
+            assert np.array_equal(getattr(a, f), getattr(b, f)), (name, f)
+        assert sa["verify"] == sb["verify"], name
+        paths[name] = a
+    for name in ("finish", "plunge"):  # a turning ball-end path, a 3-axis one
+        x, y = (simulate(m, paths[name], tools, 2.0, device=dev) for dev in ("cpu", "cuda"))
+        assert x[0] == y[0], name
+        for k in range(3):
+            assert np.array_equal(x[2].start[k], y[2].start[k]) and np.array_equal(x[2].iv[k], y[2].iv[k]), name
+    print("operation parity")
+""")
+
+
+def run_cuda(script, marker):
+    """Run ``script`` in a fresh interpreter with numba's CUDA target (the simulator unless the
+    environment says otherwise) and check it printed ``marker``."""
+    env = dict(os.environ)
+    env.setdefault("NUMBA_ENABLE_CUDASIM", "1")
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=900)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert marker in r.stdout
+
+
+def test_cuda_kernels_match_cpu():
+    run_cuda(KERNELS, "kernel parity")
+
+
+def test_cuda_cutting_matches_cpu_through_overflow():
+    run_cuda(CUT, "cut parity")
+
 
 def test_cuda_dexel_casting_matches_cpu():
-    run_cuda(DEXEL_SCRIPT, "dexel parity")
+    run_cuda(DEXEL, "dexel parity")
+
+
+def test_cuda_operations_match_cpu():
+    run_cuda(OPERATIONS, "operation parity")

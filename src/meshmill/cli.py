@@ -35,6 +35,20 @@ def _progress(args):
     return stage
 
 
+def _device(args):
+    """The backend for ``--device`` (auto: CUDA when a usable GPU is present); the commands say it
+    with their results."""
+    from .kernels.backend import resolve
+
+    return resolve(args.device)
+
+
+def _add_device(parser):
+    parser.add_argument("--device", choices=("cpu", "cuda", "auto"), default="auto",
+                        help="run the heavy kernels on the CPU or an NVIDIA GPU (needs meshmill[cuda]); "
+                             "auto: the GPU when a usable one is present (auto)")
+
+
 def _load_part(args, path):
     from .geometry.mesh import load_mesh
 
@@ -74,8 +88,10 @@ def cmd_finish(args):
                           tilt_step=args.tilt_step, order=args.order, safe_z=args.safe_z, tol=args.tolerance,
                           clearance=args.clearance, lead=args.lead)
     params.check()
+    device = _device(args)
     out = _out_dir(args.out)
-    tp, summary, _ = finish(mesh, tools, params, progress=_progress(args))
+    tp, summary, _ = finish(mesh, tools, params, progress=_progress(args), device=device)
+    summary["device"] = device
     summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
     summary["seconds"]["load"] = round(load_s, 4)
     summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
@@ -89,7 +105,8 @@ def cmd_finish(args):
         _say(args, f"  {name}: {entry['contours']} contour(s), {entry['cc_points']} CC points")
     _say(args, f"verify: {'OK' if v['ok'] else 'PROBLEMS'} ({v['poses_checked']} poses, max gouge "
                f"{v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
-    _say(args, f"wrote {os.path.join(out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s")
+    _say(args, f"wrote {os.path.join(out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
+               f"(device {summary['device']})")
     return 0 if v["ok"] else 1
 
 
@@ -103,7 +120,9 @@ def _three_axis(args, run):
     mesh = _load_part(args, args.part)
     load_s = time.perf_counter() - t0
     out = _out_dir(args.out)
-    tp, summary = run(mesh, tools)
+    device = _device(args)
+    tp, summary = run(mesh, tools, device)
+    summary["device"] = device
     summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
     summary["seconds"]["load"] = round(load_s, 4)
     summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
@@ -112,7 +131,8 @@ def _three_axis(args, run):
     v = summary["verify"]
     _say(args, f"{summary['cl_points']} CL points, {summary['moves']} moves; verify: {'OK' if v['ok'] else 'PROBLEMS'} "
                f"(max gouge {v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
-    _say(args, f"wrote {os.path.join(out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s")
+    _say(args, f"wrote {os.path.join(out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
+               f"(device {summary['device']})")
     return 0 if v["ok"] else 1
 
 
@@ -122,7 +142,8 @@ def cmd_raster(args):
     params = RasterParams(stepover=args.stepover, scallop=args.scallop, angle=args.angle, sample=args.sample,
                           tol=args.tolerance)
     params.check()
-    return _three_axis(args, lambda mesh, tools: raster(mesh, tools, args.tool, params, progress=_progress(args)))
+    return _three_axis(args, lambda mesh, tools, device: raster(mesh, tools, args.tool, params, progress=_progress(args),
+                                                                 device=device))
 
 
 def cmd_waterline(args):
@@ -131,8 +152,8 @@ def cmd_waterline(args):
     params = WaterlineParams(step_down=args.step_down, sample=args.sample, tol=args.tolerance)
     params.check()
 
-    def run(mesh, tools):
-        tp, summary, _ = waterline(mesh, tools, args.tool, params, progress=_progress(args))
+    def run(mesh, tools, device):
+        tp, summary, _ = waterline(mesh, tools, args.tool, params, progress=_progress(args), device=device)
         return tp, summary
 
     return _three_axis(args, run)
@@ -148,12 +169,14 @@ def cmd_plunge(args):
     if args.simulate is not None and not (math.isfinite(args.simulate) and args.simulate > 0):
         raise InputError(f"--simulate must be a positive dexel step in mm, got {args.simulate}")
 
-    def plunge_and_simulate(mesh, tools):
+    def plunge_and_simulate(mesh, tools, device):
+        params.device = device
         tp, summary = run(mesh, tools, args.tool, params, progress=_progress(args))
         if args.simulate is not None:
             from .ops.simulate import simulate
 
-            dev, sim, *_ = simulate(mesh, tp, tools, args.simulate, stock="box", progress=_progress(args))
+            dev, sim, *_ = simulate(mesh, tp, tools, args.simulate, stock="box", progress=_progress(args),
+                                    device=device)
             v = sim["volumes_mm3"]
             summary["simulation"] = {"step": args.simulate, "stock_volume": v["stock"], "removed_volume": v["removed"],
                                      "remaining_volume": v["remaining"], "gouged_volume": v["gouged"],
@@ -180,15 +203,16 @@ def cmd_verify(args):
     tp, warnings = read_apt(args.toolpath, tools)
     for w in warnings:
         _say(args, f"warning: {w}")
+    device = _device(args)
     report = verify_toolpath(build_bvh(mesh.vertices, mesh.faces), tp, tools, args.tolerance, args.step,
-                             worst=args.worst)
+                             worst=args.worst, device=device)
     report.pop("problem_moves")
     if args.out:
         _write_json(args.out, report)
     print(f"{report['moves']} moves, {report['poses_checked']} poses checked: "
           f"{report['gouging_moves']} gouging, {report['colliding_moves']} colliding, "
           f"{report['rapid_moves_touching']} rapid into the part; max gouge {report['max_gouge']:.4f} mm, "
-          f"max collision {report['max_collision']:.4f} mm (tolerance {report['tolerance']} mm)")
+          f"max collision {report['max_collision']:.4f} mm (tolerance {report['tolerance']} mm; device {device})")
     for line in report["worst"]:
         print("  " + line)
     print("OK" if report["ok"] else "PROBLEMS FOUND")
@@ -199,11 +223,10 @@ def cmd_dexel(args):
     from .ops.simulate import dexel_model
     from .simulation.dexel import export_td, save_npz
 
-    from .kernels.backend import resolve
-
-    device = resolve("cpu" if args.device == "auto" and args.index != "bvh" else args.device)
+    if args.index != "bvh" and args.device == "auto":
+        args.device = "cpu"  # the seed's indexes run on the CPU only
     mesh = _load_part(args, args.part)
-    _say(args, f"device: {device}")
+    device = _device(args)
     model, summary = dexel_model(mesh, args.step, args.index, args.partitions, args.init, args.minibatch,
                                  args.kmax, progress=_progress(args), device=device)
     model.name = os.path.basename(args.part)
@@ -222,7 +245,7 @@ def cmd_dexel(args):
     d = summary["dexels"]
     _say(args, f"dexels X {d['X']:,}, Y {d['Y']:,}, Z {d['Z']:,}; volume {summary['volume_mm3']:.3f} mm^3 "
                f"(mesh {_mesh_volume(mesh):.3f}); cast in {model.info['cast_seconds']:.2f} s with {model.info['index']}")
-    _say(args, f"wrote {out} and {os.path.join(folder, 'summary.json')}")
+    _say(args, f"wrote {out} and {os.path.join(folder, 'summary.json')} (device {device})")
     return 0
 
 
@@ -250,9 +273,11 @@ def cmd_simulate(args):
     for w in warnings:
         _say(args, f"warning: {w}")
     out = _out_dir(args.out)
+    device = _device(args)
     deviation, summary, _, (verts, faces) = simulate(
         design, tp, tools, args.step, stock=stock, allowance=args.allowance, tolerance=args.tolerance,
-        mode=args.mode, progress=_progress(args))
+        mode=args.mode, progress=_progress(args), device=device)
+    summary["device"] = device
     summary["design"] = {"file": os.path.abspath(args.design), **design.summary()}
     summary["toolpath"] = {"file": os.path.abspath(args.toolpath), "warnings": warnings}
     _write_json(os.path.join(out, "deviation.json"), deviation)
@@ -272,7 +297,8 @@ def cmd_simulate(args):
     _say(args, f"gouge max {deviation['gouge_max']:.4f} mm at {deviation['gouge_at']}; excess max "
                f"{deviation['excess_max']:.4f} mm; removed {deviation['removed_volume']:.1f} mm^3, remaining "
                f"{deviation['remaining_volume']:.1f} mm^3")
-    _say(args, f"wrote deviation.json, summary.json, machined.stl in {out} ({summary['seconds']['total']:.1f} s)")
+    _say(args, f"wrote deviation.json, summary.json, machined.stl in {out} ({summary['seconds']['total']:.1f} s, "
+               f"device {device})")
     return 1 if summary["rapid_moves_cutting"] else 0
 
 
@@ -347,6 +373,7 @@ def build_parser():
                    help=f"shank and holder clearance, mm ({HOLDER_CLEARANCE})")
     f.add_argument("--lead", type=float, default=2.0, help="lead-in/out distance, mm (2)")
     f.add_argument("--out", default="out", help="output folder (out)")
+    _add_device(f)
     f.add_argument("--quiet", action="store_true", help="print nothing but errors")
     f.set_defaults(func=cmd_finish)
 
@@ -361,6 +388,7 @@ def build_parser():
     r.add_argument("--sample", type=float, default=0.5, help="largest distance between CL points along a pass, mm (0.5)")
     r.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge and chord tolerance, mm ({GOUGE_TOL})")
     r.add_argument("--out", default="out", help="output folder (out)")
+    _add_device(r)
     r.add_argument("--quiet", action="store_true", help="print nothing but errors")
     r.set_defaults(func=cmd_raster)
 
@@ -372,6 +400,7 @@ def build_parser():
     w.add_argument("--sample", type=float, default=0.5, help="grid spacing of the loop search, mm (0.5)")
     w.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge and chord tolerance, mm ({GOUGE_TOL})")
     w.add_argument("--out", default="out", help="output folder (out)")
+    _add_device(w)
     w.add_argument("--quiet", action="store_true", help="print nothing but errors")
     w.set_defaults(func=cmd_waterline)
 
@@ -392,6 +421,7 @@ def build_parser():
     pl.add_argument("--simulate", type=float, default=None,
                     help="also cut the path from the part's box with dexels of this step, mm, and report the volumes")
     pl.add_argument("--out", default="out", help="output folder (out)")
+    _add_device(pl)
     pl.add_argument("--quiet", action="store_true", help="print nothing but errors")
     pl.set_defaults(func=cmd_plunge)
 
@@ -403,6 +433,7 @@ def build_parser():
     v.add_argument("--step", type=float, default=0.5, help="largest distance between checked poses along a move, mm")
     v.add_argument("--worst", type=int, default=10, help="how many worst cases to print (10)")
     v.add_argument("--out", default=None, help="write the report as JSON to this file")
+    _add_device(v)
     v.add_argument("--quiet", action="store_true", help="no warnings")
     v.set_defaults(func=cmd_verify)
 
@@ -415,8 +446,7 @@ def build_parser():
     d.add_argument("--kmax", type=int, default=27, help="largest K the K-optimal helper tries (27)")
     d.add_argument("--init", choices=("k-means++", "random"), default="k-means++", help="k-means initialisation")
     d.add_argument("--minibatch", action="store_true", help="mini-batch k-means")
-    d.add_argument("--device", choices=("cpu", "cuda", "auto"), default="auto",
-                   help="run the line casting on the CPU or an NVIDIA GPU; auto: the GPU when there is one (auto)")
+    _add_device(d)
     d.add_argument("--out", default=None, help="model file: .npz (compact binary) or .td (seed's ASCII) (PART.dexel.npz)")
     d.add_argument("--quiet", action="store_true", help="print nothing but errors")
     d.set_defaults(func=cmd_dexel)
@@ -434,6 +464,7 @@ def build_parser():
     s.add_argument("--mode", choices=("sweep", "points"), default="sweep",
                    help="exact swept volume of every move, or the tool at the points only (seed) (sweep)")
     s.add_argument("--out", default="sim", help="output folder (sim)")
+    _add_device(s)
     s.add_argument("--quiet", action="store_true", help="print nothing but errors")
     s.set_defaults(func=cmd_simulate)
 

@@ -1,5 +1,6 @@
 """Which backend runs the kernels: ``cpu``, ``cuda``, or ``auto`` (CUDA when numba sees a usable
-GPU, else the CPU). The CUDA module is imported only when chosen."""
+GPU, else the CPU), and :class:`MeshKernels`, the kernels of one backend bound to one mesh.
+The CUDA module is imported only when chosen."""
 from __future__ import annotations
 
 from ..errors import InputError
@@ -28,3 +29,59 @@ def resolve(device: str) -> str:
         raise InputError("--device cuda: no usable CUDA GPU (numba.cuda.is_available() is false); "
                          "use --device cpu or auto")
     return "cpu"
+
+
+def implementation(device: str):
+    """The module of the backend (``"cpu"`` or ``"cuda"``): both offer the same functions."""
+    if device == "cuda":
+        from . import cuda
+
+        return cuda
+    from . import cpu
+
+    return cpu
+
+
+class MeshKernels:
+    """The mesh kernels of one backend bound to the mesh of ``bvh`` (a
+    :class:`~meshmill.geometry.bvh.BVH`); on CUDA its arrays are copied to the GPU once, here, and
+    stay there for every call. Arguments and results are host numpy arrays, as documented in
+    :mod:`meshmill.kernels.cpu`."""
+
+    def __init__(self, bvh, device: str = "cpu"):
+        if device not in ("cpu", "cuda"):
+            raise ValueError(f"device must be 'cpu' or 'cuda' (resolve '{device}' first)")
+        self.bvh, self.device = bvh, device
+        self.impl = implementation(device)
+        self.mesh = self.impl.to_device(bvh) if device == "cuda" else bvh.arrays
+
+    def mesh_distances(self, points, cap=1e150):
+        return self.impl.mesh_distances(points, self.mesh, cap)
+
+    def largest_ball(self, cc, normals, radii, tol):
+        return self.impl.largest_ball(cc, normals, radii, tol, self.mesh)
+
+    def axis_search(self, ce, feed, side, tool, candidates, cand_tilt, slack, radius, body, offsets):
+        return self.impl.axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body, offsets,
+                                     self.mesh)
+
+    def pose_penetration(self, tip, axis, tool, rings, segs, base=None):
+        return self.impl.pose_penetration(tip, axis, tool, rings, segs, self.mesh, base)
+
+    def drop_cutter(self, xy, radius, corner_radius, floor, body=None):
+        return self.impl.drop_cutter(xy, radius, corner_radius, floor, self.mesh, body)
+
+    def touch_points(self, inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_radius, floor, touch,
+                     width, rounds, body=None, inside_contacts=None):
+        return self.impl.touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_radius, floor,
+                                      self.mesh, touch, width, rounds, body, inside_contacts)
+
+    def rays_blocked(self, origins, direction, tmin):
+        return self.impl.rays_blocked(origins, direction, tmin, self.mesh)
+
+
+def bind(bvh_or_kernels, device: str = "cpu") -> MeshKernels:
+    """``bvh_or_kernels`` itself if it is a :class:`MeshKernels`, else that BVH bound to ``device``."""
+    if isinstance(bvh_or_kernels, MeshKernels):
+        return bvh_or_kernels
+    return MeshKernels(bvh_or_kernels, device)

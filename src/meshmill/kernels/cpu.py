@@ -12,17 +12,19 @@ import numpy as np
 from numba import prange
 
 from . import cutters
+from .cpu_dexel import rays_blocked  # noqa: F401  (one module offers every mesh kernel)
 from .geom import INF, STACK_SIZE, build
 
 dev = build(numba.njit(fastmath=False, cache=True))
 cut = cutters.build(numba.njit(fastmath=False, cache=True))
-_drop = cut.tool_drop
-_reach = cut.contact_reach
 CHUNK = 64  # points of a drop-cutter batch run in order by one thread
 _point = dev.mesh_point_dist2
 _ball = dev.largest_clear_ball
-_cyl = dev.mesh_cylinder_dist2
-_body_clear = dev.body_clear
+_first_clear_axis = dev.first_clear_axis
+_keep_previous_axes = dev.keep_previous_axes
+_pose_depth = dev.pose_depth
+_drop_run = cut.drop_run
+_touch_point = cut.touch_point
 
 
 @numba.njit(parallel=True, cache=True)
@@ -59,42 +61,14 @@ def largest_ball(cc, normals, radii, tol, bvh):
                          np.ascontiguousarray(radii, np.float64), float(tol), *bvh)
 
 
-@numba.njit(cache=True)
-def candidate_axis(f, s, alpha, beta):
-    """Unit axis tilted by alpha toward the feed direction f and beta toward the outward side s."""
-    ca = math.cos(alpha)
-    sa = math.sin(alpha)
-    cb = math.cos(beta)
-    sb = math.sin(beta)
-    ux = sa * f[0] + ca * sb * s[0]
-    uy = sa * f[1] + ca * sb * s[1]
-    uz = sa * f[2] + ca * (cb + sb * s[2])
-    n = math.sqrt(ux * ux + uy * uy + uz * uz)
-    return ux / n, uy / n, uz / n
-
-
-@numba.njit(cache=True)
-def _clear_at(i, c, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
-              node_lo, node_hi, node_child, node_range, tris, stack):
-    ux, uy, uz = candidate_axis(f[i], s[i], cand[c, 0], cand[c, 1])
-    r = radius[tool[i]]
-    return _body_clear(ce[i, 0] - r * ux, ce[i, 1] - r * uy, ce[i, 2] - r * uz, ux, uy, uz,
-                       seg_t0, seg_t1, seg_r, tool[i], node_lo, node_hi, node_child, node_range, tris, stack)
-
-
 @numba.njit(parallel=True, cache=True)
 def _axis_search(ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
                  node_lo, node_hi, node_child, node_range, tris):
-    out = np.full(ce.shape[0], -1, np.int32)
+    out = np.empty(ce.shape[0], np.int32)
     for i in prange(ce.shape[0]):
-        if tool[i] < 0:
-            continue
         stack = np.empty(STACK_SIZE, np.int32)
-        for c in range(cand.shape[0]):
-            if _clear_at(i, c, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
-                         node_lo, node_hi, node_child, node_range, tris, stack):
-                out[i] = c
-                break
+        out[i] = _first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                                      node_lo, node_hi, node_child, node_range, tris, stack)
     return out
 
 
@@ -104,14 +78,8 @@ def _keep_previous(choice, offsets, cand_tilt, slack, ce, f, s, tool, cand, radi
     out = choice.copy()
     for k in prange(offsets.shape[0] - 1):
         stack = np.empty(STACK_SIZE, np.int32)
-        for i in range(offsets[k] + 1, offsets[k + 1]):
-            prev = out[i - 1]
-            c = out[i]
-            if prev < 0 or c < 0 or prev == c or cand_tilt[prev] > cand_tilt[c] + slack:
-                continue
-            if _clear_at(i, prev, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
-                         node_lo, node_hi, node_child, node_range, tris, stack):
-                out[i] = prev
+        _keep_previous_axes(offsets[k], offsets[k + 1], out, cand_tilt, slack, ce, f, s, tool, cand, radius,
+                               seg_t0, seg_t1, seg_r, node_lo, node_hi, node_child, node_range, tris, stack)
     return out
 
 
@@ -136,67 +104,12 @@ def axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body
 @numba.njit(parallel=True, cache=True)
 def _pose_penetration(tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
                       node_lo, node_hi, node_child, node_range, tris):
-    k = tip.shape[0]
-    nseg = seg_r.shape[1]
-    ring = np.zeros(k)
-    segs = np.zeros((k, nseg))
-    for i in prange(k):
+    ring = np.zeros(tip.shape[0])
+    segs = np.zeros((tip.shape[0], seg_r.shape[1]))
+    for i in prange(tip.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
-        t = tool[i]
-        ux = axis[i, 0]
-        uy = axis[i, 1]
-        uz = axis[i, 2]
-        # two unit vectors normal to the axis
-        if abs(ux) < 0.9:
-            ex, ey, ez = 0.0, -uz, uy
-        else:
-            ex, ey, ez = uz, 0.0, -ux
-        en = math.sqrt(ex * ex + ey * ey + ez * ez)
-        ex /= en
-        ey /= en
-        ez /= en
-        gx = uy * ez - uz * ey
-        gy = uz * ex - ux * ez
-        gz = ux * ey - uy * ex
-        cx = tip[i, 0] + ring_t[t] * ux
-        cy = tip[i, 1] + ring_t[t] * uy
-        cz = tip[i, 2] + ring_t[t] * uz
-        r = ring_r[t]
-        if r > 0.0:
-            for j in range(ring_n[t]):
-                phi = 2.0 * math.pi * j / ring_n[t]
-                rx = ring_rho[t] * (math.cos(phi) * ex + math.sin(phi) * gx)
-                ry = ring_rho[t] * (math.cos(phi) * ey + math.sin(phi) * gy)
-                rz = ring_rho[t] * (math.cos(phi) * ez + math.sin(phi) * gz)
-                d2 = _point(cx + rx, cy + ry, cz + rz, r * r, 0.0,
-                            node_lo, node_hi, node_child, node_range, tris, stack)
-                ring[i] = max(ring[i], r - math.sqrt(d2))
-        for s in range(nseg):
-            r = seg_r[t, s]
-            if r <= 0.0:
-                break
-            t0 = seg_t0[t, s]
-            t1 = seg_t1[t, s]
-            d2 = _cyl(tip[i, 0], tip[i, 1], tip[i, 2], ux, uy, uz, t0, t1, r * r, 0.0,
-                      node_lo, node_hi, node_child, node_range, tris, stack)
-            if d2 >= r * r:
-                continue
-            radial = r - math.sqrt(d2)
-            # axial depth: how far the bottom of the cylinder must rise to clear (bisection)
-            lo = t0
-            hi = t1
-            if _cyl(tip[i, 0], tip[i, 1], tip[i, 2], ux, uy, uz, hi - 1e-9, t1, r * r, r * r,
-                    node_lo, node_hi, node_child, node_range, tris, stack) < r * r:
-                segs[i, s] = radial
-                continue
-            for _ in range(30):
-                mid = 0.5 * (lo + hi)
-                if _cyl(tip[i, 0], tip[i, 1], tip[i, 2], ux, uy, uz, mid, t1, r * r, r * r,
-                        node_lo, node_hi, node_child, node_range, tris, stack) < r * r:
-                    lo = mid
-                else:
-                    hi = mid
-            segs[i, s] = min(radial, hi - seg_base[t, s])
+        _pose_depth(i, tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
+                       node_lo, node_hi, node_child, node_range, tris, stack, ring, segs)
     return ring, segs
 
 
@@ -217,32 +130,30 @@ def pose_penetration(tip, axis, tool, rings, segs, bvh, base=None):
 
 
 @numba.njit(parallel=True, cache=True)
-def _drop_cutter(xy, R, r, body_r, body_t, floor, node_lo, node_hi, node_child, node_range, tris):
+def _drop_cutter(xy, R, r, body_r, body_t, floor, chunk, node_lo, node_hi, node_child, node_range, tris):
     k = xy.shape[0]
     z = np.empty(k)
     cc = np.empty((k, 3))
-    for c in prange((k + CHUNK - 1) // CHUNK):
+    for c in prange((k + chunk - 1) // chunk):
         stack = np.empty(STACK_SIZE, np.int32)
-        sx = sy = sz = math.nan
-        for i in range(c * CHUNK, min(k, (c + 1) * CHUNK)):
-            # each point starts from the previous one's contact (a neighbour's, in a grid or a pass)
-            z[i], sx, sy, sz = _drop(xy[i, 0], xy[i, 1], R, r, body_r, body_t, floor, sx, sy, sz,
-                                     node_lo, node_hi, node_child, node_range, tris, stack)
-            cc[i, 0], cc[i, 1], cc[i, 2] = sx, sy, sz
+        _drop_run(c * chunk, min(k, (c + 1) * chunk), xy, R, r, body_r, body_t, floor,
+                     node_lo, node_hi, node_child, node_range, tris, stack, z, cc)
     return z, cc
 
 
 NO_BODY = (np.zeros(0), np.zeros(0))
 
 
-def drop_cutter(xy, radius, corner_radius, floor, bvh, body=NO_BODY):
+def drop_cutter(xy, radius, corner_radius, floor, bvh, body=None, chunk=CHUNK):
     """Drop a vertical cutter (radius, corner radius: flat 0, ball = radius) at each of
     ``xy (k, 2)``: tip heights ``(k,)`` (at least ``floor``) and contact points ``(k, 3)`` (NaN
     where nothing is touched above the floor). ``body = (radii, heights)``: flat-bottomed
-    cylinders above the cutter (shank, holder) that must not touch either."""
+    cylinders above the cutter (shank, holder) that must not touch either. ``chunk``: points
+    dropped in order by one thread."""
+    body = NO_BODY if body is None else body
     return _drop_cutter(np.ascontiguousarray(xy, np.float64), float(radius), float(corner_radius),
                         np.ascontiguousarray(body[0], np.float64), np.ascontiguousarray(body[1], np.float64),
-                        float(floor), *bvh)
+                        float(floor), int(chunk), *bvh)
 
 
 @numba.njit(parallel=True, cache=True)
@@ -251,86 +162,19 @@ def _touch_points(pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, wid
     out = pb.copy()
     for i in prange(pa.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
-        ax, ay, bx, by = pa[i, 0], pa[i, 1], pb[i, 0], pb[i, 1]
-        fbi = fb[i]
-        ga, gb = fa[i], fbi
-        qx, qy, qz = qa[i, 0], qa[i, 1], qa[i, 2]
-        if math.isnan(qz):
-            ga, qx, qy, qz = _drop(ax, ay, R, r, body_r, body_t, floor, qx, qy, qz,
-                                   node_lo, node_hi, node_child, node_range, tris, stack)
-            ga -= z
-        sx, sy, sz = qx, qy, qz
-        side = 0
-        check = 0.0
-        for it in range(rounds):
-            width2 = (bx - ax) ** 2 + (by - ay) ** 2
-            # touching: just below z (exactly z is a flat facet at the level: go on to its edge)
-            if (-touch <= fbi < 0.0) or width2 <= width * width:
-                break
-            # Illinois (regula falsi halving the weight of an end that stays): superlinear where the
-            # height is smooth; every third round a bisection if the bracket has not halved since, so
-            # it still halves where the height jumps
-            w = ga / (ga - gb)
-            if not (0.02 < w < 0.98):  # one end far steeper (a jump): regula falsi would creep
-                w = 0.5
-            contact = False
-            halve = False
-            if it % 3 == 0:
-                halve = it > 0 and width2 > 0.25 * check  # at least one halving every three rounds
-                check = width2
-            if halve:
-                w = 0.5
-            elif it % 2 == 0:
-                # contact step: the inside end's contact q alone keeps the tip above z inside a
-                # disk around q, so the level set lies at or past where the segment leaves that
-                # disk; try just past it. Exact in one step at a wall (the contact stays put).
-                rho = _reach(qz - z, R, r, body_r, body_t)
-                dx = bx - ax
-                dy = by - ay
-                ox = ax - qx
-                oy = ay - qy
-                A = dx * dx + dy * dy
-                B = ox * dx + oy * dy
-                C = ox * ox + oy * oy - rho * rho
-                if C < 0.0:  # a inside q's disk: one exit root t > 0 of A t² + 2 B t + C
-                    root = math.sqrt(B * B - A * C)
-                    t_exit = -C / (B + root) if B > 0.0 else (root - B) / A
-                    t = t_exit + 0.5 * width / math.sqrt(A)
-                    if t < 0.98:
-                        w = t
-                        contact = True
-            px = ax + w * (bx - ax)
-            py = ay + w * (by - ay)
-            f, sx, sy, sz = _drop(px, py, R, r, body_r, body_t, floor, sx, sy, sz,
-                                  node_lo, node_hi, node_child, node_range, tris, stack)
-            f -= z
-            if f > 0.0:
-                ax, ay, ga = px, py, f
-                qx, qy, qz = sx, sy, sz
-                if side == 1:
-                    gb *= 0.5
-                side = 1
-            else:
-                if contact:  # the disk's exit, width/2 back, is inside or on the level set
-                    back = 0.5 * width / math.sqrt((bx - ax) ** 2 + (by - ay) ** 2)
-                    ax += (w - back) * (bx - ax)
-                    ay += (w - back) * (by - ay)
-                bx, by, fbi, gb = px, py, f, f
-                if side == -1:
-                    ga *= 0.5
-                side = -1
-        out[i, 0] = bx
-        out[i, 1] = by
+        _touch_point(i, pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, width, rounds,
+                        node_lo, node_hi, node_child, node_range, tris, stack, out)
     return out
 
 
 def touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_radius, floor, bvh,
-                 touch=1e-6, width=1e-4, rounds=80, body=NO_BODY, inside_contacts=None):
+                 touch=1e-6, width=1e-4, rounds=80, body=None, inside_contacts=None):
     """Where the drop-cutter height crosses ``z`` between each inside point (height above z by
     ``f_inside > 0``) and outside point (``f_outside <= 0``): bracketed search that keeps the
     outside end, so the result never gouges; it stops when the height is within ``touch`` mm of z
     or the bracket is ``width`` mm short (always so at a vertical wall, where the height jumps). ``inside_contacts (k, 3)``: the inside
     points' contacts from their drop (NaN rows or None: dropped again). ``(k, 2)``."""
+    body = NO_BODY if body is None else body
     if inside_contacts is None:
         inside_contacts = np.full((len(inside_xy), 3), np.nan)
     return _touch_points(np.ascontiguousarray(inside_xy, np.float64), np.ascontiguousarray(outside_xy, np.float64),

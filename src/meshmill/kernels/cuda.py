@@ -1,9 +1,12 @@
-"""CUDA backend: the same device functions as the CPU (:mod:`meshmill.kernels.geom`), compiled
-with ``numba.cuda.jit(device=True)`` and run one thread per item.
+"""CUDA backend: the same device functions as the CPU (:mod:`meshmill.kernels.geom`,
+:mod:`~meshmill.kernels.cutters`, :mod:`~meshmill.kernels.raycast`,
+:mod:`~meshmill.kernels.carve`), compiled with ``numba.cuda.jit(device=True)`` and run one thread
+per independent item (point, pose, contour, grid line). The functions mirror those of
+:mod:`meshmill.kernels.cpu` and take and return host numpy arrays; the mesh (``bvh``) is the tuple
+of device arrays from :func:`to_device`, copied once per operation and kept on the GPU.
 
 Imported only when asked for (it needs numba's CUDA target: a GPU, or ``NUMBA_ENABLE_CUDASIM=1``,
-the simulator the tests use). So far the point-distance and largest-ball queries and the casting of
-dexel lines; the rest of the operations move here with the GPU issue.
+the simulator the parity tests use). Optional dependency: ``pip install meshmill[cuda]``.
 """
 from __future__ import annotations
 
@@ -12,14 +15,44 @@ import math
 import numpy as np
 from numba import cuda, float64, int32, int64
 
-from . import raycast
+from . import carve, cutters, raycast
 from .geom import STACK_SIZE, build
 from .raycast import MAX_HITS
 
-dev = build(cuda.jit(device=True))
+_dev = cuda.jit(device=True)
+dev = build(_dev)
+cut = cutters.build(_dev)
+ray = raycast.build(_dev)
+crv = carve.build(_dev)
 _point = dev.mesh_point_dist2
 _ball = dev.largest_clear_ball
+_first_clear_axis = dev.first_clear_axis
+_keep_previous_axes = dev.keep_previous_axes
+_pose_depth = dev.pose_depth
+_drop_run = cut.drop_run
+_touch_point = cut.touch_point
+_cast_bvh_line = ray.cast_bvh_line
+_ray_blocked = ray.ray_blocked
+_line_range = crv.line_range
+_constants = crv.move_constants
+_cut_line = crv.cut_line
 THREADS = 128
+CHUNK = 4  # points of a drop-cutter batch run in order by one thread (fewer than the CPU's: more threads)
+TILE = 16  # as meshmill.kernels.cpu_dexel.TILE: one block of TILE x TILE threads per tile
+
+
+def _blocks(n, threads=THREADS):
+    return max(1, (n + threads - 1) // threads)
+
+
+def _d(a, dtype=np.float64):
+    """A host array on the device (contiguous, of ``dtype``)."""
+    return cuda.to_device(np.ascontiguousarray(a, dtype))
+
+
+def to_device(bvh):
+    """Copy ``BVH.arrays`` to the GPU once; the result goes where ``bvh`` arrays are expected."""
+    return tuple(cuda.to_device(np.ascontiguousarray(a)) for a in bvh.arrays)
 
 
 @cuda.jit
@@ -31,6 +64,14 @@ def _mesh_distances(p, cap2, node_lo, node_hi, node_child, node_range, tris, out
                                   node_lo, node_hi, node_child, node_range, tris, stack))
 
 
+def mesh_distances(points, bvh, cap=1e150):
+    """As :func:`meshmill.kernels.cpu.mesh_distances`."""
+    cap = min(cap, 1e150)
+    out = cuda.device_array(len(points), np.float64)
+    _mesh_distances[_blocks(len(points)), THREADS](_d(points), cap * cap, *bvh, out)
+    return out.copy_to_host()
+
+
 @cuda.jit
 def _largest_ball(cc, nrm, radii, tol, node_lo, node_hi, node_child, node_range, tris, out):
     i = cuda.grid(1)
@@ -40,35 +81,126 @@ def _largest_ball(cc, nrm, radii, tol, node_lo, node_hi, node_child, node_range,
                        node_lo, node_hi, node_child, node_range, tris, stack)
 
 
-def _blocks(n):
-    return max(1, (n + THREADS - 1) // THREADS)
-
-
-def to_device(bvh):
-    """Copy ``BVH.arrays`` to the GPU once; the result goes where ``bvh`` arrays are expected."""
-    return tuple(cuda.to_device(np.ascontiguousarray(a)) for a in bvh.arrays)
-
-
-def mesh_distances(points, bvh_dev, cap=1e150):
-    """As :func:`meshmill.kernels.cpu.mesh_distances`, on the GPU."""
-    p = cuda.to_device(np.ascontiguousarray(points, np.float64))
-    out = cuda.device_array(len(points), np.float64)
-    _mesh_distances[_blocks(len(points)), THREADS](p, cap * cap, *bvh_dev, out)
-    return out.copy_to_host()
-
-
-def largest_ball(cc, normals, radii, tol, bvh_dev):
-    """As :func:`meshmill.kernels.cpu.largest_ball`, on the GPU."""
+def largest_ball(cc, normals, radii, tol, bvh):
+    """As :func:`meshmill.kernels.cpu.largest_ball`."""
     out = cuda.device_array(len(cc), np.int32)
-    _largest_ball[_blocks(len(cc)), THREADS](cuda.to_device(np.ascontiguousarray(cc, np.float64)),
-                                              cuda.to_device(np.ascontiguousarray(normals, np.float64)),
-                                              cuda.to_device(np.ascontiguousarray(radii, np.float64)),
-                                              float(tol), *bvh_dev, out)
+    _largest_ball[_blocks(len(cc)), THREADS](_d(cc), _d(normals), _d(radii), float(tol), *bvh, out)
     return out.copy_to_host()
 
 
-ray = raycast.build(cuda.jit(device=True))
-_cast_bvh_line = ray.cast_bvh_line
+@cuda.jit
+def _axis_search(ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r, node_lo, node_hi, node_child, node_range,
+                 tris, out):
+    i = cuda.grid(1)
+    if i < ce.shape[0]:
+        stack = cuda.local.array(STACK_SIZE, int32)
+        out[i] = _first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                                   node_lo, node_hi, node_child, node_range, tris, stack)
+
+
+@cuda.jit
+def _keep_previous(choice, offsets, cand_tilt, slack, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                   node_lo, node_hi, node_child, node_range, tris):
+    k = cuda.grid(1)
+    if k < offsets.shape[0] - 1:
+        stack = cuda.local.array(STACK_SIZE, int32)
+        _keep_previous_axes(offsets[k], offsets[k + 1], choice, cand_tilt, slack, ce, f, s, tool, cand, radius,
+                            seg_t0, seg_t1, seg_r, node_lo, node_hi, node_child, node_range, tris, stack)
+
+
+def axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body, offsets, bvh):
+    """As :func:`meshmill.kernels.cpu.axis_search`: one thread per point, then one per contour."""
+    args = (_d(ce), _d(feed), _d(side), _d(tool, np.int32), _d(candidates), _d(radius), *(_d(b) for b in body))
+    choice = cuda.device_array(len(ce), np.int32)
+    _axis_search[_blocks(len(ce)), THREADS](*args, *bvh, choice)
+    n_contours = len(offsets) - 1
+    _keep_previous[_blocks(n_contours), THREADS](choice, _d(offsets, np.int64), _d(cand_tilt), float(slack), *args,
+                                                 *bvh)
+    return choice.copy_to_host()
+
+
+@cuda.jit
+def _pose_penetration(tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
+                      node_lo, node_hi, node_child, node_range, tris, ring, segs):
+    i = cuda.grid(1)
+    if i < tip.shape[0]:
+        stack = cuda.local.array(STACK_SIZE, int32)
+        _pose_depth(i, tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
+                    node_lo, node_hi, node_child, node_range, tris, stack, ring, segs)
+
+
+def pose_penetration(tip, axis, tool, rings, segs, bvh, base=None):
+    """As :func:`meshmill.kernels.cpu.pose_penetration`."""
+    base = segs[0] if base is None else base
+    k = len(tip)
+    ring = cuda.to_device(np.zeros(k))
+    depth = cuda.to_device(np.zeros((k, np.shape(segs[2])[1])))
+    ring_t, ring_rho, ring_r, ring_n = rings
+    _pose_penetration[_blocks(k), THREADS](_d(tip), _d(axis), _d(tool, np.int32), _d(ring_t), _d(ring_rho),
+                                           _d(ring_r), _d(ring_n, np.asarray(ring_n).dtype),
+                                           *(_d(a) for a in segs), _d(base), *bvh, ring, depth)
+    return ring.copy_to_host(), depth.copy_to_host()
+
+
+@cuda.jit
+def _drop_cutter(xy, R, r, body_r, body_t, floor, chunk, node_lo, node_hi, node_child, node_range, tris, z, cc):
+    c = cuda.grid(1)
+    k = xy.shape[0]
+    if c * chunk < k:
+        stack = cuda.local.array(STACK_SIZE, int32)
+        _drop_run(c * chunk, min(k, (c + 1) * chunk), xy, R, r, body_r, body_t, floor,
+                  node_lo, node_hi, node_child, node_range, tris, stack, z, cc)
+
+
+def drop_cutter(xy, radius, corner_radius, floor, bvh, body=None, chunk=CHUNK):
+    """As :func:`meshmill.kernels.cpu.drop_cutter` (``chunk`` points per thread)."""
+    body = (np.zeros(0), np.zeros(0)) if body is None else body
+    k = len(xy)
+    z = cuda.device_array(k, np.float64)
+    cc = cuda.device_array((k, 3), np.float64)
+    _drop_cutter[_blocks(_blocks(k, chunk)), THREADS](_d(xy), float(radius), float(corner_radius), _d(body[0]),
+                                                      _d(body[1]), float(floor), int(chunk), *bvh, z, cc)
+    return z.copy_to_host(), cc.copy_to_host()
+
+
+@cuda.jit
+def _touch_points(pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, width, rounds,
+                  node_lo, node_hi, node_child, node_range, tris, out):
+    i = cuda.grid(1)
+    if i < pa.shape[0]:
+        stack = cuda.local.array(STACK_SIZE, int32)
+        _touch_point(i, pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, width, rounds,
+                     node_lo, node_hi, node_child, node_range, tris, stack, out)
+
+
+def touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_radius, floor, bvh,
+                 touch=1e-6, width=1e-4, rounds=80, body=None, inside_contacts=None):
+    """As :func:`meshmill.kernels.cpu.touch_points`."""
+    body = (np.zeros(0), np.zeros(0)) if body is None else body
+    if inside_contacts is None:
+        inside_contacts = np.full((len(inside_xy), 3), np.nan)
+    out = _d(outside_xy)
+    _touch_points[_blocks(len(inside_xy)), THREADS](_d(inside_xy), _d(outside_xy), _d(f_inside), _d(f_outside),
+                                                    _d(inside_contacts), float(z), float(radius),
+                                                    float(corner_radius), _d(body[0]), _d(body[1]), float(floor),
+                                                    float(touch), float(width), int(rounds), *bvh, out)
+    return out.copy_to_host()
+
+
+@cuda.jit
+def _rays_blocked(origins, d, tmin, node_lo, node_hi, node_child, node_range, tris, out):
+    i = cuda.grid(1)
+    if i < origins.shape[0]:
+        stack = cuda.local.array(STACK_SIZE, int32)
+        out[i] = _ray_blocked(origins[i, 0], origins[i, 1], origins[i, 2], d[0], d[1], d[2], tmin,
+                              node_lo, node_hi, node_child, node_range, tris, stack)
+
+
+def rays_blocked(origins, direction, tmin, bvh):
+    """As :func:`meshmill.kernels.cpu_dexel.rays_blocked`."""
+    out = cuda.device_array(len(origins), np.uint8)
+    _rays_blocked[_blocks(len(origins)), THREADS](_d(origins), _d(direction), float(tmin), *bvh, out)
+    return out.copy_to_host().astype(bool)
 
 
 @cuda.jit
@@ -82,18 +214,80 @@ def _cast_bvh(a, lu, lv, step, nu, nv, cap, node_lo, node_hi, node_child, node_r
                                      stack, hw, hs, out)
 
 
-def cast_lines(a, lu, lv, step, nu, nv, bvh_dev):
-    """As :func:`meshmill.kernels.cpu_dexel.cast_lines` with the BVH index, on the GPU (the BVH
-    arrays from :func:`to_device`)."""
+def cast_lines(a, lu, lv, step, nu, nv, bvh):
+    """As :func:`meshmill.kernels.cpu_dexel.cast_lines` with the BVH index (one thread per line)."""
     n_lines = int(nu) * int(nv)
     cap = 4
     while True:
         out = cuda.device_array((n_lines, cap, 2), np.float64)
         count = cuda.device_array(n_lines, np.int64)
         _cast_bvh[_blocks(n_lines), THREADS](a, float(lu), float(lv), float(step), int(nu), int(nv), cap,
-                                            *bvh_dev, out, count)
+                                            *bvh, out, count)
         c = count.copy_to_host()
         need = int(c.max(initial=0))
         if need <= cap:
             return out.copy_to_host(), c
         cap = need
+
+
+@cuda.jit
+def _move_constants(pa, pb, xa, xb, corner, flutes, chord, plane):
+    m = cuda.grid(1)
+    if m < pa.shape[0]:
+        _constants(m, pa, pb, xa, xb, corner, flutes, chord, plane)
+
+
+@cuda.jit
+def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb, radius, corner,
+               flutes, strips, chord, plane, box, rapid, rapid_min, rapid_hit, overflow):
+    t = tiles[cuda.blockIdx.x]
+    tv = (nv + TILE - 1) // TILE
+    i = (t // tv) * TILE + cuda.threadIdx.x // TILE
+    j = (t % tv) * TILE + cuda.threadIdx.x % TILE
+    if i >= nu or j >= nv:
+        return
+    u0 = lu + (i + 0.5) * step
+    v0 = lv + (j + 0.5) * step
+    for s in range(tile_start[t], tile_start[t + 1]):
+        m = tile_moves[s]
+        i0, i1 = _line_range(box[m, 0], box[m, 1], lu, step, nu)
+        j0, j1 = _line_range(box[m, 2], box[m, 3], lv, step, nv)
+        if i < i0 or i > i1 or j < j0 or j > j1:
+            continue
+        removed = _cut_line(m, i * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb, radius,
+                            corner, flutes, strips, chord, plane)
+        if removed < 0.0:
+            overflow[t] = 1
+            return
+        if removed > rapid_min and rapid[m]:
+            rapid_hit[m] = 1
+
+
+def move_constants(pa, pb, xa, xb, corner, flutes):
+    """As :func:`meshmill.kernels.cpu_dexel.move_constants` (host arrays in and out)."""
+    k = len(pa)
+    chord = cuda.device_array((k, 6), np.float64)
+    plane = cuda.device_array((k, 4), np.float64)
+    _move_constants[_blocks(k), THREADS](_d(pa), _d(pb), _d(xa), _d(xb), _d(corner), _d(flutes), chord, plane)
+    return chord.copy_to_host(), plane.copy_to_host()
+
+
+def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
+              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, rapid, rapid_min, rapid_hit, overflow):
+    """As :func:`meshmill.kernels.cpu_dexel.cut_tiles` (host arrays updated in place): one block per
+    tile, one thread per line, each line cut by the tile's moves in path order. A line that runs out
+    of room stops and flags its tile; the others go on (removal is idempotent, so the rerun of
+    the tile after growing the line is exact)."""
+    if len(tiles) == 0:
+        return
+    d_iv, d_count = _d(iv), _d(count, np.int64)
+    d_hit, d_over = _d(rapid_hit, np.uint8), _d(overflow, np.uint8)
+    _cut_tiles[len(tiles), TILE * TILE](float(lu), float(lv), float(step), int(nu), int(nv), d_iv,
+                                        _d(off, np.int64), d_count, _d(tiles, np.int64), _d(tile_start, np.int64),
+                                        _d(tile_moves, np.int64), _d(pa), _d(pb), _d(xa), _d(xb), _d(radius),
+                                        _d(corner), _d(flutes), _d(strips, np.int64), _d(chord), _d(plane), _d(box),
+                                        _d(rapid, np.uint8), float(rapid_min), d_hit, d_over)
+    iv[...] = d_iv.copy_to_host()
+    count[...] = d_count.copy_to_host()
+    rapid_hit[...] = d_hit.copy_to_host()
+    overflow[...] = d_over.copy_to_host()

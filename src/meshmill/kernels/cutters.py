@@ -294,5 +294,111 @@ def build(jit):
                 rho = max(rho, body_r[k])
         return rho
 
+    @jit
+    def drop_run(i0, i1, xy, R, r, body_r, body_t, floor, node_lo, node_hi, node_child, node_range, tris, stack,
+                 z, cc):
+        """Drop the tool at points i0..i1-1 of ``xy`` in order, each starting from the previous
+        one's contact (a neighbour's, in a grid or a pass): ``z[i]``, ``cc[i, :]``."""
+        sx = math.nan
+        sy = math.nan
+        sz = math.nan
+        for i in range(i0, i1):
+            z[i], sx, sy, sz = tool_drop(xy[i, 0], xy[i, 1], R, r, body_r, body_t, floor, sx, sy, sz,
+                                         node_lo, node_hi, node_child, node_range, tris, stack)
+            cc[i, 0] = sx
+            cc[i, 1] = sy
+            cc[i, 2] = sz
+
+    @jit
+    def touch_point(i, pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, width, rounds,
+                    node_lo, node_hi, node_child, node_range, tris, stack, out):
+        """Where the drop height crosses z between inside point ``pa[i]`` and outside point
+        ``pb[i]``: ``out[i, :]`` (see the CPU ``touch_points``)."""
+        ax = pa[i, 0]
+        ay = pa[i, 1]
+        bx = pb[i, 0]
+        by = pb[i, 1]
+        fbi = fb[i]
+        ga = fa[i]
+        gb = fbi
+        qx = qa[i, 0]
+        qy = qa[i, 1]
+        qz = qa[i, 2]
+        if math.isnan(qz):
+            ga, qx, qy, qz = tool_drop(ax, ay, R, r, body_r, body_t, floor, qx, qy, qz,
+                                       node_lo, node_hi, node_child, node_range, tris, stack)
+            ga -= z
+        sx = qx
+        sy = qy
+        sz = qz
+        side = 0
+        check = 0.0
+        for it in range(rounds):
+            width2 = (bx - ax) ** 2 + (by - ay) ** 2
+            # touching: just below z (exactly z is a flat facet at the level: go on to its edge)
+            if (-touch <= fbi < 0.0) or width2 <= width * width:
+                break
+            # Illinois (regula falsi halving the weight of an end that stays): superlinear where the
+            # height is smooth; every third round a bisection if the bracket has not halved since, so
+            # it still halves where the height jumps
+            w = ga / (ga - gb)
+            if not (0.02 < w < 0.98):  # one end far steeper (a jump): regula falsi would creep
+                w = 0.5
+            contact = False
+            halve = False
+            if it % 3 == 0:
+                halve = it > 0 and width2 > 0.25 * check  # at least one halving every three rounds
+                check = width2
+            if halve:
+                w = 0.5
+            elif it % 2 == 0:
+                # contact step: the inside end's contact q alone keeps the tip above z inside a
+                # disk around q, so the level set lies at or past where the segment leaves that
+                # disk; try just past it. Exact in one step at a wall (the contact stays put).
+                rho = contact_reach(qz - z, R, r, body_r, body_t)
+                dx = bx - ax
+                dy = by - ay
+                ox = ax - qx
+                oy = ay - qy
+                A = dx * dx + dy * dy
+                B = ox * dx + oy * dy
+                C = ox * ox + oy * oy - rho * rho
+                if C < 0.0:  # a inside q's disk: one exit root t > 0 of A t² + 2 B t + C
+                    root = math.sqrt(B * B - A * C)
+                    t_exit = -C / (B + root) if B > 0.0 else (root - B) / A
+                    t = t_exit + 0.5 * width / math.sqrt(A)
+                    if t < 0.98:
+                        w = t
+                        contact = True
+            px = ax + w * (bx - ax)
+            py = ay + w * (by - ay)
+            f, sx, sy, sz = tool_drop(px, py, R, r, body_r, body_t, floor, sx, sy, sz,
+                                      node_lo, node_hi, node_child, node_range, tris, stack)
+            f -= z
+            if f > 0.0:
+                ax = px
+                ay = py
+                ga = f
+                qx = sx
+                qy = sy
+                qz = sz
+                if side == 1:
+                    gb *= 0.5
+                side = 1
+            else:
+                if contact:  # the disk's exit, width/2 back, is inside or on the level set
+                    back = 0.5 * width / math.sqrt((bx - ax) ** 2 + (by - ay) ** 2)
+                    ax += (w - back) * (bx - ax)
+                    ay += (w - back) * (by - ay)
+                bx = px
+                by = py
+                fbi = f
+                gb = f
+                if side == -1:
+                    ga *= 0.5
+                side = -1
+        out[i, 0] = bx
+        out[i, 1] = by
+
     return SimpleNamespace(profile=profile, contact_reach=contact_reach, edge_drop=edge_drop, triangle_drop=triangle_drop, mesh_drop=mesh_drop,
-                           tool_drop=tool_drop)
+                           tool_drop=tool_drop, drop_run=drop_run, touch_point=touch_point)

@@ -396,7 +396,123 @@ def build(jit):
                 return False
         return True
 
+    @jit
+    def tilted_axis(fx, fy, fz, sx, sy, sz, alpha, beta):
+        """Unit axis tilted by alpha toward the feed direction f and beta toward the outward side s."""
+        ca = math.cos(alpha)
+        sa = math.sin(alpha)
+        cb = math.cos(beta)
+        sb = math.sin(beta)
+        ux = sa * fx + ca * sb * sx
+        uy = sa * fy + ca * sb * sy
+        uz = sa * fz + ca * (cb + sb * sz)
+        n = math.sqrt(ux * ux + uy * uy + uz * uz)
+        return ux / n, uy / n, uz / n
+
+    @jit
+    def axis_clear(i, c, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                   node_lo, node_hi, node_child, node_range, tris, stack):
+        """Whether point i's tool body is clear with candidate axis c (see the CPU ``axis_search``)."""
+        ux, uy, uz = tilted_axis(f[i, 0], f[i, 1], f[i, 2], s[i, 0], s[i, 1], s[i, 2], cand[c, 0], cand[c, 1])
+        r = radius[tool[i]]
+        return body_clear(ce[i, 0] - r * ux, ce[i, 1] - r * uy, ce[i, 2] - r * uz, ux, uy, uz,
+                          seg_t0, seg_t1, seg_r, tool[i], node_lo, node_hi, node_child, node_range, tris, stack)
+
+    @jit
+    def first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                         node_lo, node_hi, node_child, node_range, tris, stack):
+        """The first candidate (in order of preference) clear at point i; -1 if none or no tool."""
+        if tool[i] < 0:
+            return -1
+        for c in range(cand.shape[0]):
+            if axis_clear(i, c, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                          node_lo, node_hi, node_child, node_range, tris, stack):
+                return c
+        return -1
+
+    @jit
+    def keep_previous_axes(i0, i1, choice, cand_tilt, slack, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                           node_lo, node_hi, node_child, node_range, tris, stack):
+        """Along the points i0..i1-1 of one contour, in order: a point takes its predecessor's
+        candidate when that is clear and at most ``slack`` rad more tilted (``choice`` in place)."""
+        for i in range(i0 + 1, i1):
+            prev = choice[i - 1]
+            c = choice[i]
+            if prev < 0 or c < 0 or prev == c or cand_tilt[prev] > cand_tilt[c] + slack:
+                continue
+            if axis_clear(i, prev, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                          node_lo, node_hi, node_child, node_range, tris, stack):
+                choice[i] = prev
+
+    @jit
+    def pose_depth(i, tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
+                   node_lo, node_hi, node_child, node_range, tris, stack, ring, segs):
+        """How deep pose i enters the mesh: ``ring[i]`` and ``segs[i, :]`` (see the CPU
+        ``pose_penetration``; both zero on entry)."""
+        t = tool[i]
+        px = tip[i, 0]
+        py = tip[i, 1]
+        pz = tip[i, 2]
+        ux = axis[i, 0]
+        uy = axis[i, 1]
+        uz = axis[i, 2]
+        # two unit vectors normal to the axis
+        if abs(ux) < 0.9:
+            ex, ey, ez = 0.0, -uz, uy
+        else:
+            ex, ey, ez = uz, 0.0, -ux
+        en = math.sqrt(ex * ex + ey * ey + ez * ez)
+        ex /= en
+        ey /= en
+        ez /= en
+        gx = uy * ez - uz * ey
+        gy = uz * ex - ux * ez
+        gz = ux * ey - uy * ex
+        cx = px + ring_t[t] * ux
+        cy = py + ring_t[t] * uy
+        cz = pz + ring_t[t] * uz
+        r = ring_r[t]
+        if r > 0.0:
+            for j in range(ring_n[t]):
+                phi = 2.0 * math.pi * j / ring_n[t]
+                rx = ring_rho[t] * (math.cos(phi) * ex + math.sin(phi) * gx)
+                ry = ring_rho[t] * (math.cos(phi) * ey + math.sin(phi) * gy)
+                rz = ring_rho[t] * (math.cos(phi) * ez + math.sin(phi) * gz)
+                d2 = mesh_point_dist2(cx + rx, cy + ry, cz + rz, r * r, 0.0,
+                                      node_lo, node_hi, node_child, node_range, tris, stack)
+                ring[i] = max(ring[i], r - math.sqrt(d2))
+        for k in range(seg_r.shape[1]):
+            r = seg_r[t, k]
+            if r <= 0.0:
+                break
+            t0 = seg_t0[t, k]
+            t1 = seg_t1[t, k]
+            d2 = mesh_cylinder_dist2(px, py, pz, ux, uy, uz, t0, t1, r * r, 0.0,
+                                     node_lo, node_hi, node_child, node_range, tris, stack)
+            if d2 >= r * r:
+                continue
+            radial = r - math.sqrt(d2)
+            # axial depth: how far the bottom of the cylinder must rise to clear (bisection)
+            lo = t0
+            hi = t1
+            if mesh_cylinder_dist2(px, py, pz, ux, uy, uz, hi - 1e-9, t1, r * r, r * r,
+                                   node_lo, node_hi, node_child, node_range, tris, stack) < r * r:
+                segs[i, k] = radial
+                continue
+            for _ in range(30):
+                mid = 0.5 * (lo + hi)
+                if mesh_cylinder_dist2(px, py, pz, ux, uy, uz, mid, t1, r * r, r * r,
+                                       node_lo, node_hi, node_child, node_range, tris, stack) < r * r:
+                    lo = mid
+                else:
+                    hi = mid
+            segs[i, k] = min(radial, hi - seg_base[t, k])
+
     return SimpleNamespace(
+        tilted_axis=tilted_axis,
+        first_clear_axis=first_clear_axis,
+        keep_previous_axes=keep_previous_axes,
+        pose_depth=pose_depth,
         point_triangle_dist2=point_triangle_dist2,
         segment_line_dist2=segment_line_dist2,
         triangle_axis_dist2=triangle_axis_dist2,

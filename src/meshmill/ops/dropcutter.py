@@ -5,6 +5,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels import cpu
+from ..kernels.backend import bind
 from ..toolpath.linking import link_passes
 from .verify import verify_toolpath
 
@@ -26,15 +27,16 @@ def pick_tool(tools, name):
 class ToolDrop:
     """Drop-cutter heights of a vertical tool over the mesh of ``bvh``, never below ``floor``:
     the cutter's exact contact, and the shank and holder as flat-bottomed cylinders above it, so
-    that a 3-axis position that clears the drop height clears the whole tool."""
+    that a 3-axis position that clears the drop height clears the whole tool. ``bvh``: a BVH (run
+    on ``device``) or :class:`~meshmill.kernels.backend.MeshKernels`."""
 
-    def __init__(self, tool, bvh, floor: float):
+    def __init__(self, tool, bvh, floor: float, device: str = "cpu"):
         self.radius, self.corner = tool.radius, tool.corner_radius
         parts = [(0.5 * tool.shank_diameter, tool.flute_length)]
         if tool.holder_diameter > 0:
             parts.append((0.5 * tool.holder_diameter, tool.gauge_length))
         self.body = (np.array([p[0] for p in parts]), np.array([p[1] for p in parts]))
-        self.bvh, self.floor = bvh, floor
+        self.kern, self.floor = bind(bvh, device), floor
 
     def __call__(self, xy: np.ndarray) -> np.ndarray:
         """Tip heights ``(k,)`` at ``xy (k, 2)``."""
@@ -42,7 +44,7 @@ class ToolDrop:
 
     def with_contacts(self, xy: np.ndarray):
         """Tip heights ``(k,)`` at ``xy (k, 2)`` and the mesh points touched ``(k, 3)`` (NaN: none)."""
-        return cpu.drop_cutter(xy, self.radius, self.corner, self.floor, self.bvh.arrays, self.body)
+        return self.kern.drop_cutter(xy, self.radius, self.corner, self.floor, self.body)
 
     def bounds(self, xy: np.ndarray, delta: float):
         """Upper and lower bounds ``(k,), (k,)`` of the drop height anywhere within ``delta`` mm of
@@ -55,31 +57,31 @@ class ToolDrop:
         the tool tip at most h(rho0) below itself, so a flat cutter of radius rho0 - delta at the
         centre, lowered by h(rho0), stays below the drop height (best of a few rho0)."""
         R, r = self.radius, self.corner
-        bvh = self.bvh.arrays
-        upper = cpu.drop_cutter(xy, R + delta, r, self.floor, bvh, (self.body[0] + delta, self.body[1]))[0]
+        upper = self.kern.drop_cutter(xy, R + delta, r, self.floor, (self.body[0] + delta, self.body[1]))[0]
         lower = np.full(len(xy), self.floor)
         if delta < R:
             flat = R - r  # the flat bottom's radius: no rise inside it
             for rho0 in {max(flat, delta + 0.4 * (R - delta)), max(flat, delta + 0.75 * (R - delta))}:
                 rise = cpu.cut.profile(rho0, R, r)
-                lower = np.maximum(lower, cpu.drop_cutter(xy, rho0 - delta, 0.0, self.floor + rise, bvh)[0] - rise)
+                lower = np.maximum(lower, self.kern.drop_cutter(xy, rho0 - delta, 0.0, self.floor + rise)[0] - rise)
         return upper, lower
 
     def touch(self, inside_xy, outside_xy, f_inside, f_outside, z, inside_contacts=None) -> np.ndarray:
         """Points ``(k, 2)`` between inside (height > z) and outside (<= z) points where the height
         reaches z from below (see :func:`meshmill.kernels.cpu.touch_points`)."""
-        return cpu.touch_points(inside_xy, outside_xy, f_inside, f_outside, z, self.radius, self.corner, self.floor,
-                                self.bvh.arrays, TOUCH, WALL, TOUCH_ROUNDS, self.body, inside_contacts)
+        return self.kern.touch_points(inside_xy, outside_xy, f_inside, f_outside, z, self.radius, self.corner,
+                                      self.floor, TOUCH, WALL, TOUCH_ROUNDS, self.body, inside_contacts)
 
 
-def verified_path(passes, tool_index, tools, bvh, safe_z, tol, step):
-    """Link 3-axis ``passes`` (``(k, 3)`` tips each) into a tool path, verify it, and split passes at
+def verified_path(passes, tool_index, tools, kern, safe_z, tol, step):
+    """Link 3-axis ``passes`` (``(k, 3)`` tips each) into a tool path, verify it against the mesh of
+    ``kern`` (:class:`~meshmill.kernels.backend.MeshKernels`), and split passes at
     the feed moves that fail (the tool lifts over them) until it verifies clean. Returns
     ``(toolpath, report, passes)``; ``report["moves_left_out"]`` counts the moves given up."""
     left_out = 0
     for rnd in range(REPAIR_ROUNDS + 1):
         tp = link_passes(passes, tool_index, safe_z)
-        report = verify_toolpath(bvh, tp, tools, tol, step)
+        report = verify_toolpath(kern, tp, tools, tol, step)
         bad = report.pop("problem_moves")
         if report["ok"] or rnd == REPAIR_ROUNDS:
             break

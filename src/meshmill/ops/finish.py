@@ -28,7 +28,7 @@ from ..errors import InputError
 from ..geometry.bvh import build_bvh
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import slice_contours, z_levels
-from ..kernels import cpu
+from ..kernels.backend import MeshKernels
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE
 from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
@@ -209,7 +209,7 @@ def _repair(passes, problem_moves, owner, role):
     return out, dropped
 
 
-def _contour_tools(best, offsets, contour_of, points, centre_dir, radii, tol, bvh):
+def _contour_tools(best, offsets, contour_of, points, centre_dir, radii, tol, kern):
     """Per contour the smallest of its points' largest balls (-1 if a point fits none), re-checked
     at every point: in a concave crease a smaller ball sits nearer the crease, so gouge-freeness is
     not strictly monotone in R there, and a contour moves to a smaller ball until all its points fit."""
@@ -222,7 +222,7 @@ def _contour_tools(best, offsets, contour_of, points, centre_dir, radii, tol, bv
         changed = False
         for t in np.unique(tool[tool >= 0]):
             sel = np.nonzero(pt == t)[0]
-            res = cpu.largest_ball(points[sel], centre_dir[sel], radii[t:], tol, bvh.arrays)
+            res = kern.largest_ball(points[sel], centre_dir[sel], radii[t:], tol)
             worst = np.full(len(tool), 0, np.int64)
             np.maximum.at(worst, contour_of[sel], np.where(res < 0, len(radii), res))
             bad = (tool == t) & (worst > 0)
@@ -234,8 +234,8 @@ def _contour_tools(best, offsets, contour_of, points, centre_dir, radii, tol, bv
     return tool
 
 
-def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
-    """Run the operation; returns ``(toolpath, summary, detail)``.
+def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu"):
+    """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, detail)``.
 
     ``tools``: the whole tool table (ball tools are used); ``progress(stage)`` is called as each
     stage starts. ``detail`` holds per-point arrays for reports and tests.
@@ -264,6 +264,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
     say("index")
     t = time.perf_counter()
     bvh = build_bvh(mesh.vertices, mesh.faces)
+    kern = MeshKernels(bvh, device)  # the mesh stays on the device for every stage
     seconds["index"] = time.perf_counter() - t
 
     say("contours")
@@ -277,9 +278,9 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
     say("tools")
     t = time.perf_counter()
     centre_dir = con.normals * con.reach[:, None]  # ball centre = CC + R·centre_dir
-    best = cpu.largest_ball(con.points, centre_dir, radii, params.tol, bvh.arrays)
+    best = kern.largest_ball(con.points, centre_dir, radii, params.tol)
     fits = best >= 0
-    contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tol, bvh)
+    contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tol, kern)
     point_tool = contour_tool[contour_of]
     seconds["tools"] = time.perf_counter() - t
 
@@ -289,8 +290,8 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
     ce = con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir
     cand, cand_tilt = tilt_candidates(params.max_tilt, params.tilt_step)
     body, _ = pack_cylinders(balls, params.tol, params.clearance)
-    choice = cpu.axis_search(ce, con.feed, side, point_tool, cand, cand_tilt, math.radians(params.tilt_step) + 1e-9,
-                             radii, body, con.offsets, bvh.arrays)
+    choice = kern.axis_search(ce, con.feed, side, point_tool, cand, cand_tilt, math.radians(params.tilt_step) + 1e-9,
+                              radii, body, con.offsets)
     has_axis = choice >= 0
     axis = np.zeros_like(ce)
     axis[has_axis] = _axes(cand, choice[has_axis], con.feed[has_axis], side[has_axis])
@@ -326,7 +327,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
     dropped = 0
     for rnd in range(REPAIR_ROUNDS + 1):
         tp, owner, role = builder.build(passes)
-        report = verify_toolpath(bvh, tp, tools, params.tol, min(DEFAULT_STEP, params.sample))
+        report = verify_toolpath(kern, tp, tools, params.tol, min(DEFAULT_STEP, params.sample))
         if report["ok"] or not passes:
             break
         if rnd == REPAIR_ROUNDS:  # give up on what still fails
@@ -334,7 +335,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None):
             dropped += len(bad)
             passes = [p for k, p in enumerate(passes) if k not in bad]
             tp, owner, role = builder.build(passes)
-            report = verify_toolpath(bvh, tp, tools, params.tol, min(DEFAULT_STEP, params.sample))
+            report = verify_toolpath(kern, tp, tools, params.tol, min(DEFAULT_STEP, params.sample))
             break
         passes, lost = _repair(passes, report["problem_moves"], owner, role)
         dropped += lost

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry.bvh import build_bvh
-from ..kernels import cpu
+from ..kernels.backend import MeshKernels
 from ..tolerances import GOUGE_TOL
 from ..toolpath.model import Toolpath
 from .dropcutter import pick_tool
@@ -55,6 +55,7 @@ class PlungeParams:
     theta_step: float = 15.0
     delta_step: float = 30.0
     regions: int = 0
+    device: str = "cpu"  # where the drop-cutter and the verification run: "cpu" or "cuda"
 
     def check(self):
         for name, v, low in (("--radial-step", self.radial_step, 1e-3), ("--engagement", self.engagement, 1e-3),
@@ -104,8 +105,9 @@ def contours(bounds, engagement, step) -> list[np.ndarray]:
     return out
 
 
-def grown_tool_drop(tool, allowance, bvh, floor):
-    """Drop heights of the real tip of ``tool`` kept ``allowance`` mm from the mesh: a callable
+def grown_tool_drop(tool, allowance, bvh, floor, device="cpu"):
+    """Drop heights of the real tip of ``tool`` kept ``allowance`` mm from the mesh of ``bvh`` (run
+    on ``device``): a callable
     ``xy (k, 2) -> (tip (k,), contact (k, 3))``, tips never below ``floor``, contacts the mesh
     points touched (NaN where none is)."""
     a = allowance
@@ -115,22 +117,23 @@ def grown_tool_drop(tool, allowance, bvh, floor):
         body_r.append(0.5 * tool.holder_diameter + a)
         body_t.append(tool.gauge_length)
     body = (np.array(body_r), np.array(body_t))
+    kern = MeshKernels(bvh, device)
 
     def drop(xy):
-        z, contact = cpu.drop_cutter(xy, tool.radius + a, tool.corner_radius + a, floor - a, bvh.arrays, body)
+        z, contact = kern.drop_cutter(xy, tool.radius + a, tool.corner_radius + a, floor - a, body)
         return z + a, contact
 
     return drop
 
 
-def _verified(mesh, tools, index, tips, axes, rapid, say):
+def _verified(mesh, tools, index, tips, axes, rapid, say, device):
     """The tool path of the plunges and its verification report (a clear error when empty)."""
     if not tips:
         raise InputError("no plunge removes stock: the part fills its box (nothing to rough) or the allowance is too large")
     tp = Toolpath(np.array(tips, np.float64), np.array(axes, np.float64), np.array(rapid),
                   np.full(len(tips), index, np.int64))
     say("verify")
-    report = verify_toolpath(build_bvh(mesh.vertices, mesh.faces), tp, tools, GOUGE_TOL, DEFAULT_STEP)
+    report = verify_toolpath(build_bvh(mesh.vertices, mesh.faces), tp, tools, GOUGE_TOL, DEFAULT_STEP, device=device)
     report.pop("problem_moves")
     return tp, report
 
@@ -155,12 +158,12 @@ def _summary(axes, tool, mesh, tp, report, depths, t0, params, fields, **extra):
     }
 
 
-def _turned_drop(mesh, tool, allowance, centre, u, floor):
+def _turned_drop(mesh, tool, allowance, centre, u, floor, device):
     """``(frame (3, 3), drop)``: the tool frame of axis u (rows T1, T2, U) and the grown-tool drop
     over the part turned into it, about ``centre``, never below ``floor`` along u."""
     frame = np.stack([*tool_frame(u), u])
     turned = (mesh.vertices - centre) @ frame.T
-    return frame, grown_tool_drop(tool, allowance, build_bvh(turned, mesh.faces), floor)
+    return frame, grown_tool_drop(tool, allowance, build_bvh(turned, mesh.faces), floor, device)
 
 
 def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
@@ -180,7 +183,7 @@ def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
         raise InputError(f"{n_points:,} plunge points: use a larger --radial-step or --engagement")
     say(f"{len(rings)} contours, {n_points} plunge points")
     bvh = build_bvh(mesh.vertices, mesh.faces)
-    drop = grown_tool_drop(tool, params.allowance, bvh, z_min)
+    drop = grown_tool_drop(tool, params.allowance, bvh, z_min, params.device)
     clear_z = z_max + params.clearance
     tips, rapid, contour_of = [], [], []
     depths = []
@@ -192,7 +195,8 @@ def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
             rapid += [True, False, True]
             depths.append(z_max - zz)
             contour_of.append(k)
-    tp, report = _verified(mesh, tools, index, tips, np.tile([0.0, 0.0, 1.0], (len(tips), 1)), rapid, say)
+    tp, report = _verified(mesh, tools, index, tips, np.tile([0.0, 0.0, 1.0], (len(tips), 1)), rapid, say,
+                          params.device)
     return tp, _summary(3, tool, mesh, tp, report, depths, t0, params,
                         ("radial_step", "engagement", "allowance", "clearance"), contours=len(rings),
                         plunges=int(n_points), valid_per_contour=np.bincount(contour_of, minlength=len(rings)).tolist(),
@@ -241,7 +245,7 @@ def plunge5(mesh, tools, tool_name, params: PlungeParams, progress=None):
     last = None
     for u in dirs:
         t_in, t_out = _slab(centre, u, lo, hi)  # along u from the centre: exit behind (t_in < 0), entry ahead
-        _, drop = _turned_drop(mesh, tool, params.allowance, centre, u, t_in)
+        _, drop = _turned_drop(mesh, tool, params.allowance, centre, u, t_in, params.device)
         h = float(drop(np.zeros((1, 2)))[0][0])
         if h >= t_out - 1e-9:
             continue  # the tip never gets into the stock
@@ -260,7 +264,7 @@ def plunge5(mesh, tools, tool_name, params: PlungeParams, progress=None):
         rapid += [False, True]
         depths.append(t_out - h)
         last = start
-    tp, report = _verified(mesh, tools, index, tips, axes, rapid, say)
+    tp, report = _verified(mesh, tools, index, tips, axes, rapid, say, params.device)
     return tp, _summary(5, tool, mesh, tp, report, depths, t0, params, ("allowance", "clearance", "theta_step",
                                                                          "delta_step"),
                         sphere={"centre": centre.round(6).tolist(), "radius": radius}, plunges=len(dirs))
@@ -289,7 +293,7 @@ def _direction_plunges(mesh, tool, params, u, centre, lo, hi):
     xy, t_exit, t_entry = xy[crosses], t_exit[crosses], t_entry[crosses]
     if not len(xy):
         return xy, t_exit, t_entry, np.empty((0, 3))
-    frame, drop = _turned_drop(mesh, tool, params.allowance, centre, u, float(t_exit.min()))
+    frame, drop = _turned_drop(mesh, tool, params.allowance, centre, u, float(t_exit.min()), params.device)
     z, contact = drop(xy)
     tip = np.maximum(z, t_exit)
     contact = np.where(np.isnan(contact), np.nan, centre + contact @ frame)
@@ -348,7 +352,7 @@ def _plunge_regions(mesh, tools, index, tool, params, dirs, centre, radius, say,
             rapid += [True, False, True]
             depths.append(e - h)
         last = (pole, u)
-    tp, report = _verified(mesh, tools, index, tips, axes, rapid, say)
+    tp, report = _verified(mesh, tools, index, tips, axes, rapid, say, params.device)
     return tp, _summary(5, tool, mesh, tp, report, depths, t0, params,
                         ("radial_step", "allowance", "clearance", "theta_step", "delta_step"), mode="regions",
                         regions=k, directions=len(dirs),

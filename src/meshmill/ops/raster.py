@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry.bvh import build_bvh
+from ..kernels.backend import MeshKernels
 from ..geometry.mesh import Mesh
 from ..tolerances import GOUGE_TOL
 from ..toolpath.linking import simplify_polyline
@@ -116,8 +117,9 @@ def drop_refined(xy, drop: ToolDrop, chord_tol, min_step):
     return np.column_stack([xy, z])
 
 
-def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=None):
-    """Run the operation; returns ``(toolpath, summary)``."""
+def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=None,
+           device: str = "cpu"):
+    """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary)``."""
     params.check()
     say = progress or (lambda stage: None)
     index, tool = pick_tool(tools, tool_name)
@@ -132,20 +134,20 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
         raise InputError(f"about {estimate:.3g} CL points: use a larger --stepover or --sample")
     say("index")
     t = time.perf_counter()
-    bvh = build_bvh(mesh.vertices, mesh.faces)
+    kern = MeshKernels(build_bvh(mesh.vertices, mesh.faces), device)  # on the device from here on
     seconds["index"] = time.perf_counter() - t
     say("drop-cutter")
     t = time.perf_counter()
     pieces, n_lines, spacing = raster_lines(bounds, tool.radius, stepover, params.angle, params.sample)
     xy = np.concatenate(pieces)
-    tips = drop_refined(xy, ToolDrop(tool, bvh, float(bounds[0, 2])), 0.5 * params.tol, params.sample / 64)
+    tips = drop_refined(xy, ToolDrop(tool, kern, float(bounds[0, 2])), 0.5 * params.tol, params.sample / 64)
     dropped = len(tips)
     tips = simplify_polyline(tips, 0.5 * params.tol)
     seconds["drop"] = time.perf_counter() - t
     safe_z = float(bounds[1, 2] + SAFE_ABOVE)
     say("verify")
     t = time.perf_counter()
-    tp, report, passes = verified_path([tips], index, tools, bvh, safe_z, params.tol, DEFAULT_STEP)
+    tp, report, passes = verified_path([tips], index, tools, kern, safe_z, params.tol, DEFAULT_STEP)
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
     summary = {

@@ -72,12 +72,12 @@ def _stock_bounds(design, stock, allowance):
 
 
 def simulate(design, toolpath, tools, step, stock="box", allowance=None, tolerance=0.01, mode="sweep",
-             progress=None):
+             progress=None, device="cpu"):
     """Cut ``toolpath`` from the stock (``"box"``: the design's box; a Mesh; or the design with
     ``allowance`` mm on both ends of every dexel) and measure the result against ``design``.
 
     Returns ``(deviation dict, summary dict, machined DexelModel, (vertices, faces) of the machined
-    mesh)``."""
+    mesh)``. ``device``: ``"cpu"`` or ``"cuda"`` for dexel casting, cutting and distances."""
     say = progress or (lambda _: None)
     t0 = time.perf_counter()
     if allowance is not None and not (np.isfinite(allowance) and allowance >= 0):
@@ -103,14 +103,14 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     if step > smallest:
         warnings.append(f"--step {step:g} mm is coarser than the smallest tool radius ({smallest:g} mm): "
                         "scallops and small features are not resolved")
-    design_model = dexelize(design, step, bounds=bounds)
+    design_model = dexelize(design, step, bounds=bounds, device=device)
     say(f"design: {sum(design_model.dexel_count(a) for a in range(3)):,} dexels")
     if allowance is not None:
         stock_model = design_model
     elif stock == "box":
-        stock_model = dexelize(shapes.box(*design.bounds), step, bounds=bounds)
+        stock_model = dexelize(shapes.box(*design.bounds), step, bounds=bounds, device=device)
     else:
-        stock_model = dexelize(stock, step, bounds=bounds)
+        stock_model = dexelize(stock, step, bounds=bounds, device=device)
     st = cutting.stock_from_model(stock_model, allowance or 0.0)
     start_model = st.to_model()
     stock_volume = start_model.volume
@@ -120,13 +120,13 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     build_s = time.perf_counter() - t0
     moves = cutting.toolpath_moves(toolpath, tools, mode)
     say(f"cutting {len(moves):,} moves ({len(toolpath):,} points, mode {mode})")
-    result = cutting.cut(st, moves, progress=say)
+    result = cutting.cut(st, moves, progress=say, device=device)
     machined = st.to_model()
     t2 = time.perf_counter()
     verts, faces, stride = machined_mesh(machined)
     mesh_s = time.perf_counter() - t2
     t1 = time.perf_counter()
-    pts, e, cut_pts, cut_depth = deviations(machined, design_model, design)
+    pts, e, cut_pts, cut_depth = deviations(machined, design_model, design, device)
     params = surface_parameters(pts, e, tolerance)
     removed = stock_volume - machined.volume
     remaining = difference_volume(machined, design_model)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels import cpu
+from ..kernels.backend import bind
 from ..tolerances import GOUGE_TOL
 from ..tools.table import pack_cylinders, pack_rings
 from ..toolpath.model import Toolpath
@@ -79,8 +79,9 @@ def _part_names(tools, k):
 
 
 def verify_toolpath(bvh, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: float = DEFAULT_STEP,
-                    worst: int = 10) -> dict:
-    """Check ``tp`` against the mesh of ``bvh``; returns a JSON-ready report with the counts of
+                    worst: int = 10, device: str = "cpu") -> dict:
+    """Check ``tp`` against the mesh of ``bvh`` (a BVH run on ``device``, or
+    :class:`~meshmill.kernels.backend.MeshKernels`); returns a JSON-ready report with the counts of
     moves that gouge, collide or rapid into the part, and the ``worst`` cases."""
     tip, axis, tool, move, rapid = sample_moves(tp, tools, step)
     (t0, t1, r), cutting = pack_cylinders(tools)
@@ -91,7 +92,7 @@ def verify_toolpath(bvh, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: floa
         return {"moves": 0, "poses_checked": 0, "step": float(step), "tolerance": float(tol), "gouging_moves": 0,
                 "colliding_moves": 0, "rapid_moves_touching": 0, "max_gouge": 0.0, "max_collision": 0.0,
                 "ok": True, "worst": [], "problem_moves": []}
-    ring_depth, seg_depth = cpu.pose_penetration(tip, axis, tool, pack_rings(tools), segs, bvh.arrays, base=t0)
+    ring_depth, seg_depth = bind(bvh, device).pose_penetration(tip, axis, tool, pack_rings(tools), segs, base=t0)
     cut_mask = cutting[tool]
     seg_cut = np.where(cut_mask, seg_depth, 0.0)
     seg_body = np.where(~cut_mask, seg_depth, 0.0)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry.bvh import build_bvh
+from ..kernels.backend import MeshKernels
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import z_levels
 from ..tolerances import GOUGE_TOL
@@ -204,8 +205,9 @@ def _refine_loop(loop, z, chord_tol, reach, drop: ToolDrop):
     return [p for p in np.split(loop, cuts + 1) if len(p) >= 2]
 
 
-def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progress=None):
-    """Run the operation; returns ``(toolpath, summary, passes)`` with ``passes`` a list of
+def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progress=None,
+              device: str = "cpu"):
+    """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, passes)`` with ``passes`` a list of
     ``(z, (k, 3) array)`` from the top level down: closed loops (first point repeated at the end),
     or pieces of loops where a stretch could not be cut without gouging."""
     params.check()
@@ -228,13 +230,13 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     t_all = time.perf_counter()
     say("index")
     t = time.perf_counter()
-    bvh = build_bvh(mesh.vertices, mesh.faces)
+    kern = MeshKernels(build_bvh(mesh.vertices, mesh.faces), device)  # on the device from here on
     seconds["index"] = time.perf_counter() - t
     say("drop-cutter bounds")
     t = time.perf_counter()
     xs = lo[0] + (hi[0] - lo[0]) * np.arange(nx) / (nx - 1)
     ys = lo[1] + (hi[1] - lo[1]) * np.arange(ny) / (ny - 1)
-    drop = ToolDrop(tool, bvh, float(bounds[0, 2]) - 1.0)
+    drop = ToolDrop(tool, kern, float(bounds[0, 2]) - 1.0)
     grid = DropGrid(drop, xs, ys)
     cx = 0.5 * (xs[:-1] + xs[1:])
     cy = 0.5 * (ys[:-1] + ys[1:])
@@ -281,7 +283,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     safe_z = float(bounds[1, 2] + SAFE_ABOVE)
     say("verify")
     t = time.perf_counter()
-    tp, report, kept = verified_path([p for _, p in loops], index, tools, bvh, safe_z, params.tol, DEFAULT_STEP)
+    tp, report, kept = verified_path([p for _, p in loops], index, tools, kern, safe_z, params.tol, DEFAULT_STEP)
     loops = [(float(p[0, 2]), p) for p in kept]
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all

@@ -18,7 +18,8 @@ import numba
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.cpu_dexel import TILE, bin_moves, cut_tiles
+from ..kernels import cpu_dexel
+from ..kernels.cpu_dexel import TILE, bin_moves
 from ..kernels.sweep import SEARCH_SAMPLES
 from .dexel import DexelModel, compact_lines
 
@@ -205,10 +206,15 @@ def _boxes(m: Moves) -> np.ndarray:
     return np.stack([pts.min(axis=1) - ext, pts.max(axis=1) + ext], axis=1)
 
 
-def cut(stock: Stock, moves: Moves, progress=None) -> dict:
-    """Remove every move's swept volume from ``stock`` (in place). Returns ``{"rapid_cuts":
-    sorted tool-path point indices whose rapid move cut material, "seconds": ...}``."""
+def cut(stock: Stock, moves: Moves, progress=None, device="cpu") -> dict:
+    """Remove every move's swept volume from ``stock`` (in place) on ``device`` (``"cpu"`` or
+    ``"cuda"``). Returns ``{"rapid_cuts": sorted tool-path point indices whose rapid move cut
+    material, "seconds": ...}``."""
     t0 = time.perf_counter()
+    if device == "cuda":
+        from ..kernels import cuda as kern
+    else:
+        kern = cpu_dexel
     boxes = _boxes(moves)
     rapid_hit = np.zeros(len(moves), np.uint8)
     rapid = moves.rapid.astype(np.uint8)
@@ -221,14 +227,16 @@ def cut(stock: Stock, moves: Moves, progress=None) -> dict:
                                                     boxes[:, 0, a], boxes[:, 1, a]]))
         pa, pb = np.ascontiguousarray(moves.pa[:, perm]), np.ascontiguousarray(moves.pb[:, perm])
         xa, xb = np.ascontiguousarray(moves.xa[:, perm]), np.ascontiguousarray(moves.xb[:, perm])
+        chord, plane = kern.move_constants(pa, pb, xa, xb, moves.corner, moves.flutes)
         tile_start, tile_moves = bin_moves(box, lu, lv, stock.step, nu, nv)
         tiles = np.nonzero(np.diff(tile_start))[0]
         np.random.default_rng(0).shuffle(tiles)  # spread the busy tiles over the threads
         tv = (nv + TILE - 1) // TILE
         while len(tiles):
             overflow = np.zeros(len(tile_start) - 1, np.uint8)
-            cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, tile_start,
-                      tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips, box, rapid,
+            kern.cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, tile_start,
+                      tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips, chord, plane, box,
+                      rapid,
                       RAPID_CUT, rapid_hit, overflow)
             tiles = np.nonzero(overflow)[0]
             if len(tiles):

@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from ..geometry.bvh import build_bvh
-from ..kernels.cpu import mesh_distances
+from ..kernels.backend import MeshKernels
 from .dexel import DexelModel
 
 
@@ -111,20 +111,20 @@ def end_points(model: DexelModel, a: int) -> np.ndarray:
     return p
 
 
-def deviations(machined: DexelModel, design_model: DexelModel, design_mesh):
+def deviations(machined: DexelModel, design_model: DexelModel, design_mesh, device="cpu"):
     """``(points (k, 3), e (k,), cut_points (j, 3), cut_depth (j,))``: every dexel end of
     ``machined`` and its signed distance to the design, mm (excess > 0, gouge < 0); and the design's
     dexel ends the cut left without material, with an upper bound of how deep they were cut (see
-    the module notes)."""
+    the module notes). The distances run on ``device``."""
     from scipy.spatial import cKDTree
 
-    bvh = build_bvh(design_mesh.vertices, design_mesh.faces).arrays
+    kern = MeshKernels(build_bvh(design_mesh.vertices, design_mesh.faces), device)
     pts, devs, gone_pts, gone_depth = [], [], [], []
     for a in range(3):
         p = end_points(machined, a)
         inside = np.zeros(len(p), np.bool_)
         _inside(machined.start[a], machined.iv[a], design_model.start[a], design_model.iv[a], inside)
-        d = mesh_distances(p, bvh)
+        d = kern.mesh_distances(p)
         pts.append(p)
         devs.append(np.where(inside, -d, d))
         # design surface points cut away (a wall cut through leaves no machined end to measure)

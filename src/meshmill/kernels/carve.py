@@ -1,0 +1,140 @@
+"""Removing swept volumes from dexel lines (device functions, written once for every backend).
+
+A direction's stock is ``iv (cap, 2)``: line ``l`` holds ``count[l]`` sorted intervals (start,
+end along the line, mm) in ``iv[off[l]:]``, with room up to ``off[l + 1]``. Moves are given in the
+line frame (see :mod:`meshmill.kernels.sweep`): tips ``pa, pb (k, 3)``, unit axes ``xa, xb (k, 3)``,
+``radius, corner, flutes (k,)``, ``strips (k,)``, and from :func:`move_constants` ``chord (k, 6)``
+(a ball-end's centre chord) and ``plane (k, 4)`` (where its flutes may reach past the ball).
+"""
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+from . import sweep
+
+MIN_PIECE = 1e-9  # mm: a dexel piece shorter than this is removed
+
+
+def build(jit, inline=None):
+    """Compile the device functions with ``jit`` and return them in a namespace; ``inline``, if
+    given, compiles :func:`cut_line` (called once per line and move) to be inlined where it is
+    called (on the CPU a call passing arrays costs reference counting)."""
+    swp = sweep.build(jit)
+    capsule = swp.capsule
+    flute_range = swp.flute_range
+    tool_move = swp.tool_move
+    flute_plane = swp.flute_plane
+
+    @jit
+    def subtract(iv, off, count, line, lo, hi):
+        """Remove ``[lo, hi]`` from the sorted intervals of ``line``. Returns the length removed,
+        or -1 when a split needs more room than the line has (nothing is changed then)."""
+        base = off[line]
+        n = count[line]
+        k = 0
+        while k < n and iv[base + k, 1] <= lo:
+            k += 1
+        if k == n or iv[base + k, 0] >= hi:
+            return 0.0
+        s = iv[base + k, 0]
+        e = iv[base + k, 1]
+        if s < lo and e > hi:  # split in two
+            if n == off[line + 1] - base:
+                return -1.0
+            for m in range(n, k + 1, -1):
+                iv[base + m, 0] = iv[base + m - 1, 0]
+                iv[base + m, 1] = iv[base + m - 1, 1]
+            iv[base + k, 1] = lo
+            iv[base + k + 1, 0] = hi
+            iv[base + k + 1, 1] = e
+            count[line] = n + 1
+            return hi - lo
+        removed = 0.0
+        keep = k
+        trimmed = s < lo
+        if trimmed:
+            removed += e - lo
+            iv[base + k, 1] = lo
+            keep = k + 1
+            k += 1
+        j = k
+        while j < n and iv[base + j, 1] <= hi:
+            removed += iv[base + j, 1] - iv[base + j, 0]
+            j += 1
+        if j < n and iv[base + j, 0] < hi:
+            removed += hi - iv[base + j, 0]
+            iv[base + j, 0] = hi
+        # drop slivers at the cut, then close the gap
+        if trimmed and iv[base + keep - 1, 1] - iv[base + keep - 1, 0] < MIN_PIECE:
+            removed += iv[base + keep - 1, 1] - iv[base + keep - 1, 0]
+            keep -= 1
+        if j < n and iv[base + j, 1] - iv[base + j, 0] < MIN_PIECE:
+            removed += iv[base + j, 1] - iv[base + j, 0]
+            j += 1
+        shift = j - keep
+        if shift > 0:
+            for m in range(j, n):
+                iv[base + m - shift, 0] = iv[base + m, 0]
+                iv[base + m - shift, 1] = iv[base + m, 1]
+            count[line] = n - shift
+        return removed
+
+    @jit
+    def material_outside(iv, base, n, a, b, lo, hi):
+        """Whether the line's intervals ``iv[base:base+n]`` hold material in ``[a, b]`` outside
+        ``[lo, hi]`` (an empty ``[lo, hi]``, lo > hi, excludes nothing)."""
+        if a > b:
+            return False
+        for k in range(base, base + n):
+            s = max(iv[k, 0], a)
+            e = min(iv[k, 1], b)
+            if s >= e:
+                continue
+            if lo > hi or s < lo or e > hi:
+                return True
+        return False
+
+    @jit
+    def line_range(lo, hi, l0, step, n):
+        """First and last of ``n`` lines at ``l0 + (i + 1/2) step`` within ``[lo, hi]``."""
+        i0 = max(0, int(math.ceil((lo - l0) / step - 0.5)))
+        i1 = min(n - 1, int(math.floor((hi - l0) / step - 0.5)))
+        return i0, i1
+
+    @jit
+    def move_constants(m, pa, pb, xa, xb, corner, flutes, chord, plane):
+        """``chord[m]``: the ball centre at both ends; ``plane[m]``: the flute half-space of
+        :func:`meshmill.kernels.sweep.flute_plane`."""
+        cm = corner[m]
+        for k in range(3):
+            chord[m, k] = pa[m, k] + cm * xa[m, k]
+            chord[m, 3 + k] = pb[m, k] + cm * xb[m, k]
+        plane[m, 0], plane[m, 1], plane[m, 2], plane[m, 3] = flute_plane(pa[m], pb[m], xa[m], xb[m], cm, flutes[m])
+
+    @(inline or jit)
+    def cut_line(m, line, u0, v0, wlo, whi, iv, off, count, pa, pb, xa, xb, radius, corner, flutes, strips,
+                 chord, plane):
+        """Cut move m from line ``line`` at (u0, v0). Returns the length removed, -1 when the line
+        ran out of room (see :func:`subtract`)."""
+        n = count[line]
+        if n == 0:
+            return 0.0
+        base = off[line]
+        if iv[base, 0] >= whi or iv[base + n - 1, 1] <= wlo:
+            return 0.0
+        cm = corner[m]
+        if cm >= radius[m]:
+            # the ball alone, unless material lies where only the flutes reach
+            lo, hi = capsule(u0, v0, chord[m, 0], chord[m, 1], chord[m, 2], chord[m, 3], chord[m, 4], chord[m, 5], cm)
+            flo, fhi = flute_range(u0, v0, plane[m, 0], plane[m, 1], plane[m, 2], plane[m, 3])
+            if material_outside(iv, base, n, max(flo, wlo), min(fhi, whi), lo, hi):
+                lo, hi = tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
+        else:
+            lo, hi = tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
+        if lo >= hi:
+            return 0.0
+        return subtract(iv, off, count, line, lo, hi)
+
+    return SimpleNamespace(subtract=subtract, material_outside=material_outside, line_range=line_range,
+                           move_constants=move_constants, cut_line=cut_line)
