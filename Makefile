@@ -20,7 +20,9 @@ demo: venv
 	$(BIN)/meshmill waterline $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool B4 --step-down 2 --out demo-out/waterline
 	$(BIN)/meshmill raster $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool R6 --scallop 0.01 --angle 45 --out demo-out/raster
 	$(BIN)/meshmill simulate --design $(DATA)/vase.stl --allowance 0.5 --toolpath demo-out/toolpath.cl --tools $(DATA)/tools.toml --step 0.2 --out demo-out/simulate
+	$(BIN)/meshmill report demo-out demo-out/waterline demo-out/raster demo-out/simulate --out demo-out/report.html
 	@echo "demo results in demo-out/: 5-axis finishing (toolpath.cl, summary.json, verify.json), 3-axis waterline/ and raster/, simulate/ (what the 5-axis path cuts: deviation.json, machined.stl)"
+	@echo "report: $(CURDIR)/demo-out/report.html (open it in any browser)"
 
 test: venv
 	$(BIN)/python -m pytest

@@ -21,18 +21,50 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"meshmill: error: {message}\n")
 
 
+_status_line = [False]  # a progress line is open on the terminal (to be ended before other text)
+
+
+def _quiet(args):
+    return getattr(args, "quiet", False) or getattr(args, "json", False)
+
+
 def _say(args, text):
-    if not getattr(args, "quiet", False):
+    if not _quiet(args):
+        if _status_line[0]:
+            print(file=sys.stderr)
+            _status_line[0] = False
         print(text, file=sys.stderr, flush=True)
 
 
 def _progress(args):
+    """A callback for the stages of a long command: on a terminal one line that updates in place
+    (elapsed time, stage number and name); elsewhere a plain line a stage."""
     start = time.perf_counter()
+    count = [0]
+    tty = sys.stderr.isatty()
 
     def stage(name):
-        _say(args, f"[{time.perf_counter() - start:7.2f} s] {name}")
+        if _quiet(args):
+            return
+        count[0] += 1
+        text = f"[{time.perf_counter() - start:7.2f} s] {name}"
+        if tty:
+            width = max(20, os.get_terminal_size(sys.stderr.fileno()).columns - 1)
+            bar = "#" * min(count[0], 20)
+            sys.stderr.write("\r\033[K" + f"{bar:<20} {text}"[:width])
+            sys.stderr.flush()
+            _status_line[0] = True
+        else:
+            print(text, file=sys.stderr, flush=True)
 
     return stage
+
+
+def _finish_json(args, summary):
+    """With ``--json``: the summary on stdout, for scripts."""
+    if getattr(args, "json", False):
+        json.dump(summary, sys.stdout, indent=2, default=float)
+        sys.stdout.write("\n")
 
 
 def _device(args):
@@ -76,6 +108,8 @@ def _out_dir(path):
 
 
 def cmd_finish(args):
+    import numpy as np
+
     from .ops.finish import FinishParams, finish
     from .tools.table import load_tools
     from .toolpath.cldata import write_apt
@@ -90,8 +124,12 @@ def cmd_finish(args):
     params.check()
     device = _device(args)
     out = _out_dir(args.out)
-    tp, summary, _ = finish(mesh, tools, params, progress=_progress(args), device=device)
+    tp, summary, detail = finish(mesh, tools, params, progress=_progress(args), device=device)
     summary["device"] = device
+    summary["tools_file"] = os.path.abspath(args.tools)
+    con = detail["contours"]
+    np.savez_compressed(os.path.join(out, "contours.npz"), points=con.points, offsets=con.offsets, z=con.z,
+                        machinable=detail["contour_tool"] >= 0)
     summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
     summary["seconds"]["load"] = round(load_s, 4)
     summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
@@ -107,6 +145,7 @@ def cmd_finish(args):
                f"{v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
     _say(args, f"wrote {os.path.join(out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
                f"(device {summary['device']})")
+    _finish_json(args, summary)
     return 0 if v["ok"] else 1
 
 
@@ -123,6 +162,7 @@ def _three_axis(args, run):
     device = _device(args)
     tp, summary = run(mesh, tools, device)
     summary["device"] = device
+    summary["tools_file"] = os.path.abspath(args.tools)
     summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
     summary["seconds"]["load"] = round(load_s, 4)
     summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
@@ -133,6 +173,7 @@ def _three_axis(args, run):
                f"(max gouge {v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
     _say(args, f"wrote {os.path.join(out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
                f"(device {summary['device']})")
+    _finish_json(args, summary)
     return 0 if v["ok"] else 1
 
 
@@ -246,6 +287,7 @@ def cmd_dexel(args):
     _say(args, f"dexels X {d['X']:,}, Y {d['Y']:,}, Z {d['Z']:,}; volume {summary['volume_mm3']:.3f} mm^3 "
                f"(mesh {_mesh_volume(mesh):.3f}); cast in {model.info['cast_seconds']:.2f} s with {model.info['index']}")
     _say(args, f"wrote {out} and {os.path.join(folder, 'summary.json')} (device {device})")
+    _finish_json(args, summary)
     return 0
 
 
@@ -257,6 +299,8 @@ def _mesh_volume(mesh):
 
 
 def cmd_simulate(args):
+    import numpy as np
+
     from .ops.simulate import read_toolpath, simulate
     from .tools.table import load_tools
 
@@ -274,10 +318,12 @@ def cmd_simulate(args):
         _say(args, f"warning: {w}")
     out = _out_dir(args.out)
     device = _device(args)
-    deviation, summary, _, (verts, faces) = simulate(
+    deviation, summary, _, (verts, faces), samples = simulate(
         design, tp, tools, args.step, stock=stock, allowance=args.allowance, tolerance=args.tolerance,
         mode=args.mode, progress=_progress(args), device=device)
     summary["device"] = device
+    summary["tools_file"] = os.path.abspath(args.tools)
+    np.savez_compressed(os.path.join(out, "deviation.npz"), points=samples["points"], e=samples["e"])
     summary["design"] = {"file": os.path.abspath(args.design), **design.summary()}
     summary["toolpath"] = {"file": os.path.abspath(args.toolpath), "warnings": warnings}
     _write_json(os.path.join(out, "deviation.json"), deviation)
@@ -299,6 +345,7 @@ def cmd_simulate(args):
                f"{deviation['remaining_volume']:.1f} mm^3")
     _say(args, f"wrote deviation.json, summary.json, machined.stl in {out} ({summary['seconds']['total']:.1f} s, "
                f"device {device})")
+    _finish_json(args, summary)
     return 1 if summary["rapid_moves_cutting"] else 0
 
 
@@ -350,6 +397,28 @@ def cmd_analyze(args):
         _say(args, f"map over {m['directions']} directions: best {m['best_direction']} reaches {100 * m['best_share']:.1f} % "
                    f"of the area; {m['never_reached_triangles']} triangles reached by none")
     _say(args, f"wrote analysis.npz and summary.json in {out}")
+    return 0
+
+
+def cmd_report(args):
+    from .report import write_report
+
+    out = args.out
+    folder = os.path.dirname(os.path.abspath(out))
+    if not os.path.isdir(folder):
+        raise InputError(f"{folder}: no such folder for --out")
+    for f in args.folders:  # before any progress line: a bad folder is one line
+        if not os.path.isdir(f):
+            raise InputError(f"{f}: no such folder")
+        if not os.path.exists(os.path.join(f, "summary.json")):
+            raise InputError(f"{f}: no summary.json (not a folder written by a meshmill command)")
+    info = write_report(args.folders, out, progress=_progress(args))
+    for r in info["runs"]:
+        for n in r["notes"]:
+            _say(args, f"note: {r['folder']}: {n}")
+    _say(args, f"wrote {info['file']} ({info['bytes'] / 1e6:.1f} MB, {info['views']} views of {len(info['runs'])} "
+               "run(s)); open it in any browser")
+    _finish_json(args, info)
     return 0
 
 
@@ -477,6 +546,14 @@ def build_parser():
     n.add_argument("--out", default="analysis", help="output folder (analysis)")
     n.add_argument("--quiet", action="store_true", help="print nothing but errors")
     n.set_defaults(func=cmd_analyze)
+
+    rp = sub.add_parser("report", help="one self-contained HTML file with 3D views and tables of run folders")
+    rp.add_argument("folders", nargs="+", help="folders written by finish, raster, waterline, plunge, dexel or simulate")
+    rp.add_argument("--out", default="report.html", help="HTML file to write (report.html)")
+    rp.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    rp.set_defaults(func=cmd_report)
+    for sp in (f, r, w, pl, d, s, rp):
+        sp.add_argument("--json", action="store_true", help="print the summary as JSON on stdout (and nothing on stderr)")
     return p
 
 

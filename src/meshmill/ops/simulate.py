@@ -43,6 +43,7 @@ def dexel_model(mesh, step, index="bvh", partitions="1", init="k-means++", minib
         if k < 1:
             raise InputError(f"--partitions must be at least 1, got {k}")
     model = dexelize(mesh, step, index, k, init, minibatch, progress=progress, device=device)
+    summary["operation"] = "dexel"
     summary.update(model.summary())
     summary["index"] = model.info
     return model, summary
@@ -77,7 +78,7 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     ``allowance`` mm on both ends of every dexel) and measure the result against ``design``.
 
     Returns ``(deviation dict, summary dict, machined DexelModel, (vertices, faces) of the machined
-    mesh)``. ``device``: ``"cpu"`` or ``"cuda"`` for dexel casting, cutting and distances."""
+    mesh, {"points": (k, 3), "e": (k,)} the dexel ends and their signed deviations, mm)``. ``device``: ``"cpu"`` or ``"cuda"`` for dexel casting, cutting and distances."""
     say = progress or (lambda _: None)
     t0 = time.perf_counter()
     if allowance is not None and not (np.isfinite(allowance) and allowance >= 0):
@@ -147,6 +148,7 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     errors = [f"rapid move to point {i} (source line {int(toolpath.line[i])}) cuts material"
               for i in result["rapid_cuts"][:1000]]
     summary = {
+        "operation": "simulate",
         "mode": mode,
         "step": step,
         "lattice": machined.summary(),
@@ -164,4 +166,4 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
         "seconds": {"models": round(build_s, 4), "cut": result["seconds"], "deviation": round(deviation_s, 4),
                     "mesh": round(mesh_s, 4), "total": round(time.perf_counter() - t0, 4)},
     }
-    return deviation, summary, machined, (verts, faces)
+    return deviation, summary, machined, (verts, faces), {"points": pts, "e": e}

@@ -1,0 +1,381 @@
+"""One self-contained HTML file that shows what the commands wrote: 3D views of the part, the tool
+paths (coloured by tool, rapid moves apart), tool axes, contours, plunge lines and the machined
+surface coloured by signed deviation, with the summaries' figures, stage times, a deviation
+histogram and the tools' share of the path. plotly.js is embedded once: no server, no internet.
+
+A run folder is what ``finish``, ``raster``, ``waterline``, ``plunge``, ``dexel`` or ``simulate``
+wrote (``summary.json`` and its outputs). Large paths and meshes are thinned for display only,
+and the report says where.
+"""
+from __future__ import annotations
+
+import html
+import json
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError
+
+MAX_PATH_POINTS = 150_000  # per tool path shown; more are thinned (every k-th move)
+MAX_MESH_FACES = 200_000  # per mesh shown; more are thinned (every k-th triangle)
+AXIS_GLYPHS = 300  # tool-axis glyphs per 5-axis path
+AXIS_GLYPH_LENGTH = 0.08  # of the part's diagonal
+DEVIATION_CLASSES = (0.5, 1.0, 2.0)  # multiples of the tolerance that bound the colour classes
+PATH_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf")
+RAPID_COLOUR = "#b0b0b0"
+
+
+@dataclass
+class Run:
+    """One run folder: its ``summary`` and what the views need (``None`` where absent)."""
+
+    folder: str
+    kind: str
+    summary: dict
+    part: object = None  # Mesh
+    toolpath: object = None  # Toolpath
+    tools: list = field(default_factory=list)
+    contours: dict | None = None
+    deviation: dict | None = None
+    samples: dict | None = None  # deviation points and values
+    machined: tuple | None = None  # (vertices, faces)
+    notes: list = field(default_factory=list)
+
+
+def _json(path):
+    try:
+        with open(path) as fh:
+            return json.load(fh)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+
+
+def read_run(folder: str) -> Run:
+    """Read a run folder (raises :class:`InputError` when it is not one)."""
+    from .geometry.mesh import load_mesh
+    from .tools.table import load_tools
+    from .toolpath.cldata import read_apt
+
+    if not os.path.isdir(folder):
+        raise InputError(f"{folder}: no such folder")
+    path = os.path.join(folder, "summary.json")
+    if not os.path.exists(path):
+        raise InputError(f"{folder}: no summary.json (not a folder written by a meshmill command)")
+    s = _json(path)
+    kind = s.get("operation") or ("simulate" if "volumes_mm3" in s else "dexel" if "dexels" in s else None)
+    if kind is None:
+        raise InputError(f"{path}: not a meshmill summary (no 'operation')")
+    run = Run(folder=folder, kind=kind, summary=s)
+    part_file = (s.get("part") or s.get("design") or {}).get("file")
+    if part_file and os.path.exists(part_file):
+        run.part = load_mesh(part_file)
+    elif part_file:
+        run.notes.append(f"the part {part_file} is gone: not shown")
+    if s.get("tools_file") and os.path.exists(s["tools_file"]):
+        run.tools = load_tools(s["tools_file"])
+    cl = os.path.join(folder, "toolpath.cl") if kind != "simulate" else (s.get("toolpath") or {}).get("file")
+    if cl and os.path.exists(cl) and cl.lower().endswith((".cl", ".apt", ".cls")) and run.tools:
+        run.toolpath, _ = read_apt(cl, run.tools)
+    c = os.path.join(folder, "contours.npz")
+    if os.path.exists(c):
+        with np.load(c) as z:
+            run.contours = {k: z[k] for k in z.files}
+    if kind == "simulate":
+        run.deviation = _json(os.path.join(folder, "deviation.json"))
+        d = os.path.join(folder, "deviation.npz")
+        if os.path.exists(d):
+            with np.load(d) as z:
+                run.samples = {k: z[k] for k in z.files}
+        m = os.path.join(folder, "machined.stl")
+        if os.path.exists(m):
+            import trimesh
+
+            t = trimesh.load(m, force="mesh", process=False)
+            run.machined = (np.asarray(t.vertices, float), np.asarray(t.faces, np.int64))
+    return run
+
+
+def _thin_faces(vertices, faces, limit, what, notes):
+    if len(faces) <= limit:
+        return faces
+    k = -(-len(faces) // limit)
+    notes.append(f"{what}: every {k}th of {len(faces):,} triangles shown")
+    return faces[::k]
+
+
+def _mesh_trace(go, vertices, faces, name, colour="#c8c8c8", opacity=1.0, intensity=None, **kw):
+    # float32 / int32: plotly embeds arrays as binary, and this halves the file (display only)
+    vertices, faces = np.asarray(vertices, np.float32), np.asarray(faces, np.int32)
+    if intensity is not None:
+        intensity = np.asarray(intensity, np.float32)
+    return go.Mesh3d(x=vertices[:, 0], y=vertices[:, 1], z=vertices[:, 2], i=faces[:, 0], j=faces[:, 1],
+                     k=faces[:, 2], name=name, color=None if intensity is not None else colour, opacity=opacity,
+                     intensity=intensity, flatshading=True, showlegend=True,
+                     lighting=dict(ambient=0.5, diffuse=0.8, specular=0.1), **kw)
+
+
+def _polyline(go, points, breaks, name, colour, width=3, dash=None, legendgroup=None, showlegend=True):
+    """One Scatter3d trace for many polylines: ``points (k, 3)`` with a gap after every index in
+    ``breaks``."""
+    if len(points) == 0:
+        return None
+    p = np.insert(points.astype(np.float32), np.asarray(breaks, np.int64) + 1, np.nan, axis=0)
+    return go.Scatter3d(x=p[:, 0], y=p[:, 1], z=p[:, 2], mode="lines", name=name, legendgroup=legendgroup,
+                        showlegend=showlegend, line=dict(color=colour, width=width, dash=dash),
+                        connectgaps=False, hoverinfo="name")
+
+
+def _segments(points_a, points_b):
+    """Polyline data for separate segments a->b: ``(points, breaks)``."""
+    p = np.empty((2 * len(points_a), 3))
+    p[0::2] = points_a
+    p[1::2] = points_b
+    return p, np.arange(1, len(p) - 1, 2)
+
+
+def _path_traces(go, run, notes):
+    """Cutting moves per tool and rapid moves; ``(traces, shown points)``."""
+    tp = run.toolpath
+    k = max(1, -(-len(tp) // MAX_PATH_POINTS))
+    if k > 1:
+        notes.append(f"tool path: every {k}th of {len(tp):,} points shown")
+    idx = np.arange(0, len(tp), k)
+    if idx[-1] != len(tp) - 1:
+        idx = np.append(idx, len(tp) - 1)
+    tip, rapid, tool = tp.tip[idx], tp.rapid[idx], tp.tool[idx]
+    traces = []
+    # a move belongs to the point it ends at
+    cut_move = ~rapid[1:]
+    for t in np.unique(tool):
+        sel = np.nonzero(cut_move & (tool[1:] == t))[0]
+        if len(sel) == 0:
+            continue
+        a, b = tip[sel], tip[sel + 1]
+        joined = np.nonzero(sel[1:] != sel[:-1] + 1)[0]  # consecutive moves share a point
+        starts = np.r_[0, joined + 1]
+        pts, breaks = [], []
+        for s0, s1 in zip(starts, np.r_[starts[1:], len(sel)]):
+            chain = np.vstack([a[s0:s1], b[s1 - 1:s1]])
+            pts.append(chain)
+            breaks.append(sum(len(c) for c in pts) - 1)
+        name = run.tools[t].name if t < len(run.tools) else f"T{t + 1}"
+        traces.append(_polyline(go, np.vstack(pts), breaks[:-1], f"{name} cutting", PATH_COLOURS[t % len(PATH_COLOURS)],
+                                legendgroup="path"))
+    sel = np.nonzero(rapid[1:])[0]
+    if len(sel):
+        p, br = _segments(tip[sel], tip[sel + 1])
+        traces.append(_polyline(go, p, br, "rapid moves", RAPID_COLOUR, width=1, dash="dot", legendgroup="path"))
+    return [t for t in traces if t is not None]
+
+
+def _axis_glyphs(go, run, size):
+    tp = run.toolpath
+    feed = np.nonzero(~tp.rapid)[0]
+    if len(feed) == 0 or np.allclose(tp.axis[feed], [0.0, 0.0, 1.0]):
+        return None
+    pick = feed[np.linspace(0, len(feed) - 1, min(AXIS_GLYPHS, len(feed))).astype(int)]
+    p, br = _segments(tp.tip[pick], tp.tip[pick] + size * tp.axis[pick])
+    return _polyline(go, p, br, f"tool axes ({len(pick)} of {len(feed):,})", "#444444", width=2)
+
+
+def _contour_traces(go, run):
+    c = run.contours
+    pts, off, ok = c["points"], c["offsets"], c["machinable"].astype(bool)
+    out = []
+    for flag, name, colour in ((True, "machinable contours", "#2ca02c"), (False, "unmachinable contours", "#d62728")):
+        chains = [pts[off[i]:off[i + 1]] for i in np.nonzero(ok == flag)[0]]
+        if chains:
+            lengths = np.cumsum([len(ch) for ch in chains]) - 1
+            out.append(_polyline(go, np.vstack(chains), lengths[:-1], f"{name} ({len(chains)})", colour, width=2))
+    return out
+
+
+def deviation_colours(tol: float):
+    """A diverging colour scale over ``[-3 tol, 3 tol]`` whose bands are the tolerance classes
+    (gouge below -tol, within ±tol, excess above tol)."""
+    return [[0.0, "#67001f"], [1 / 3, "#d6604d"], [0.5 - 1e-9, "#f7f7f7"], [0.5, "#f7f7f7"], [2 / 3, "#4393c3"],
+            [1.0, "#053061"]], 3.0 * tol
+
+
+def _deviation_traces(go, run, notes):
+    traces = []
+    tol = float(run.deviation.get("tolerance", 0.01)) or 0.01
+    scale, lim = deviation_colours(tol)
+    if run.machined is not None and run.samples is not None and len(run.machined[1]):
+        from scipy.spatial import cKDTree
+
+        v, f = run.machined
+        e = run.samples["e"][cKDTree(run.samples["points"]).query(v)[1]]
+        f = _thin_faces(v, f, MAX_MESH_FACES, "machined surface", notes)
+        traces.append(_mesh_trace(go, v, f, "machined surface (signed deviation)", intensity=e, colorscale=scale,
+                                  cmin=-lim, cmax=lim, colorbar=dict(title="deviation mm", x=1.02,
+                                                                     tickvals=[-lim, -tol, 0, tol, lim])))
+    gouge_at = run.deviation.get("gouge_at")
+    if gouge_at is not None and run.deviation.get("gouge_max", 0) > 0:
+        g = np.asarray(gouge_at, float).reshape(1, 3)
+        traces.append(go.Scatter3d(x=g[:, 0], y=g[:, 1], z=g[:, 2], mode="markers+text",
+                                   marker=dict(size=8, color="#ff00ff", symbol="x"),
+                                   text=[f"worst gouge {run.deviation['gouge_max']:.4f} mm"],
+                                   name=f"worst gouge ({run.deviation['gouge_max']:.4f} mm)"))
+    return traces
+
+
+def _scene(title, go, traces):
+    fig = go.Figure(data=traces)
+    fig.update_layout(title=title, height=640, margin=dict(l=0, r=0, t=40, b=0),
+                      scene=dict(aspectmode="data", xaxis_title="X mm", yaxis_title="Y mm", zaxis_title="Z mm"),
+                      legend=dict(itemsizing="constant", x=0.0, y=1.0, bgcolor="rgba(255,255,255,0.7)"))
+    return fig
+
+
+def run_figures(run: Run) -> list:
+    """``[(title, plotly Figure)]`` of one run."""
+    import plotly.graph_objects as go
+
+    figs, notes = [], run.notes
+    base = []
+    size = 1.0
+    if run.part is not None:
+        v, f = run.part.vertices, run.part.faces
+        size = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+        opacity = 0.35 if run.kind == "simulate" else 1.0 if run.toolpath is None else 0.55
+        base.append(_mesh_trace(go, v, _thin_faces(v, f, MAX_MESH_FACES, "part", notes), "part", opacity=opacity))
+    if run.kind in ("finish", "raster", "waterline", "plunge") and run.toolpath is not None:
+        traces = list(base) + _path_traces(go, run, notes)
+        glyphs = _axis_glyphs(go, run, AXIS_GLYPH_LENGTH * size)
+        if glyphs is not None:
+            traces.append(glyphs)
+        title = {"plunge": "plunge lines", "finish": "5-axis tool path"}.get(run.kind, "tool path")
+        figs.append((f"{run.kind}: {title}", _scene(f"{run.kind}: {title}", go, traces)))
+    if run.contours is not None:
+        figs.append((f"{run.kind}: contours", _scene("contours: machinable and not", go, base + _contour_traces(go, run))))
+    if run.kind == "simulate" and run.deviation is not None:
+        figs.append(("simulate: deviation", _scene("machined surface, signed deviation (mm)", go,
+                                                   base + _deviation_traces(go, run, notes))))
+        if run.samples is not None and len(run.samples["e"]):
+            figs.append(("simulate: histogram", _histogram(go, run)))
+    if run.kind == "dexel" and run.part is not None:
+        figs.append(("dexel: part", _scene("part", go, base)))
+    seconds = run.summary.get("seconds") or {k[:-8]: v for k, v in (run.summary.get("index") or {}).items()
+                                             if k.endswith("_seconds")}  # dexel: index and casting
+    stages = {k: v for k, v in seconds.items() if k != "total" and isinstance(v, (int, float))}
+    if stages:
+        bar = go.Figure(go.Bar(x=list(stages.values()), y=list(stages.keys()), orientation="h",
+                               text=[f"{v:.3g} s" for v in stages.values()], textposition="auto"))
+        bar.update_layout(title=f"seconds per stage (total {seconds.get('total', sum(stages.values())):.3g} s)",
+                          height=120 + 28 * len(stages), margin=dict(l=120, r=20, t=40, b=30), xaxis_title="s")
+        figs.append((f"{run.kind}: stages", bar))
+    share = tool_share(run)
+    if share:
+        pie = go.Figure(go.Pie(labels=list(share), values=list(share.values()), hole=0.4, sort=False,
+                               marker=dict(colors=[PATH_COLOURS[i % len(PATH_COLOURS)] for i in range(len(share))])))
+        pie.update_layout(title="tools: share of the cutting length (mm)", height=320, margin=dict(t=40, b=10))
+        figs.append((f"{run.kind}: tools", pie))
+    return figs
+
+
+def _histogram(go, run):
+    e = run.samples["e"]
+    tol = float(run.deviation.get("tolerance", 0.01))
+    fig = go.Figure(go.Histogram(x=e, nbinsx=80, marker_color="#4393c3", name="dexel ends"))
+    for x in (-tol, tol):
+        fig.add_vline(x=x, line_dash="dash", line_color="#d6604d")
+    fig.update_layout(title=f"signed deviation of {len(e):,} dexel ends (mm; dashed: ±{tol:g} mm)",
+                      height=320, xaxis_title="mm", yaxis_title="count", margin=dict(t=40, b=40))
+    return fig
+
+
+def tool_share(run: Run) -> dict:
+    """Cutting length per tool name, mm (from the tool path)."""
+    tp = run.toolpath
+    if tp is None or len(tp) < 2:
+        return {}
+    seg = np.linalg.norm(np.diff(tp.tip, axis=0), axis=1)
+    out = {}
+    for t in np.unique(tp.tool):
+        sel = (~tp.rapid[1:]) & (tp.tool[1:] == t)
+        name = run.tools[t].name if t < len(run.tools) else f"T{t + 1}"
+        if sel.any():
+            out[name] = round(float(seg[sel].sum()), 3)
+    return out
+
+
+def _flat(d, prefix=""):
+    """Scalar entries of a nested summary as ``(key path, value)`` rows."""
+    rows = []
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            rows += _flat(v, key + ".")
+        elif isinstance(v, list):
+            if v and all(not isinstance(x, (dict, list)) for x in v) and len(v) <= 12:
+                rows.append((key, ", ".join(str(x) for x in v)))
+            else:
+                rows.append((key, f"{len(v)} entries"))
+        else:
+            rows.append((key, f"{v:.6g}" if isinstance(v, float) else str(v)))
+    return rows
+
+
+def _table(rows):
+    body = "".join(f"<tr><td>{html.escape(k)}</td><td>{html.escape(v)}</td></tr>" for k, v in rows)
+    return f"<table class='kv'><tbody>{body}</tbody></table>"
+
+
+def write_report(folders: list[str], out: str, progress=None) -> dict:
+    """Write the report of ``folders`` to ``out``; returns what it holds (runs, views, notes)."""
+    import plotly
+    from plotly.offline import get_plotlyjs
+
+    say = progress or (lambda _: None)
+    runs = []
+    for f in folders:
+        say(f"read {f}")
+        runs.append(read_run(f))
+    sections, info = [], {"file": os.path.abspath(out), "runs": []}
+    div = 0
+    for run in runs:
+        say(f"views of {run.folder}")
+        figs = run_figures(run)
+        parts = [f"<h2>{html.escape(run.kind)} — {html.escape(os.path.abspath(run.folder))}</h2>"]
+        parts += [f"<p class='note'>{html.escape(n)}</p>" for n in run.notes]
+        for title, fig in figs:
+            div += 1
+            parts.append(fig.to_html(full_html=False, include_plotlyjs=False, div_id=f"view{div}",
+                                     config={"displaylogo": False, "responsive": True}))
+        parts.append("<h3>summary</h3>" + _table(_flat(run.summary)))
+        if run.deviation is not None:
+            parts.append("<h3>deviation</h3>" + _table(_flat(run.deviation)))
+        sections.append("<section>" + "\n".join(parts) + "</section>")
+        info["runs"].append({"folder": os.path.abspath(run.folder), "kind": run.kind,
+                             "views": [t for t, _ in figs], "notes": list(run.notes)})
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>meshmill report</title>
+<style>
+body {{ font-family: system-ui, sans-serif; margin: 1.5em; color: #222; }}
+section {{ border-top: 2px solid #ccc; margin-top: 2em; }}
+table.kv {{ border-collapse: collapse; font-size: 0.9em; }}
+table.kv td {{ border: 1px solid #ddd; padding: 2px 8px; }}
+table.kv td:first-child {{ color: #555; }}
+p.note {{ color: #a15c00; }}
+</style>
+<script type="text/javascript">{get_plotlyjs()}</script>
+</head><body>
+<h1>meshmill report</h1>
+<p>{len(runs)} run(s); plotly {plotly.__version__}, embedded: this file needs no server and no internet.
+Drag to turn a view, scroll to zoom, click a legend entry to hide it.</p>
+{''.join(sections)}
+</body></html>
+"""
+    try:
+        with open(out, "w", encoding="utf-8") as fh:
+            fh.write(page)
+    except OSError as exc:
+        raise InputError(f"{out}: cannot write ({exc.strerror})") from None
+    info["views"] = div
+    info["bytes"] = os.path.getsize(out)
+    return info
