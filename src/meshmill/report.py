@@ -19,7 +19,7 @@ import numpy as np
 from .errors import InputError
 
 MAX_PATH_POINTS = 150_000  # per tool path shown; more are thinned (every k-th move)
-MAX_MESH_FACES = 200_000  # per mesh shown; more are thinned (every k-th triangle)
+MAX_MESH_FACES = 150_000  # per mesh shown; more are thinned (every k-th triangle)
 AXIS_GLYPHS = 300  # tool-axis glyphs per 5-axis path
 AXIS_GLYPH_LENGTH = 0.08  # of the part's diagonal
 DEVIATION_CLASSES = (0.5, 1.0, 2.0)  # multiples of the tolerance that bound the colour classes
@@ -78,8 +78,11 @@ def read_run(folder: str) -> Run:
     if s.get("tools_file") and os.path.exists(s["tools_file"]):
         run.tools = load_tools(s["tools_file"])
     cl = os.path.join(folder, "toolpath.cl") if kind != "simulate" else (s.get("toolpath") or {}).get("file")
-    if cl and os.path.exists(cl) and cl.lower().endswith((".cl", ".apt", ".cls")) and run.tools:
-        run.toolpath, _ = read_apt(cl, run.tools)
+    if cl and os.path.exists(cl) and cl.lower().endswith((".cl", ".apt", ".cls")):
+        if run.tools:
+            run.toolpath, _ = read_apt(cl, run.tools)
+        else:
+            run.notes.append("the summary names no tool table that still exists: the tool path is not shown")
     c = os.path.join(folder, "contours.npz")
     if os.path.exists(c):
         with np.load(c) as z:
@@ -94,17 +97,20 @@ def read_run(folder: str) -> Run:
         if os.path.exists(m):
             import trimesh
 
-            t = trimesh.load(m, force="mesh", process=False)
+            t = trimesh.load(m, force="mesh")  # processed: the STL's repeated corners merged
             run.machined = (np.asarray(t.vertices, float), np.asarray(t.faces, np.int64))
     return run
 
 
-def _thin_faces(vertices, faces, limit, what, notes):
-    if len(faces) <= limit:
-        return faces
-    k = -(-len(faces) // limit)
-    notes.append(f"{what}: every {k}th of {len(faces):,} triangles shown")
-    return faces[::k]
+def _thin_mesh(vertices, faces, limit, what, notes):
+    """``(vertices, faces)`` for display: at most ``limit`` triangles (every k-th, said in
+    ``notes``), and only the vertices they use."""
+    if len(faces) > limit:
+        k = -(-len(faces) // limit)
+        notes.append(f"{what}: 1 in {k} of {len(faces):,} triangles shown")
+        faces = faces[::k]
+    used, inverse = np.unique(faces, return_inverse=True)
+    return vertices[used], inverse.reshape(faces.shape)
 
 
 def _mesh_trace(go, vertices, faces, name, colour="#c8c8c8", opacity=1.0, intensity=None, **kw):
@@ -208,9 +214,8 @@ def _deviation_traces(go, run, notes):
     if run.machined is not None and run.samples is not None and len(run.machined[1]):
         from scipy.spatial import cKDTree
 
-        v, f = run.machined
+        v, f = _thin_mesh(*run.machined, MAX_MESH_FACES, "machined surface", notes)
         e = run.samples["e"][cKDTree(run.samples["points"]).query(v)[1]]
-        f = _thin_faces(v, f, MAX_MESH_FACES, "machined surface", notes)
         traces.append(_mesh_trace(go, v, f, "machined surface (signed deviation)", intensity=e, colorscale=scale,
                                   cmin=-lim, cmax=lim, colorbar=dict(title="deviation mm", x=1.02,
                                                                      tickvals=[-lim, -tol, 0, tol, lim])))
@@ -240,10 +245,10 @@ def run_figures(run: Run) -> list:
     base = []
     size = 1.0
     if run.part is not None:
-        v, f = run.part.vertices, run.part.faces
+        v, f = _thin_mesh(run.part.vertices, run.part.faces, MAX_MESH_FACES, "part", notes)
         size = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
         opacity = 0.35 if run.kind == "simulate" else 1.0 if run.toolpath is None else 0.55
-        base.append(_mesh_trace(go, v, _thin_faces(v, f, MAX_MESH_FACES, "part", notes), "part", opacity=opacity))
+        base.append(_mesh_trace(go, v, f, "part", opacity=opacity))
     if run.kind in ("finish", "raster", "waterline", "plunge") and run.toolpath is not None:
         traces = list(base) + _path_traces(go, run, notes)
         glyphs = _axis_glyphs(go, run, AXIS_GLYPH_LENGTH * size)
@@ -281,7 +286,9 @@ def run_figures(run: Run) -> list:
 def _histogram(go, run):
     e = run.samples["e"]
     tol = float(run.deviation.get("tolerance", 0.01))
-    fig = go.Figure(go.Histogram(x=e, nbinsx=80, marker_color="#4393c3", name="dexel ends"))
+    counts, edges = np.histogram(e, bins=80)  # binned here: the file holds 80 bars, not every value
+    fig = go.Figure(go.Bar(x=0.5 * (edges[1:] + edges[:-1]), y=counts, width=np.diff(edges), marker_color="#4393c3",
+                           name="dexel ends"))
     for x in (-tol, tol):
         fig.add_vline(x=x, line_dash="dash", line_color="#d6604d")
     fig.update_layout(title=f"signed deviation of {len(e):,} dexel ends (mm; dashed: ±{tol:g} mm)",
