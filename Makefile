@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DATA   := src/meshmill/data
 
-.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge clean
+.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge bench-gpu clean
 
 venv: $(STAMP)
 
@@ -38,6 +38,9 @@ bench-dexel: venv
 
 bench-plunge: venv
 	$(BIN)/python bench/plunge_roughing.py
+
+bench-gpu: venv
+	$(BIN)/python bench/gpu.py
 
 clean:
 	rm -rf $(VENV) demo-out bench/out .pytest_cache

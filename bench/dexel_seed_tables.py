@@ -177,7 +177,7 @@ def topo_rows(step=0.1, allowance=1.5):
     rows = []
     for R, s in ((4, 6), (4, 4), (4, 2), (6, 4), (8, 4)):
         tp, tools = raster_path(m, float(R), float(s))
-        dev, summary, machined, _ = simulate(m, tp, tools, step, allowance=allowance, tolerance=0.3)
+        dev, summary, machined, *_ = simulate(m, tp, tools, step, allowance=allowance, tolerance=0.3)
         design = dexelize(m, step, bounds=m.bounds + np.array([[-allowance], [allowance]]))
         pts, e, _, _ = deviations(machined, design, m)
         lo, hi = m.bounds
@@ -222,18 +222,16 @@ def heightfield_solid(g, size, spacing):
     return mesh_from_arrays(np.vstack([top, bottom]), faces, "wavy")
 
 
-def five_axis_goal(moves=100_000, step=0.085, allowance=1.0):
-    """A wavy 60 x 60 mm surface finished by a ball R 3 mm along X passes 0.5 mm apart, the axis
-    tilting by up to 20 degrees and changing at every point; the stock is the part with
-    ``allowance`` mm at both ends of every dexel (the seed's stock)."""
-    R = 3.0
+def sim_job(size, moves, R=3.0):
+    """A 5-axis finishing job: passes 0.5 mm apart along X over a wavy ``size`` mm square, a ball of
+    radius R, the axis tilting up to about 20 degrees and changing at every point, ``moves`` moves
+    in all. Returns ``(design, toolpath, tools)``."""
     g = lambda x, y: 26.0 + 2.0 * np.sin(x / 8.0) * np.cos(y / 10.0)  # noqa: E731
     gx = lambda x, y: 0.25 * np.cos(x / 8.0) * np.cos(y / 10.0)  # noqa: E731
     gy = lambda x, y: -0.2 * np.sin(x / 8.0) * np.sin(y / 10.0)  # noqa: E731
-    ys = np.arange(0.25, 60.0, 0.5)
-    per_pass = moves // len(ys)
-    xs = np.linspace(0.0, 60.0, per_pass)
-    pts, axes = [], []
+    ys = np.arange(0.25, size, 0.5)
+    xs = np.linspace(0.0, size, max(2, moves // len(ys)))
+    tips, axes = [], []
     for k, y in enumerate(ys):
         x = xs if k % 2 == 0 else xs[::-1]
         yy = np.full_like(x, y)
@@ -241,14 +239,20 @@ def five_axis_goal(moves=100_000, step=0.085, allowance=1.0):
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         a = np.column_stack([0.3 * np.sin(x / 7.0), 0.25 * np.cos(y / 9.0) + 0 * x, np.ones_like(x)])
         a /= np.linalg.norm(a, axis=1, keepdims=True)
-        cc = np.column_stack([x, yy, g(x, yy)])
-        pts.append(cc + R * n - R * a)
+        tips.append(np.column_stack([x, yy, g(x, yy)]) + R * n - R * a)
         axes.append(a)
-    tip, axis = np.concatenate(pts), np.concatenate(axes)
+    tip, axis = np.concatenate(tips), np.concatenate(axes)
     tp = Toolpath(tip, axis, np.zeros(len(tip), bool), np.zeros(len(tip), np.int64))
-    design = heightfield_solid(g, 60.0, 0.5)
+    return heightfield_solid(g, size, 0.5 if size > 20 else 1.0), tp, [ball(R)]
+
+
+def five_axis_goal(moves=100_000, step=0.085, allowance=1.0):
+    """:func:`sim_job` on a 60 x 60 mm surface with a ball R 3 mm; the stock is the part with
+    ``allowance`` mm at both ends of every dexel (the seed's stock)."""
+    R = 3.0
+    design, tp, tools = sim_job(60.0, moves, R)
+    tip, axis = tp.tip, tp.axis
     model = dexelize(design, step)
-    tools = [ball(R)]
     mv = toolpath_moves(tp, tools)
     st = stock_from_model(model, allowance)
     before = st.to_model().volume

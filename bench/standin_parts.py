@@ -12,6 +12,11 @@ the origin and scaled to the thesis' size (X x Y x Z).
 - :func:`blade` "a turbine blade": 152 x 75 x 152 mm, 26528 triangles (thesis: about 26512).
   A cambered NACA-like section swept along Z with chord shrinking and twist growing along the span,
   closed by flat airfoil caps.
+- :func:`mould` seed 004's Tableau 8 part (about 400 x 400 x 180 mm, 65 000 triangles; not shown in
+  the thesis): 400 x 400 x 180 mm, 66960 triangles. A block whose top is a smooth free-form height
+  field (a dome with two ridges on its flanks and a valley running out to one side, 60 to 180 mm
+  high) over vertical walls and a flat bottom; every horizontal section is one closed contour, as
+  the seed's counts (one contour per level) suggest.
 
     .venv/bin/python bench/standin_parts.py [FOLDER]    # writes FOLDER/{name}.stl (default bench/out/parts)
 """
@@ -21,7 +26,6 @@ import os
 import sys
 
 import numpy as np
-import trimesh
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_OUT = os.path.join(os.path.relpath(HERE), "out", "parts")
@@ -131,10 +135,40 @@ def blade(n_chord=100, n_span=66):
     return _fit(v, (152.0, 75.0, 152.0)), f
 
 
-PARTS = {"double_wave": double_wave, "handle": handle, "blade": blade}
+def mould(n=180):
+    """400 x 400 x 180 mm block under a free-form height field (2 n^2 + 12 n triangles: 66960)."""
+    L, H, low = 400.0, 180.0, 60.0
+    x = np.linspace(0.0, L, n + 1)
+    X, Y = np.meshgrid(x, x, indexing="ij")
+    u, v = X / L, Y / L
+
+    def bump(cu, cv, su, sv):
+        return np.exp(-(((u - cu) / su) ** 2) - ((v - cv) / sv) ** 2)
+
+    valley = np.exp(-(((v - 0.45 - 0.5 * (u - 0.45)) / 0.09) ** 2)) * np.clip(u - 0.45, 0.0, None)
+    f = bump(0.45, 0.45, 0.35, 0.32) + 0.12 * bump(0.45, 0.78, 0.12, 0.25) + 0.10 * bump(0.15, 0.30, 0.25, 0.10) \
+        - 0.45 * valley
+    z = low + (H - low) * (f - f.min()) / (f.max() - f.min())
+    top = np.column_stack([X.ravel(), Y.ravel(), z.ravel()])
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = [np.c_[a, b, c], np.c_[a, c, d]]                               # top, normals up
+    ring = np.concatenate([idx[:, 0], idx[-1, 1:], idx[::-1, -1][1:], idx[0, ::-1][1:-1]])  # CCW from above
+    m, base = len(ring), len(top)
+    k = np.arange(m)
+    pt, qt, pb, qb = ring, np.roll(ring, -1), base + k, base + (k + 1) % m
+    centre = base + m
+    faces += [np.c_[pt, pb, qb], np.c_[pt, qb, qt], np.c_[np.full(m, centre), qb, pb]]  # walls, bottom fan
+    v = np.vstack([top, top[ring] * [1.0, 1.0, 0.0], [[L / 2, L / 2, 0.0]]])
+    return v, np.vstack(faces).astype(np.int64)
+
+
+PARTS = {"double_wave": double_wave, "handle": handle, "blade": blade, "mould": mould}
 
 
 def main(argv=None):
+    import trimesh  # here only: the bench scripts import the parts on machines without trimesh
+
     argv = sys.argv[1:] if argv is None else argv
     out = argv[0] if argv else DEFAULT_OUT
     os.makedirs(out, exist_ok=True)

@@ -93,7 +93,11 @@ def test_triangle_drop_against_dense_samples(pts, xy, kind):
     sampled = max(pz - _profile(rh, R, r) for pz, rh in zip(p[ok, 2], rho[ok]))
     assert z >= sampled - 1e-9  # never below any point of the triangle: no gouge
     span = np.ptp(tri, axis=0).max()
-    assert z <= sampled + 3 * span / n * 4  # and touches it: within the sampling's resolution
+    # and touches it, within the sampling's resolution; where the cutter only grazes the triangle
+    # (rho = R exactly along a vertical facet) the contact lies between samples just beyond R
+    near = rho <= R + 2 * span / n
+    reach = max(pz - _profile(min(rh, R), R, r) for pz, rh in zip(p[near, 2], rho[near]))
+    assert z <= reach + 3 * span / n * 4
     # the contact point is on the triangle and under the cutter at that height
     assert abs(math.hypot(cx - xy[0], cy - xy[1])) <= R + 1e-9
     assert abs(cz - _profile(math.hypot(cx - xy[0], cy - xy[1]), R, r) - z) < 1e-6
