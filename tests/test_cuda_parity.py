@@ -1,12 +1,28 @@
 """The CUDA build of the kernels gives the CPU's answers, bit for bit: numba's CUDA simulator runs
-the same device functions on any machine (on a GPU machine, set NUMBA_ENABLE_CUDASIM=0 to run the
-same checks on the device). Inputs are small: the simulator interprets every thread in Python."""
+the same device functions on any machine. Inputs are small: the simulator interprets every thread
+in Python. On a GPU machine, NUMBA_ENABLE_CUDASIM=0 runs the same checks on the device; there NVVM
+fuses multiply-adds and libdevice's sin/cos may differ in the last bit, so coordinates are compared
+within 1e-6 mm (discrete answers, such as which ball fits, must still agree)."""
 import os
 import subprocess
 import sys
 import textwrap
 
-KERNELS = textwrap.dedent("""
+SAME = textwrap.dedent("""
+    import os
+    import numpy as np
+
+    EXACT = os.environ.get("NUMBA_ENABLE_CUDASIM", "1") != "0"
+
+
+    def same(a, b):
+        a, b = np.asarray(a), np.asarray(b)
+        if EXACT or a.dtype.kind in "biu":
+            return np.array_equal(a, b, equal_nan=True)
+        return a.shape == b.shape and np.allclose(a, b, rtol=0.0, atol=1e-6, equal_nan=True)
+""")
+
+KERNELS = SAME + textwrap.dedent("""
     import numpy as np
     from meshmill.geometry.bvh import build_bvh
     from meshmill.geometry.shapes import post_with_fillet
@@ -23,7 +39,7 @@ KERNELS = textwrap.dedent("""
                           g.largest_ball(con.points, con.normals, radii, 0.01))
     rng = np.random.default_rng(0)
     p = rng.uniform(-45, 45, (64, 3))
-    assert np.array_equal(c.mesh_distances(p), g.mesh_distances(p))
+    assert same(c.mesh_distances(p), g.mesh_distances(p))
     # drop-cutter on grid lines through the axis and the plate's edge (x = 0, y = 40), a bull-nose with body
     xs = np.linspace(-45, 45, 19)
     xy = np.array([(x, y) for x in xs for y in (0.0, 40.0, 13.7)])
@@ -31,8 +47,8 @@ KERNELS = textwrap.dedent("""
     for R, r in ((3.0, 1.0), (4.0, 4.0), (5.0, 0.0)):
         zc, cc = c.drop_cutter(xy, R, r, -10.0, body)
         zg, cg = cuda.drop_cutter(xy, R, r, -10.0, g.mesh, body, chunk=cpu.CHUNK)
-        assert np.array_equal(zc, zg) and np.array_equal(cc, cg, equal_nan=True), (R, r)
-        assert np.array_equal(zc, g.drop_cutter(xy, R, r, -10.0, body)[0])  # the GPU's own chunks
+        assert same(zc, zg) and same(cc, cg), (R, r)
+        assert same(zc, g.drop_cutter(xy, R, r, -10.0, body)[0])  # the GPU's own chunks
     # touch points between points above and below z = 10 (the post's wall is at radius 10)
     inside = np.column_stack([np.zeros(12), np.linspace(-9, 9, 12)])
     ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
@@ -40,14 +56,14 @@ KERNELS = textwrap.dedent("""
     fi = c.drop_cutter(inside, 3.0, 1.0, -10.0)[0] - 10.0
     fo = c.drop_cutter(outside, 3.0, 1.0, -10.0)[0] - 10.0
     args = (inside, outside, fi, fo, 10.0, 3.0, 1.0, -10.0, 1e-6, 1e-4, 80)
-    assert np.array_equal(c.touch_points(*args), g.touch_points(*args))
+    assert same(c.touch_points(*args), g.touch_points(*args))
     # rays: from every vertex (some on the plate's top, some under the post) straight up
     for d in ((0.0, 0.0, 1.0), (0.6, 0.0, 0.8)):
         assert np.array_equal(c.rays_blocked(m.vertices, np.array(d), 1e-6), g.rays_blocked(m.vertices, np.array(d), 1e-6))
     print("kernel parity")
 """)
 
-CUT = textwrap.dedent("""
+CUT = SAME + textwrap.dedent("""
     import numpy as np
     from meshmill.geometry.shapes import box
     from meshmill.simulation import cut as cutting
@@ -80,12 +96,12 @@ CUT = textwrap.dedent("""
     (a, ra), (b, rb) = stocks
     assert ra == rb, (ra, rb)
     for k in range(3):
-        assert np.array_equal(a.start[k], b.start[k]) and np.array_equal(a.iv[k], b.iv[k]), k
+        assert same(a.start[k], b.start[k]) and same(a.iv[k], b.iv[k]), k
     assert sum(len(v) for v in a.iv) > sum(len(v) for v in model.iv)  # the slots split dexels
     print("cut parity", len(moves), "moves")
 """)
 
-DEXEL = textwrap.dedent("""
+DEXEL = SAME + textwrap.dedent("""
     import numpy as np
     from meshmill.geometry.mesh import mesh_from_arrays
     from meshmill.geometry.shapes import box, sphere
@@ -98,12 +114,12 @@ DEXEL = textwrap.dedent("""
         a = dexelize(m, 1.0)
         b = dexelize(m, 1.0, device="cuda")
         for k in range(3):
-            assert np.array_equal(a.start[k], b.start[k]), k
-            assert np.array_equal(a.iv[k], b.iv[k]), k
+            assert same(a.start[k], b.start[k]), k
+            assert same(a.iv[k], b.iv[k]), k
     print("dexel parity", sum(len(v) for v in a.iv), "dexels")
 """)
 
-OPERATIONS = textwrap.dedent("""
+OPERATIONS = SAME + textwrap.dedent("""
     import os
     import numpy as np
     import meshmill
@@ -132,14 +148,15 @@ OPERATIONS = textwrap.dedent("""
         (a, sa, *_), (b, sb, *_) = run("cpu"), run("cuda")
         assert len(a) > 20, name
         for f in ("tip", "axis", "tool", "rapid"):
-            assert np.array_equal(getattr(a, f), getattr(b, f)), (name, f)
-        assert sa["verify"] == sb["verify"], name
+            assert same(getattr(a, f), getattr(b, f)), (name, f)
+        assert EXACT or sa["verify"]["ok"] == sb["verify"]["ok"], name
+        assert not EXACT or sa["verify"] == sb["verify"], name
         paths[name] = a
     for name in ("finish", "plunge"):  # a turning ball-end path, a 3-axis one
         x, y = (simulate(m, paths[name], tools, 2.0, device=dev) for dev in ("cpu", "cuda"))
-        assert x[0] == y[0], name
+        assert not EXACT or x[0] == y[0], name
         for k in range(3):
-            assert np.array_equal(x[2].start[k], y[2].start[k]) and np.array_equal(x[2].iv[k], y[2].iv[k]), name
+            assert same(x[2].start[k], y[2].start[k]) and same(x[2].iv[k], y[2].iv[k]), name
     print("operation parity")
 """)
 

@@ -75,6 +75,21 @@ def test_report_thins_big_paths_and_says_so(runs, tmp_path, monkeypatch):
     assert any("tool path: every" in n for n in info["runs"][0]["notes"])
 
 
+def test_thinned_path_keeps_rapid_moves_apart(runs, monkeypatch):
+    from meshmill import report as rep
+
+    run = rep.read_run(str(runs / "plunge"))
+    monkeypatch.setattr(rep, "MAX_PATH_POINTS", len(run.toolpath) // 5)
+    import plotly.graph_objects as go
+
+    traces = rep._path_traces(go, run, [])
+    assert any(t.name == "rapid moves" for t in traces)
+    for t in traces:  # plunges go down cutting and back up rapid: no thinned cutting stroke may climb
+        if t.name.endswith("cutting"):
+            steps = np.diff(np.asarray(t.z, float))
+            assert (steps[~np.isnan(steps)] <= 1e-9).all()
+
+
 def test_report_bad_input_is_one_line(runs, tmp_path, capsys):
     for argv, words in ((["report", str(tmp_path / "nope")], "no such folder"),
                         (["report", str(tmp_path)], "no summary.json"),
@@ -91,8 +106,11 @@ def test_deviation_colours_bound_the_tolerance_classes():
     assert lim == pytest.approx(0.03)
     stops = [s for s, _ in scale]
     assert stops == sorted(stops) and stops[0] == 0.0 and stops[-1] == 1.0
-    # ±tol sits at 1/3 and 2/3 of [-3 tol, 3 tol]: the within-tolerance band is the pale middle third
-    assert 1 / 3 in stops and 2 / 3 in stops
+    # ±tol sits at 1/3 and 2/3 of [-3 tol, 3 tol]: the within-tolerance band is one pale colour, and
+    # the colour jumps at ±tol (a gouge never looks like a point within tolerance)
+    colour = dict((round(s, 9), c) for s, c in scale)
+    assert colour[round(1 / 3, 9)] == colour[round(2 / 3, 9)] == "#f7f7f7"
+    assert colour[round(1 / 3 - 1e-6, 9)] != "#f7f7f7" and colour[round(2 / 3 + 1e-6, 9)] != "#f7f7f7"
 
 
 @pytest.mark.skipif(not os.path.exists(CHROMIUM), reason="no system Chromium (apt-get install chromium)")

@@ -28,11 +28,16 @@ def _quiet(args):
     return getattr(args, "quiet", False) or getattr(args, "json", False)
 
 
+def _end_status():
+    """End an open progress line, so that what follows starts on a line of its own."""
+    if _status_line[0]:
+        print(file=sys.stderr)
+        _status_line[0] = False
+
+
 def _say(args, text):
     if not _quiet(args):
-        if _status_line[0]:
-            print(file=sys.stderr)
-            _status_line[0] = False
+        _end_status()
         print(text, file=sys.stderr, flush=True)
 
 
@@ -129,7 +134,7 @@ def cmd_finish(args):
     summary["tools_file"] = os.path.abspath(args.tools)
     con = detail["contours"]
     np.savez_compressed(os.path.join(out, "contours.npz"), points=con.points, offsets=con.offsets, z=con.z,
-                        machinable=detail["contour_tool"] >= 0)
+                        closed=con.closed, machinable=detail["contour_tool"] >= 0)
     summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
     summary["seconds"]["load"] = round(load_s, 4)
     summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
@@ -334,6 +339,7 @@ def cmd_simulate(args):
         trimesh.Trimesh(verts, faces, process=False).export(os.path.join(out, "machined.stl"))
     for w in summary["warnings"]:
         _say(args, f"warning: {w}")
+    _end_status()
     for e in summary["errors"][:10]:
         print(f"error: {e}", file=sys.stderr)
     if len(summary["errors"]) > 10:
@@ -558,6 +564,7 @@ def build_parser():
 
 
 def main(argv=None) -> int:
+    _status_line[0] = False
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -569,9 +576,11 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except InputError as exc:
+        _end_status()
         print(f"meshmill: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        _end_status()
         print("meshmill: interrupted", file=sys.stderr)
         return 130
 

@@ -22,7 +22,6 @@ MAX_PATH_POINTS = 150_000  # per tool path shown; more are thinned (every k-th m
 MAX_MESH_FACES = 150_000  # per mesh shown; more are thinned (every k-th triangle)
 AXIS_GLYPHS = 300  # tool-axis glyphs per 5-axis path
 AXIS_GLYPH_LENGTH = 0.08  # of the part's diagonal
-DEVIATION_CLASSES = (0.5, 1.0, 2.0)  # multiples of the tolerance that bound the colour classes
 PATH_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf")
 RAPID_COLOUR = "#b0b0b0"
 
@@ -143,6 +142,10 @@ def _segments(points_a, points_b):
     return p, np.arange(1, len(p) - 1, 2)
 
 
+def _tool_name(run, t):
+    return run.tools[t].name if t < len(run.tools) else f"T{t + 1}"
+
+
 def _path_traces(go, run, notes):
     """Cutting moves per tool and rapid moves; ``(traces, shown points)``."""
     tp = run.toolpath
@@ -152,24 +155,20 @@ def _path_traces(go, run, notes):
     idx = np.arange(0, len(tp), k)
     if idx[-1] != len(tp) - 1:
         idx = np.append(idx, len(tp) - 1)
-    tip, rapid, tool = tp.tip[idx], tp.rapid[idx], tp.tool[idx]
+    tip, tool = tp.tip[idx], tp.tool[idx]
+    # a move belongs to the point it ends at; a thinned segment is rapid if any move it spans is
+    rapid = np.r_[tp.rapid[0], np.logical_or.reduceat(tp.rapid, idx[:-1] + 1)] if len(idx) > 1 else tp.rapid[idx]
     traces = []
-    # a move belongs to the point it ends at
     cut_move = ~rapid[1:]
     for t in np.unique(tool):
         sel = np.nonzero(cut_move & (tool[1:] == t))[0]
         if len(sel) == 0:
             continue
-        a, b = tip[sel], tip[sel + 1]
-        joined = np.nonzero(sel[1:] != sel[:-1] + 1)[0]  # consecutive moves share a point
-        starts = np.r_[0, joined + 1]
-        pts, breaks = [], []
-        for s0, s1 in zip(starts, np.r_[starts[1:], len(sel)]):
-            chain = np.vstack([a[s0:s1], b[s1 - 1:s1]])
-            pts.append(chain)
-            breaks.append(sum(len(c) for c in pts) - 1)
-        name = run.tools[t].name if t < len(run.tools) else f"T{t + 1}"
-        traces.append(_polyline(go, np.vstack(pts), breaks[:-1], f"{name} cutting", PATH_COLOURS[t % len(PATH_COLOURS)],
+        starts = np.r_[0, np.nonzero(sel[1:] != sel[:-1] + 1)[0] + 1]  # consecutive moves share a point
+        ends = np.r_[starts[1:], len(sel)]
+        pts = np.concatenate([np.vstack([tip[sel[a:b]], tip[sel[b - 1] + 1:sel[b - 1] + 2]]) for a, b in zip(starts, ends)])
+        breaks = np.cumsum(ends - starts + 1) - 1
+        traces.append(_polyline(go, pts, breaks[:-1], f"{_tool_name(run, t)} cutting", PATH_COLOURS[t % len(PATH_COLOURS)],
                                 legendgroup="path"))
     sel = np.nonzero(rapid[1:])[0]
     if len(sel):
@@ -188,12 +187,19 @@ def _axis_glyphs(go, run, size):
     return _polyline(go, p, br, f"tool axes ({len(pick)} of {len(feed):,})", "#444444", width=2)
 
 
-def _contour_traces(go, run):
+def _contour_traces(go, run, notes):
     c = run.contours
     pts, off, ok = c["points"], c["offsets"], c["machinable"].astype(bool)
+    closed = c["closed"].astype(bool) if "closed" in c else np.zeros(len(ok), bool)
+    k = max(1, -(-len(pts) // MAX_PATH_POINTS))
+    if k > 1:
+        notes.append(f"contours: 1 in {k} of {len(pts):,} CC points shown")
     out = []
     for flag, name, colour in ((True, "machinable contours", "#2ca02c"), (False, "unmachinable contours", "#d62728")):
-        chains = [pts[off[i]:off[i + 1]] for i in np.nonzero(ok == flag)[0]]
+        chains = []
+        for i in np.nonzero(ok == flag)[0]:
+            ch = pts[off[i]:off[i + 1]:k]
+            chains.append(np.vstack([ch, ch[:1]]) if closed[i] and len(ch) > 2 else ch)
         if chains:
             lengths = np.cumsum([len(ch) for ch in chains]) - 1
             out.append(_polyline(go, np.vstack(chains), lengths[:-1], f"{name} ({len(chains)})", colour, width=2))
@@ -201,9 +207,11 @@ def _contour_traces(go, run):
 
 
 def deviation_colours(tol: float):
-    """A diverging colour scale over ``[-3 tol, 3 tol]`` whose bands are the tolerance classes
-    (gouge below -tol, within ±tol, excess above tol)."""
-    return [[0.0, "#67001f"], [1 / 3, "#d6604d"], [0.5 - 1e-9, "#f7f7f7"], [0.5, "#f7f7f7"], [2 / 3, "#4393c3"],
+    """A stepped diverging colour scale over ``[-3 tol, 3 tol]`` whose bands are the tolerance
+    classes: gouge below -tol (reds, darker deeper), within ±tol (one pale band), excess above tol
+    (blues, darker higher)."""
+    e = 1e-6
+    return [[0.0, "#67001f"], [1 / 3 - e, "#d6604d"], [1 / 3, "#f7f7f7"], [2 / 3, "#f7f7f7"], [2 / 3 + e, "#4393c3"],
             [1.0, "#053061"]], 3.0 * tol
 
 
@@ -257,7 +265,7 @@ def run_figures(run: Run) -> list:
         title = {"plunge": "plunge lines", "finish": "5-axis tool path"}.get(run.kind, "tool path")
         figs.append((f"{run.kind}: {title}", _scene(f"{run.kind}: {title}", go, traces)))
     if run.contours is not None:
-        figs.append((f"{run.kind}: contours", _scene("contours: machinable and not", go, base + _contour_traces(go, run))))
+        figs.append((f"{run.kind}: contours", _scene("contours: machinable and not", go, base + _contour_traces(go, run, notes))))
     if run.kind == "simulate" and run.deviation is not None:
         figs.append(("simulate: deviation", _scene("machined surface, signed deviation (mm)", go,
                                                    base + _deviation_traces(go, run, notes))))
@@ -276,8 +284,8 @@ def run_figures(run: Run) -> list:
         figs.append((f"{run.kind}: stages", bar))
     share = tool_share(run)
     if share:
-        pie = go.Figure(go.Pie(labels=list(share), values=list(share.values()), hole=0.4, sort=False,
-                               marker=dict(colors=[PATH_COLOURS[i % len(PATH_COLOURS)] for i in range(len(share))])))
+        pie = go.Figure(go.Pie(labels=[n for n, _ in share.values()], values=[v for _, v in share.values()], hole=0.4,
+                               sort=False, marker=dict(colors=[PATH_COLOURS[t % len(PATH_COLOURS)] for t in share])))
         pie.update_layout(title="tools: share of the cutting length (mm)", height=320, margin=dict(t=40, b=10))
         figs.append((f"{run.kind}: tools", pie))
     return figs
@@ -297,7 +305,7 @@ def _histogram(go, run):
 
 
 def tool_share(run: Run) -> dict:
-    """Cutting length per tool name, mm (from the tool path)."""
+    """``{tool index: (name, cutting length mm)}`` from the tool path."""
     tp = run.toolpath
     if tp is None or len(tp) < 2:
         return {}
@@ -305,9 +313,8 @@ def tool_share(run: Run) -> dict:
     out = {}
     for t in np.unique(tp.tool):
         sel = (~tp.rapid[1:]) & (tp.tool[1:] == t)
-        name = run.tools[t].name if t < len(run.tools) else f"T{t + 1}"
         if sel.any():
-            out[name] = round(float(seg[sel].sum()), 3)
+            out[int(t)] = (_tool_name(run, t), round(float(seg[sel].sum()), 3))
     return out
 
 

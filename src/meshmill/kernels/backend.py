@@ -17,12 +17,20 @@ def cuda_available() -> bool:
         return False
 
 
+def _simulated() -> bool:
+    import numba
+
+    return bool(getattr(numba.config, "ENABLE_CUDASIM", 0))
+
+
 def resolve(device: str) -> str:
     """``"cpu"`` or ``"cuda"`` for a ``--device`` value (raises :class:`InputError`)."""
     if device not in DEVICES:
         raise InputError(f"--device must be one of {', '.join(DEVICES)}, got '{device}'")
     if device == "cpu":
         return "cpu"
+    if device == "auto" and _simulated():
+        return "cpu"  # numba's CUDA simulator says a GPU is there: auto must not pick it (it is very slow)
     if cuda_available():
         return "cuda"
     if device == "cuda":

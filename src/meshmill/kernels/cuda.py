@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from numba import cuda, float64, int32, int64
 
@@ -19,6 +20,7 @@ from . import carve, cutters, raycast
 from .geom import STACK_SIZE, build
 from .raycast import MAX_HITS
 
+numba.config.CUDA_LOW_OCCUPANCY_WARNINGS = 0  # small launches (a contour a thread, a few tiles) are expected
 _dev = cuda.jit(device=True)
 dev = build(_dev)
 cut = cutters.build(_dev)
