@@ -413,11 +413,6 @@ def cmd_report(args):
     folder = os.path.dirname(os.path.abspath(out))
     if not os.path.isdir(folder):
         raise InputError(f"{folder}: no such folder for --out")
-    for f in args.folders:  # before any progress line: a bad folder is one line
-        if not os.path.isdir(f):
-            raise InputError(f"{f}: no such folder")
-        if not os.path.exists(os.path.join(f, "summary.json")):
-            raise InputError(f"{f}: no summary.json (not a folder written by a meshmill command)")
     info = write_report(args.folders, out, progress=_progress(args))
     for r in info["runs"]:
         for n in r["notes"]:

@@ -53,17 +53,24 @@ def _json(path):
         raise InputError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
 
 
-def read_run(folder: str) -> Run:
-    """Read a run folder (raises :class:`InputError` when it is not one)."""
-    from .geometry.mesh import load_mesh
-    from .tools.table import load_tools
-    from .toolpath.cldata import read_apt
-
+def summary_path(folder: str) -> str:
+    """``folder``'s ``summary.json`` (raises :class:`InputError` when it is not a run folder)."""
     if not os.path.isdir(folder):
         raise InputError(f"{folder}: no such folder")
     path = os.path.join(folder, "summary.json")
     if not os.path.exists(path):
         raise InputError(f"{folder}: no summary.json (not a folder written by a meshmill command)")
+    return path
+
+
+def read_run(folder: str, meshes: dict | None = None) -> Run:
+    """Read a run folder (raises :class:`InputError` when it is not one); ``meshes`` keeps the
+    parts already loaded, by file, for runs on the same part."""
+    from .geometry.mesh import load_mesh
+    from .tools.table import load_tools
+    from .toolpath.cldata import read_apt
+
+    path = summary_path(folder)
     s = _json(path)
     kind = s.get("operation") or ("simulate" if "volumes_mm3" in s else "dexel" if "dexels" in s else None)
     if kind is None:
@@ -71,7 +78,10 @@ def read_run(folder: str) -> Run:
     run = Run(folder=folder, kind=kind, summary=s)
     part_file = (s.get("part") or s.get("design") or {}).get("file")
     if part_file and os.path.exists(part_file):
-        run.part = load_mesh(part_file)
+        meshes = {} if meshes is None else meshes
+        if part_file not in meshes:
+            meshes[part_file] = load_mesh(part_file)
+        run.part = meshes[part_file]
     elif part_file:
         run.notes.append(f"the part {part_file} is gone: not shown")
     if s.get("tools_file") and os.path.exists(s["tools_file"]):
@@ -346,10 +356,12 @@ def write_report(folders: list[str], out: str, progress=None) -> dict:
     from plotly.offline import get_plotlyjs
 
     say = progress or (lambda _: None)
-    runs = []
+    for f in folders:  # every folder checked before any progress: a bad one is one line
+        summary_path(f)
+    runs, meshes = [], {}
     for f in folders:
         say(f"read {f}")
-        runs.append(read_run(f))
+        runs.append(read_run(f, meshes))
     sections, info = [], {"file": os.path.abspath(out), "runs": []}
     div = 0
     for run in runs:

@@ -12,7 +12,8 @@ import numpy as np
 from numba import prange
 
 from . import cutters
-from .cpu_dexel import rays_blocked  # noqa: F401  (one module offers every mesh kernel)
+from .cpu_dexel import cut_tiles, move_constants, rays_blocked  # noqa: F401  (one module offers every kernel)
+from .cutters import NO_BODY
 from .geom import INF, STACK_SIZE, build
 
 dev = build(numba.njit(fastmath=False, cache=True))
@@ -139,9 +140,6 @@ def _drop_cutter(xy, R, r, body_r, body_t, floor, chunk, node_lo, node_hi, node_
         _drop_run(c * chunk, min(k, (c + 1) * chunk), xy, R, r, body_r, body_t, floor,
                      node_lo, node_hi, node_child, node_range, tris, stack, z, cc)
     return z, cc
-
-
-NO_BODY = (np.zeros(0), np.zeros(0))
 
 
 def drop_cutter(xy, radius, corner_radius, floor, bvh, body=None, chunk=CHUNK):

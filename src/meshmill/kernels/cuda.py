@@ -17,6 +17,7 @@ import numpy as np
 from numba import cuda, float64, int32, int64
 
 from . import carve, cutters, raycast
+from .cutters import NO_BODY
 from .geom import STACK_SIZE, build
 from .raycast import MAX_HITS
 
@@ -156,7 +157,7 @@ def _drop_cutter(xy, R, r, body_r, body_t, floor, chunk, node_lo, node_hi, node_
 
 def drop_cutter(xy, radius, corner_radius, floor, bvh, body=None, chunk=CHUNK):
     """As :func:`meshmill.kernels.cpu.drop_cutter` (``chunk`` points per thread)."""
-    body = (np.zeros(0), np.zeros(0)) if body is None else body
+    body = NO_BODY if body is None else body
     k = len(xy)
     z = cuda.device_array(k, np.float64)
     cc = cuda.device_array((k, 3), np.float64)
@@ -178,7 +179,7 @@ def _touch_points(pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, wid
 def touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_radius, floor, bvh,
                  touch=1e-6, width=1e-4, rounds=80, body=None, inside_contacts=None):
     """As :func:`meshmill.kernels.cpu.touch_points`."""
-    body = (np.zeros(0), np.zeros(0)) if body is None else body
+    body = NO_BODY if body is None else body
     if inside_contacts is None:
         inside_contacts = np.full((len(inside_xy), 3), np.nan)
     out = _d(outside_xy)

@@ -19,6 +19,7 @@ import math
 from types import SimpleNamespace
 
 NEG = -1.0e300
+NO_BODY = ((), ())  # no shank or holder cylinders: ``body`` of the drop-cutter wrappers
 PLANE_BOUND_NZ = 1e-6  # facets at least this far from vertical bound their triangle's contact by their plane's
 BISECTIONS = 60
 

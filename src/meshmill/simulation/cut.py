@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from ..errors import InputError
-from ..kernels import cpu_dexel
+from ..kernels.backend import implementation
 from ..kernels.cpu_dexel import TILE, bin_moves
 from ..kernels.sweep import SEARCH_SAMPLES
 from .dexel import DexelModel, compact_lines
@@ -211,10 +211,7 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu") -> dict:
     ``"cuda"``). Returns ``{"rapid_cuts": sorted tool-path point indices whose rapid move cut
     material, "seconds": ...}``."""
     t0 = time.perf_counter()
-    if device == "cuda":
-        from ..kernels import cuda as kern
-    else:
-        kern = cpu_dexel
+    kern = implementation(device)
     boxes = _boxes(moves)
     rapid_hit = np.zeros(len(moves), np.uint8)
     rapid = moves.rapid.astype(np.uint8)
