@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DATA   := src/meshmill/data
 
-.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge bench-gpu clean
+.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge bench-gpu bench-choice clean
 
 venv: $(STAMP)
 
@@ -20,8 +20,10 @@ demo: venv
 	$(BIN)/meshmill waterline $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool B4 --step-down 2 --out demo-out/waterline
 	$(BIN)/meshmill raster $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool R6 --scallop 0.01 --angle 45 --out demo-out/raster
 	$(BIN)/meshmill simulate --design $(DATA)/vase.stl --allowance 0.5 --toolpath demo-out/toolpath.cl --tools $(DATA)/tools.toml --step 0.2 --out demo-out/simulate
-	$(BIN)/meshmill report demo-out demo-out/waterline demo-out/raster demo-out/simulate --out demo-out/report.html
-	@echo "demo results in demo-out/: 5-axis finishing (toolpath.cl, summary.json, verify.json), 3-axis waterline/ and raster/, simulate/ (what the 5-axis path cuts: deviation.json, machined.stl)"
+	$(BIN)/meshmill choose rubio --tool-pair 10,2 --scallop 0.01 --zones 3 --axes 3+2 --machine seed-002 --out demo-out/choose
+	$(BIN)/meshmill time demo-out/choose/toolpath.cl --machine seed-002 --tools demo-out/choose/tools.toml
+	$(BIN)/meshmill report demo-out demo-out/waterline demo-out/raster demo-out/simulate demo-out/choose --out demo-out/report.html
+	@echo "demo results in demo-out/: 5-axis finishing (toolpath.cl, summary.json, verify.json), 3-axis waterline/ and raster/, simulate/ (what the 5-axis path cuts: deviation.json, machined.stl), choose/ (seed 002's Rubio surface: cutter, zones and 3+2 axes by machining time)"
 	@echo "report: $(CURDIR)/demo-out/report.html (open it in any browser)"
 
 test: venv
@@ -41,6 +43,9 @@ bench-plunge: venv
 
 bench-gpu: venv
 	$(BIN)/python bench/gpu.py
+
+bench-choice: venv
+	$(BIN)/python bench/choice_seed_tables.py
 
 clean:
 	rm -rf $(VENV) demo-out bench/out .pytest_cache

@@ -423,6 +423,124 @@ def cmd_report(args):
     return 0
 
 
+def _clock(seconds):
+    minutes, s = divmod(round(seconds), 60)
+    return f"{minutes // 60}:{minutes % 60:02d}:{s:02d}"
+
+
+def cmd_time(args):
+    import numpy as np
+
+    from .machine.config import load_machine
+    from .machine.timing import programmed_feeds, tool_times
+    from .ops.simulate import TOOLPATH_GCODE, read_toolpath
+    from .tools.table import load_tools
+
+    if args.feed is not None and not (math.isfinite(args.feed) and args.feed > 0):
+        raise InputError(f"--feed must be a positive number of mm/min, got {args.feed}")
+    machine = load_machine(args.machine)
+    tools = load_tools(args.tools)
+    tp, warnings = read_toolpath(args.toolpath, tools, args.tool)
+    feed_move = ~tp.rapid[1:]
+    nominal = f"the machine's {machine.kinematics.feed * 60.0:g} mm/min"
+    if args.feed is not None:
+        feed, unset = np.full(len(tp), args.feed / 60.0), 0
+        notes = [f"feed {args.feed:g} mm/min (--feed) on every feed move"]
+    else:
+        gcode = os.path.splitext(args.toolpath)[1].lower() in TOOLPATH_GCODE
+        feed, more = programmed_feeds(args.toolpath, tp.line, gcode)
+        warnings += more
+        unset = int((feed_move & np.isnan(feed[1:])).sum())
+        if not unset:
+            notes = ["feeds as programmed"]
+        elif unset == feed_move.sum():
+            notes = [f"no feed programmed: every feed move at {nominal}"]
+        else:
+            notes = [f"{unset} of {feed_move.sum()} feed moves without a programmed feed: {nominal}"]
+    if np.ptp(tp.axis, axis=0).max() > 1e-9:
+        notes.append("the tool axis turns along the path: rotary-axis motion is not timed")
+    times = tool_times(tp.tip, tp.rapid, tp.tool, machine, feed)
+    summary = {"operation": "time", "toolpath": os.path.abspath(args.toolpath), "moves": len(tp),
+               "machine": machine.summary(), "tools_file": os.path.abspath(args.tools), "notes": notes,
+               "feed_moves": int(feed_move.sum()), "feed_moves_at_machine_feed": unset,
+               "tools": {tools[t].name: entry for t, entry in times["tools"].items()}, "total": times["total"]}
+    if args.out:
+        _write_json(args.out, summary)
+    for w in warnings:
+        _say(args, f"warning: {w}")
+    if args.json:
+        _finish_json(args, summary)
+        return 0
+    print(f"machine: {machine.name}; {'; '.join(notes)}")
+    print(f"{'tool':<12}{'cutting s':>11}{'rapid s':>10}{'changes':>8}{'change s':>10}{'total s':>11}"
+          f"{'cutting mm':>13}{'rapid mm':>11}{'stops':>9}")
+    for name, e in [*summary["tools"].items(), ("total", summary["total"])]:
+        print(f"{name:<12}{e['cutting_s']:>11.1f}{e['rapid_s']:>10.1f}{e['tool_changes']:>8}{e['tool_change_s']:>10.1f}"
+              f"{e['total_s']:>11.1f}{e['cutting_mm']:>13.1f}{e['rapid_mm']:>11.1f}{e['stops']:>9}")
+    print(f"machining time {_clock(summary['total']['total_s'])} (h:mm:ss)")
+    return 0
+
+
+def cmd_choose(args):
+    import numpy as np
+
+    from .machine.config import load_machine
+    from .ops.choose import ChooseParams, choose, load_surface, tool_pair
+    from .tools.table import load_tools, write_tools
+    from .toolpath.cldata import write_apt
+
+    if (args.tool_pair is None) == (args.tools is None):
+        raise InputError("give exactly one of --tool-pair and --tools")
+    if args.zones == "auto":
+        zones = None
+    else:
+        try:
+            zones = int(args.zones)
+        except ValueError:
+            raise InputError(f"--zones must be 'auto' or an integer, got '{args.zones}'") from None
+    params = ChooseParams(scallop=args.scallop, zones=zones, axes=args.axes, optimise=args.optimise, grid=args.grid,
+                          mesh_step=args.mesh_step, sample=args.sample, cluster=args.cluster, metric=args.metric,
+                          k_max=args.k_max, min_zone=args.min_zone, seed=args.seed)
+    params.check()
+    tools = tool_pair(args.tool_pair) if args.tool_pair else load_tools(args.tools)
+    machine = load_machine(args.machine)
+    device = _device(args)
+    surface = load_surface(args.surface, params)
+    out = _out_dir(args.out)
+    tp, summary, zones, chooser = choose(surface, tools, machine, params, progress=_progress(args), device=device)
+    summary["tools_file"] = os.path.abspath(os.path.join(out, "tools.toml"))
+    write_tools(os.path.join(out, "tools.toml"), chooser.tools)
+    write_apt(os.path.join(out, "toolpath.cl"), tp, chooser.tools, partno=os.path.basename(args.surface))
+    s = chooser.samples
+    np.savez_compressed(os.path.join(out, "zones.npz"), grid_shape=np.array(s.grid_shape), zones=zones,
+                        points=s.points, normals=s.normals, valid=s.valid)
+    _write_json(os.path.join(out, "summary.json"), summary)
+    v = summary["verify"]
+    if not _quiet(args):
+        _end_status()
+        for pair in summary["rule"]["pairs"]:
+            print(f"rule (whole surface, seed 002): {pair['choice']} along the {pair['direction']} "
+                  f"(slope {pair['slope_deg']:.2f} deg, critical slope {pair['critical_slope_deg']:.2f} deg; "
+                  f"predicted ball {pair['predicted_ball_principal_s']:.1f} s, bull {pair['predicted_bull_steepest_s']:.1f} s)")
+        print(f"{'zone':>4}{'cells':>7}{'tool':>12}{'azimuth':>9}{'tilt':>7}{'predicted s':>13}{'measured s':>12}"
+              f"{'cut mm':>9}{'planes':>8}{'coverage':>10}")
+        for z in summary["zones"]:
+            print(f"{z['zone']:>4}{z['cells']:>7}{z['tool']:>12}{z['azimuth_deg']:>9.1f}{z['tilt_deg']:>7.1f}"
+                  f"{z['predicted_s']:>13.1f}{z['measured_s']:>12.1f}{z['cutting_mm']:>9.0f}{z['planes']:>8}"
+                  f"{z['coverage']:>10.3f}")
+        print(f"K = {summary['k']} ({len(summary['zones'])} zones), total {summary['total_s']:.1f} s with "
+              f"{summary['tool_changes']} tool change(s) and {summary['reorientations']} re-orientation(s) on {machine.name}")
+        if summary["optimisation"]:
+            o = summary["optimisation"]
+            print(f"NOMAD: {o['start_s']:.1f} s -> {o['optimum_s']:.1f} s after {o['black_box_evaluations']} "
+                  f"black-box and {o['surrogate_evaluations']} surrogate evaluations")
+    _say(args, f"verify: {'OK' if v['ok'] else 'PROBLEMS'} (max gouge {v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
+    _say(args, f"wrote {os.path.join(out, 'toolpath.cl')}, tools.toml, zones.npz and summary.json in "
+               f"{summary['seconds']['total']:.1f} s (device {device})")
+    _finish_json(args, summary)
+    return 0 if v["ok"] else 1
+
+
 def build_parser():
     p = _Parser(prog="meshmill", description="Exact, verified multi-axis milling tool paths from triangle meshes.")
     p.add_argument("--version", action="version", version=f"meshmill {__version__}")
@@ -553,7 +671,44 @@ def build_parser():
     rp.add_argument("--out", default="report.html", help="HTML file to write (report.html)")
     rp.add_argument("--quiet", action="store_true", help="print nothing but errors")
     rp.set_defaults(func=cmd_report)
-    for sp in (f, r, w, pl, d, s, rp):
+
+    tm = sub.add_parser("time", help="machining time of a tool path on a jerk-limited machine")
+    tm.add_argument("toolpath", help="APT CL file (.cl) or 3-axis G-code (.nc, .ngc, .gcode, .tap)")
+    tm.add_argument("--machine", required=True,
+                    help="TOML machine file, or a shipped one: generic-3axis, seed-002")
+    tm.add_argument("--tools", required=True, help="TOML tool table")
+    tm.add_argument("--tool", default=None, help="tool name for G-code without T words")
+    tm.add_argument("--feed", type=float, default=None,
+                    help="cutting feed for every feed move, mm/min (default: as programmed, else the machine's)")
+    tm.add_argument("--out", default=None, help="write the summary as JSON to this file")
+    tm.set_defaults(func=cmd_time)
+    ch = sub.add_parser("choose", help="tool choice, zones and directions by machining time (3-axis or 3+2)")
+    ch.add_argument("surface", help="surface: patch TOML (Bezier/B-spline/NURBS), 'rubio' or 'choi', or a mesh (STL, OBJ, PLY)")
+    ch.add_argument("--tool-pair", default=None, metavar="D,r",
+                    help="a ball of diameter D and a bull-nose D with corner radius r, mm (e.g. 10,2)")
+    ch.add_argument("--tools", default=None, help="TOML tool table: its ball and bull-nose cutters are the candidates")
+    ch.add_argument("--scallop", type=float, required=True, help="largest scallop height, mm")
+    ch.add_argument("--zones", default="auto", help="number of clusters K, or auto (best of 1..--k-max) (auto)")
+    ch.add_argument("--k-max", type=int, default=6, help="largest K tried by --zones auto (6)")
+    ch.add_argument("--axes", choices=("3", "3+2"), default="3", help="3-axis or 3+2-axis (3)")
+    ch.add_argument("--optimise", type=int, default=0, metavar="EVALS",
+                    help="NOMAD black-box evaluations for the weights, directions, tools (and tilts) (0: none)")
+    ch.add_argument("--machine", default="generic-3axis",
+                    help="TOML machine file, or a shipped one: generic-3axis, seed-002 (generic-3axis)")
+    ch.add_argument("--cluster", choices=("kmeans", "rpcl", "ward"), default="kmeans", help="clustering (kmeans)")
+    ch.add_argument("--metric", choices=("euclidean", "mahalanobis", "std", "std2", "pca"), default="euclidean",
+                    help="clustering metric (euclidean)")
+    ch.add_argument("--grid", type=int, default=80, help="sampling grid, cells a side (80)")
+    ch.add_argument("--mesh-step", type=float, default=0.5, help="triangle size of a patch's mesh, mm (0.5)")
+    ch.add_argument("--sample", type=float, default=0.5, help="drop-cutter spacing along a pass, mm (0.5)")
+    ch.add_argument("--min-zone", type=float, default=0.01,
+                    help="zones under this fraction of the cells join a neighbour (0.01)")
+    ch.add_argument("--seed", type=int, default=0, help="random seed of RPCL and NOMAD (0)")
+    ch.add_argument("--out", default="choose", help="output folder (choose)")
+    ch.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    _add_device(ch)
+    ch.set_defaults(func=cmd_choose)
+    for sp in (f, r, w, pl, d, s, rp, tm, ch):
         sp.add_argument("--json", action="store_true", help="print the summary as JSON on stdout (and nothing on stderr)")
     return p
 

@@ -40,6 +40,7 @@ class Run:
     deviation: dict | None = None
     samples: dict | None = None  # deviation points and values
     machined: tuple | None = None  # (vertices, faces)
+    zones: dict | None = None  # choose: the sampling grid's cells and their zones
     notes: list = field(default_factory=list)
 
 
@@ -66,7 +67,7 @@ def summary_path(folder: str) -> str:
 def read_run(folder: str, meshes: dict | None = None) -> Run:
     """Read a run folder (raises :class:`InputError` when it is not one); ``meshes`` keeps the
     parts already loaded, by file, for runs on the same part."""
-    from .geometry.mesh import load_mesh
+    from .geometry.mesh import SUPPORTED, load_mesh
     from .tools.table import load_tools
     from .toolpath.cldata import read_apt
 
@@ -76,7 +77,9 @@ def read_run(folder: str, meshes: dict | None = None) -> Run:
     if kind is None:
         raise InputError(f"{path}: not a meshmill summary (no 'operation')")
     run = Run(folder=folder, kind=kind, summary=s)
-    part_file = (s.get("part") or s.get("design") or {}).get("file")
+    part_file = (s.get("part") or s.get("design") or s.get("surface") or {}).get("file")
+    if part_file and not part_file.lower().endswith(SUPPORTED):
+        part_file = None  # a patch (choose): its sampled cells stand for it
     if part_file and os.path.exists(part_file):
         meshes = {} if meshes is None else meshes
         if part_file not in meshes:
@@ -92,6 +95,10 @@ def read_run(folder: str, meshes: dict | None = None) -> Run:
             run.toolpath, _ = read_apt(cl, run.tools)
         else:
             run.notes.append("the summary names no tool table that still exists: the tool path is not shown")
+    zf = os.path.join(folder, "zones.npz")
+    if os.path.exists(zf):
+        with np.load(zf) as z:
+            run.zones = {k: z[k] for k in z.files}
     c = os.path.join(folder, "contours.npz")
     if os.path.exists(c):
         with np.load(c) as z:
@@ -216,6 +223,20 @@ def _contour_traces(go, run, notes):
     return out
 
 
+def _zone_traces(go, run):
+    """One marker trace per zone of a ``choose`` run, coloured and named by zone with its cutter."""
+    z = run.zones
+    rows = {r["zone"]: r for r in run.summary.get("zones", [])}
+    out = []
+    for zone in np.unique(z["zones"][z["zones"] >= 0]):
+        pts = z["points"][z["zones"] == zone]
+        r = rows.get(int(zone), {})
+        name = f"zone {zone}: {r.get('tool', '?')}, {r.get('azimuth_deg', float('nan')):.0f} deg"
+        out.append(go.Scatter3d(x=pts[:, 0], y=pts[:, 1], z=pts[:, 2], mode="markers", name=name,
+                                marker=dict(size=2, color=PATH_COLOURS[int(zone) % len(PATH_COLOURS)])))
+    return out
+
+
 def deviation_colours(tol: float):
     """A stepped diverging colour scale over ``[-3 tol, 3 tol]`` whose bands are the tolerance
     classes: gouge below -tol (reds, darker deeper), within ±tol (one pale band), excess above tol
@@ -267,12 +288,15 @@ def run_figures(run: Run) -> list:
         size = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
         opacity = 0.35 if run.kind == "simulate" else 1.0 if run.toolpath is None else 0.55
         base.append(_mesh_trace(go, v, f, "part", opacity=opacity))
-    if run.kind in ("finish", "raster", "waterline", "plunge") and run.toolpath is not None:
+    if run.zones is not None:
+        figs.append((f"{run.kind}: zones", _scene("zones (cells of the sampling grid)", go, base + _zone_traces(go, run))))
+    if run.kind in ("finish", "raster", "waterline", "plunge", "choose") and run.toolpath is not None:
         traces = list(base) + _path_traces(go, run, notes)
         glyphs = _axis_glyphs(go, run, AXIS_GLYPH_LENGTH * size)
         if glyphs is not None:
             traces.append(glyphs)
-        title = {"plunge": "plunge lines", "finish": "5-axis tool path"}.get(run.kind, "tool path")
+        title = {"plunge": "plunge lines", "finish": "5-axis tool path",
+                 "choose": "zigzag per zone"}.get(run.kind, "tool path")
         figs.append((f"{run.kind}: {title}", _scene(f"{run.kind}: {title}", go, traces)))
     if run.contours is not None:
         figs.append((f"{run.kind}: contours", _scene("contours: machinable and not", go, base + _contour_traces(go, run, notes))))

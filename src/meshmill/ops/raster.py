@@ -22,6 +22,7 @@ from ..kernels.backend import MeshKernels
 from ..geometry.mesh import Mesh
 from ..tolerances import GOUGE_TOL
 from ..toolpath.linking import simplify_polyline
+from ..choice.scallop import stepover
 from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool, verified_path
 from .verify import DEFAULT_STEP
 
@@ -62,10 +63,8 @@ def effective_radius(tool) -> float:
 
 
 def stepover_for_scallop(scallop: float, r_eff: float) -> float:
-    """sod = 2·sqrt(2·h·R_eff - h²), mm."""
-    if scallop >= r_eff:
-        raise InputError(f"--scallop {scallop:g} must be smaller than the effective radius {r_eff:g} mm")
-    return 2.0 * math.sqrt(2.0 * scallop * r_eff - scallop * scallop)
+    """sod = 2·sqrt(2·h·R_eff - h²), mm (:func:`meshmill.choice.scallop.stepover`)."""
+    return float(stepover(scallop, r_eff))
 
 
 def raster_lines(bounds, radius, stepover, angle_deg, sample):

@@ -180,3 +180,18 @@ def load_tools(path) -> list[Tool]:
     if len(set(names)) != len(names):
         raise InputError(f"{path}: tool names must be unique")
     return tools
+
+
+def write_tools(path, tools) -> None:
+    """Write ``tools`` as a TOML tool table that :func:`load_tools` reads back (same order)."""
+    lines = ["# tool table written by meshmill (mm)"]
+    for t in tools:
+        lines += ["", "[[tools]]", f'name = "{t.name}"', f'type = "{t.type}"', f"diameter = {t.diameter!r}"]
+        if t.type == "bull":
+            lines.append(f"corner_radius = {t.corner_radius!r}")
+        lines += [f"flute_length = {t.flute_length!r}", f"gauge_length = {t.gauge_length!r}",
+                  f"shank_diameter = {t.shank_diameter!r}"]
+        if t.holder_diameter > 0:
+            lines += [f"holder_diameter = {t.holder_diameter!r}", f"holder_length = {t.holder_length!r}"]
+    with open(path, "w") as fh:
+        fh.write("\n".join(lines) + "\n")

@@ -1,0 +1,164 @@
+"""The black box of seed 002 on our kernels: a zoning plus, per zone, a cutter, a feed azimuth
+and a tool axis -> the zigzag tool paths and their machining time on a machine.
+
+Zones are machined one after the other, grouped by cutter and then by tool axis (fewest tool
+changes and re-orientations); each zone's passes are linked with retracts to its own safe plane
+(``SAFE_ABOVE`` over the part in the zone's machining frame). The time is that of
+:func:`meshmill.machine.timing.path_time` on the machining-frame moves, plus the machine's tool
+change and re-orientation times.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..machine.timing import path_time
+from ..ops.dropcutter import SAFE_ABOVE, verified_path
+from ..ops.raster import drop_refined
+from ..ops.verify import DEFAULT_STEP
+from ..toolpath.linking import link_passes, simplify_polyline
+from ..toolpath.model import Toolpath
+from .zigzag import SurfaceSetup, frame_rotation
+
+UP = (0.0, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class ZonePlan:
+    """How one zone is machined: cutter index, feed azimuth ``theta`` (rad, in the machining
+    frame's XY) and unit tool ``axis (3,)`` in the part frame (+Z: 3-axis)."""
+
+    tool: int
+    theta: float
+    axis: tuple = UP
+
+
+@dataclass
+class ZoneResult:
+    """One machined zone: its ``plan``, ``toolpath`` (part frame, linked), times from
+    :func:`path_time` (``time``), ``planes``, ``coverage`` (fraction of its cells within one
+    plane spacing of a contact) and the limiting ``r_eff (planes,)``."""
+
+    zone: int
+    plan: ZonePlan
+    toolpath: Toolpath
+    time: dict
+    planes: int
+    coverage: float
+    r_eff: np.ndarray = field(repr=False)
+    moves_left_out: int = 0  # feed moves dropped because they failed verification (tool lifts over)
+
+
+@dataclass
+class PlanResult:
+    """All zones in machining order, the whole tool path (zones joined by rapid transits) and
+    ``total_s``: the path's time plus the tool changes and re-orientations."""
+
+    zones: list
+    toolpath: Toolpath
+    total_s: float
+    tool_changes: int
+    reorientations: int
+
+
+class Machinist:
+    """Evaluates plans on one surface: ``smesh`` (:class:`~meshmill.choice.surface.SurfaceMesh`),
+    ``samples`` (:class:`~meshmill.choice.surface.Samples`, the zoning grid), candidate
+    ``tools``, ``scallop`` mm, ``machine`` (:class:`~meshmill.machine.config.Machine`), drop
+    spacing ``sample`` mm. Setups (BVH per cutter and axis) are cached."""
+
+    def __init__(self, smesh, samples, tools, scallop, machine, sample=0.5, device="cpu"):
+        self.smesh, self.samples, self.tools = smesh, samples, tools
+        self.scallop, self.machine, self.sample, self.device = scallop, machine, sample, device
+        self._setups, self._zones = {}, {}
+        lo, hi = smesh.mesh.bounds
+        reach = max(t.reach for t in tools)
+        # 3+2 transits run outside this sphere, where no pose of any tool reaches the part
+        self.centre = 0.5 * (lo + hi)
+        self.clear_radius = 0.5 * float(np.linalg.norm(hi - lo)) + SAFE_ABOVE + reach
+
+    def setup(self, tool: int, axis) -> SurfaceSetup:
+        key = (tool, tuple(np.round(axis, 12)))
+        if key not in self._setups:
+            if len(self._setups) > 64:
+                self._setups.clear()
+            self._setups[key] = SurfaceSetup(self.smesh, self.samples.grid_shape, self.tools[tool],
+                                             frame_rotation(axis), self.device)
+        return self._setups[key]
+
+    def zone(self, zones, zone: int, plan: ZonePlan) -> ZoneResult:
+        """Machine zone ``zone`` of ``zones (n_cells,)`` with ``plan`` (results are cached)."""
+        key = (hash(zones.tobytes()), zone, plan)
+        if key not in self._zones:
+            if len(self._zones) > 4096:
+                self._zones.clear()
+            self._zones[key] = self._zone(zones, zone, plan)
+        return self._zones[key]
+
+    def _zone(self, zones, zone, plan, tol=None):
+        st = self.setup(plan.tool, plan.axis)
+        inside = zones == zone
+        zp = st.zone_passes(inside, self.samples.points, self.samples.normals, plan.theta, self.scallop, self.sample)
+        passes = zp.passes
+        if tol is not None and passes:
+            # chords between drops leave the surface by at most tol/2; moves that still gouge (steep
+            # walls) are left out, the tool lifting over them
+            passes = [simplify_polyline(drop_refined(p[:, :2], st.drop, 0.5 * tol, self.sample / 64), 0.5 * tol)
+                      for p in passes]
+            tp, report, passes = verified_path(passes, plan.tool, self.tools, st.kern, st.top + SAFE_ABOVE, tol,
+                                               DEFAULT_STEP)
+            left_out = report["moves_left_out"]
+        else:
+            left_out = 0
+            tp = link_passes(passes, plan.tool, st.top + SAFE_ABOVE) if passes else Toolpath.concatenate([])
+        time = path_time(tp.tip, tp.rapid, self.machine)
+        coverage = zp.coverage(self.samples.points[inside] @ st.rotation.T)
+        # back to the part frame
+        tp = Toolpath(tp.tip @ st.rotation, np.tile(np.asarray(plan.axis, float), (len(tp), 1)), tp.rapid, tp.tool)
+        return ZoneResult(zone, plan, tp, time, len(zp.spacings), coverage, zp.r_eff, left_out)
+
+    def plan(self, zones, plans: dict, tol=None) -> PlanResult:
+        """Machine every zone ``z: ZonePlan`` of ``plans`` on ``zones (n_cells,)``; with ``tol``
+        (mm), the passes are refined where the chord between drops leaves the surface by more
+        than tol/2 (the tool path to write; not cached)."""
+        order = sorted(plans, key=lambda z: (plans[z].tool, tuple(np.round(plans[z].axis, 9)), z))
+        results = [self.zone(zones, z, plans[z]) if tol is None else self._zone(zones, z, plans[z], tol)
+                   for z in order]
+        results = [r for r in results if len(r.toolpath)]
+        changes = sum(a.plan.tool != b.plan.tool for a, b in zip(results, results[1:]))
+        turns = sum(not np.allclose(a.plan.axis, b.plan.axis) for a, b in zip(results, results[1:]))
+        parts = [r.toolpath for r in results[:1]]
+        for a, b in zip(results, results[1:]):
+            parts += [self.transit(a.toolpath, b.toolpath), b.toolpath]
+        tp = Toolpath.concatenate(parts)
+        total = path_time(tp.tip, tp.rapid, self.machine)["total_s"] if len(tp) else 0.0
+        total += changes * self.machine.tool_change + turns * self.machine.reorient
+        return PlanResult(results, tp, total, changes, turns)
+
+    def transit(self, a: Toolpath, b: Toolpath) -> Toolpath:
+        """Rapid moves from the end of ``a`` to the start of ``b`` (both begin and end retracted):
+        straight when the tool axis stays, else out along a's axis to the clearance sphere, over
+        its top, and in along b's axis (the axis turning on the sphere). The first row repeats the
+        end of ``a`` (a zero move, so that the rows time as moves)."""
+        p, q, ax, bx = a.tip[-1], b.tip[0], a.axis[-1], b.axis[0]
+        if np.allclose(ax, bx):
+            tips, axes = [p, q], [ax, bx]
+        else:
+            top = self.centre + np.array([0.0, 0.0, self.clear_radius])
+            tips = [p, self._exit(p, ax), top, self._exit(q, bx), q]
+            axes = [ax, ax, _unit(ax + bx), bx, bx]
+        n = len(tips)
+        return Toolpath(np.array(tips), np.array(axes), np.ones(n, bool), np.full(n, b.tool[0], np.int64))
+
+    def _exit(self, point, axis):
+        """Where the ray from ``point`` along ``axis`` leaves the clearance sphere."""
+        d = point - self.centre
+        b = float(d @ axis)
+        t = -b + np.sqrt(max(b * b - (d @ d - self.clear_radius**2), 0.0))
+        return point + max(t, 0.0) * axis
+
+
+def _unit(v):
+    n = np.linalg.norm(v)
+    return v / n if n > 1e-12 else np.array(UP)

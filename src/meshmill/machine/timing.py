@@ -1,0 +1,220 @@
+"""Jerk-limited machining time (seed 002 §1.6.2): straight segments from rest to rest.
+
+Units: mm, s. A segment of length L with feed limit V, acceleration limit A and jerk limit J takes
+L/v + T_acc(v), where v <= V is the highest speed it reaches and T_acc(v) the time of one
+S-curve speed-up to v: v/A + A/J when A is reached (v >= A²/J), 2 sqrt(v/J) otherwise. This is the
+seed's eqs. 1.13-1.15 (case 1: V and A reached, case 2: V only, case 3: neither, t = 4 ∛(L/(2J)))
+plus the fourth case (A reached, V not) that the seed's parameters never meet.
+
+A tool path is timed as such segments (:func:`path_time`, :func:`tool_times`): it comes to rest
+where rapid and feed moves meet, at tool changes and at turns sharper than the machine's corner
+angle, and runs straight through the gentler turns between. :func:`programmed_feeds` reads the
+feed rates of APT and G-code files.
+"""
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..toolpath.cldata import read_text
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """Limits of the machine's linear motion: ``feed`` and ``rapid`` in mm/s, ``accel`` mm/s²,
+    ``jerk`` mm/s³."""
+
+    feed: float
+    accel: float
+    jerk: float
+    rapid: float
+
+    @staticmethod
+    def seed() -> "Kinematics":
+        """The seed's standard machine: V = 5 m/min, A = 6 m/s², J = 40 m/s³ (rapid 20 m/min)."""
+        return Kinematics(feed=5000.0 / 60.0, accel=6000.0, jerk=40000.0, rapid=20000.0 / 60.0)
+
+
+def segment_time(length, v_max, accel, jerk):
+    """Time ``(...)`` s to travel ``length (...)`` mm on a straight line from rest to rest."""
+    L = np.maximum(np.asarray(length, float), 0.0)
+    v_a = accel * accel / jerk  # the speed gained while the jerk ramps the acceleration up and down
+    # highest speed the length allows: v T_acc(v) = L
+    v_jerk = np.cbrt(L * L * jerk / 4.0)  # A not reached: v · 2 sqrt(v/J) = L
+    b = accel / jerk
+    v_acc = 0.5 * accel * (-b + np.sqrt(b * b + 4.0 * L / accel))  # A reached: v²/A + v A/J = L
+    v_len = np.where(v_jerk <= v_a, v_jerk, v_acc)
+    v = np.minimum(v_len, v_max)
+    t_acc = np.where(v >= v_a, v / accel + accel / jerk, 2.0 * np.sqrt(v / jerk))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(L > 0.0, L / v + t_acc, 0.0)
+    return t if t.ndim else float(t)
+
+
+# --- tool paths -----------------------------------------------------------------------------------
+
+MIN_MOVE = 1e-6  # mm: a shorter move has no direction; it takes no time and never stops the tool
+
+
+def _limits(machine, corner_angle):
+    """``(Kinematics, corner angle rad)`` of a Machine or of bare Kinematics and an angle."""
+    kinematics = getattr(machine, "kinematics", machine)
+    if corner_angle is None:
+        if kinematics is machine:
+            raise ValueError("corner_angle is needed with bare Kinematics")
+        corner_angle = machine.corner_angle
+    return kinematics, float(corner_angle)
+
+
+def _runs(tip, rapid, kinematics, corner_angle, feed=None, tool=None):
+    """The path's rest-to-rest runs: ``(length (r,) mm, seconds (r,), rapid (r,) bool, tool (r,)
+    or None)``.
+
+    Move i goes from ``tip[i-1]`` to ``tip[i]``; ``rapid[i]``, ``feed[i]`` (mm/s, NaN: the nominal
+    feed) and ``tool[i]`` describe it. A run ends where rapid and feed moves meet, where the tool
+    changes and where the direction turns by more than ``corner_angle``. Its time is that of one
+    straight segment of its length whose cruise time is that of its moves at their own speeds
+    (the speed limit of the segment is the length-weighted harmonic mean of theirs).
+    """
+    tip = np.asarray(tip, np.float64)
+    step = np.diff(tip, axis=0)
+    length = np.sqrt(np.einsum("ij,ij->i", step, step))
+    end = np.flatnonzero(length > MIN_MOVE) + 1  # the vertex each kept move ends at
+    if not len(end):
+        return np.zeros(0), np.zeros(0), np.zeros(0, bool), None if tool is None else np.zeros(0, np.int64)
+    length = length[end - 1]
+    direction = step[end - 1] / length[:, None]
+    is_rapid = np.asarray(rapid, bool)[end]
+    speed = np.where(is_rapid, kinematics.rapid, kinematics.feed)
+    if feed is not None:
+        programmed = np.asarray(feed, np.float64)[end]
+        given = ~np.isnan(programmed)
+        if (programmed[given] <= 0).any() or np.isinf(programmed).any():
+            raise ValueError("feed must be a positive finite number of mm/s (or NaN)")
+        speed = np.where(given & ~is_rapid, np.minimum(programmed, kinematics.rapid), speed)
+    cross = np.cross(direction[1:], direction[:-1])
+    turn = np.arctan2(np.sqrt(np.einsum("ij,ij->i", cross, cross)),
+                      np.einsum("ij,ij->i", direction[1:], direction[:-1]))
+    starts = np.ones(len(end), bool)
+    starts[1:] = (is_rapid[1:] != is_rapid[:-1]) | (turn > corner_angle)
+    move_tool = None if tool is None else np.asarray(tool)[end]
+    if move_tool is not None:
+        starts[1:] |= move_tool[1:] != move_tool[:-1]
+    first = np.flatnonzero(starts)
+    run_length = np.add.reduceat(length, first)
+    cruise = np.add.reduceat(length / speed, first)
+    seconds = segment_time(run_length, run_length / cruise, kinematics.accel, kinematics.jerk)
+    return run_length, seconds, is_rapid[first], None if move_tool is None else move_tool[first]
+
+
+def _totals(length, seconds, rapid) -> dict:
+    """Sums over runs ``(r,)``: seconds, lengths (mm) and stops (every run ends at rest)."""
+    cutting_s, rapid_s = float(seconds[~rapid].sum()), float(seconds[rapid].sum())
+    return {"total_s": cutting_s + rapid_s, "cutting_s": cutting_s, "rapid_s": rapid_s,
+            "cutting_mm": float(length[~rapid].sum()), "rapid_mm": float(length[rapid].sum()),
+            "stops": int(len(length))}
+
+
+def path_time(tip, rapid, machine, corner_angle=None, feed=None) -> dict:
+    """Machining time of a tool path, rest-to-rest run by run (see :func:`_runs`).
+
+    ``tip (k, 3)`` mm, ``rapid (k,) bool`` (move i ends at ``tip[i]``), ``machine`` a
+    :class:`~meshmill.machine.config.Machine` or :class:`Kinematics`, ``corner_angle`` radians
+    (default: the machine's), ``feed (k,)`` mm/s per feed move (NaN: the machine's feed; capped at
+    the rapid rate). Returns ``total_s``, ``cutting_s``, ``rapid_s``, ``cutting_mm``, ``rapid_mm``
+    and ``stops`` (rest-to-rest runs, each ending at rest).
+    """
+    kinematics, corner_angle = _limits(machine, corner_angle)
+    length, seconds, is_rapid, _ = _runs(tip, rapid, kinematics, corner_angle, feed)
+    return _totals(length, seconds, is_rapid)
+
+
+def tool_times(tip, rapid, tool, machine, feed=None) -> dict:
+    """:func:`path_time` per tool: ``{"tools": {tool: dict}, "total": dict}``, tools in the order
+    of first use; runs also end at tool changes. ``tool (k,) int``; each change of tool between
+    consecutive moves adds ``machine.tool_change`` seconds to the incoming tool (``tool_changes``,
+    ``tool_change_s``, included in ``total_s``); the first tool is in the spindle at the start."""
+    tool = np.asarray(tool)
+    kinematics, corner_angle = _limits(machine, None)
+    length, seconds, is_rapid, run_tool = _runs(tip, rapid, kinematics, corner_angle, feed, tool)
+    changed_to = tool[1:][tool[1:] != tool[:-1]]
+    used, first = np.unique(tool, return_index=True)
+    tools = {}
+    for t in used[np.argsort(first)]:
+        mine = run_tool == t
+        entry = _totals(length[mine], seconds[mine], is_rapid[mine])
+        changes = int((changed_to == t).sum())
+        entry.update(tool_changes=changes, tool_change_s=changes * machine.tool_change)
+        entry["total_s"] += entry["tool_change_s"]
+        tools[t.item()] = entry
+    total = _totals(length, seconds, is_rapid)
+    total.update(tool_changes=len(changed_to), tool_change_s=len(changed_to) * machine.tool_change)
+    total["total_s"] += total["tool_change_s"]
+    return {"tools": tools, "total": total}
+
+
+# --- feed rates programmed in tool-path files -----------------------------------------------------
+
+INCH = 25.4
+APT_FEED_UNITS = {"MMPM": 1.0, "IPM": INCH}  # per minute; per revolution (MMPR, IPR) needs the spindle speed
+_FEDRAT = re.compile(r"^[ \t]*FEDRAT[ \t]*/([^\n]*)", re.M | re.I)
+_GCODE_COMMENT = re.compile(r"\([^)]*\)")
+_GCODE_WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+))")
+
+
+def _apt_feeds(text):
+    """``[(line, mm/min or None)]`` of the FEDRAT statements (None: not a feed per minute)."""
+    out, number, pos = [], 1, 0
+    for m in _FEDRAT.finditer(text):
+        number += text.count("\n", pos, m.start())
+        pos = m.start()
+        words = [w.strip().upper() for w in m.group(1).split("$$")[0].split(",") if w.strip()]
+        values, units = [], []
+        for w in words:
+            try:
+                values.append(float(w))
+            except ValueError:
+                units.append(w)
+        scale = APT_FEED_UNITS.get(units[0] if units else "MMPM") if len(units) <= 1 else None
+        ok = len(values) == 1 and scale is not None and 0 < values[0] < float("inf")
+        out.append((number, values[0] * scale if ok else None))
+    return out
+
+
+def _gcode_feeds(text):
+    """``[(line, mm/min or None)]`` of the lines with F words (inch/min under G20; None: F <= 0)."""
+    out, scale = [], 1.0
+    for number, raw in enumerate(text.splitlines(), start=1):
+        code = "".join(_GCODE_COMMENT.sub("", raw).split(";", 1)[0].split()).upper()
+        if "F" not in code and "G2" not in code:
+            continue
+        feed = None
+        for letter, value in _GCODE_WORD.findall(code):
+            if letter == "G" and float(value) in (20.0, 21.0):
+                scale = INCH if float(value) == 20.0 else 1.0
+            elif letter == "F":
+                feed = float(value)
+        if feed is not None:
+            out.append((number, feed * scale if feed > 0 else None))
+    return out
+
+
+def programmed_feeds(path, line, gcode) -> tuple[np.ndarray, list[str]]:
+    """Feed rates ``(k,)`` mm/s that a tool-path file programs for its moves, NaN where none is in
+    force. ``line (k,)``: the source line of each move (:attr:`Toolpath.line`); ``gcode``: the
+    file is G-code (``F`` words, mm/min or inch/min under G20) rather than APT (``FEDRAT/f`` with
+    ``MMPM`` or ``IPM``, mm/min without). Feeds are modal from their line on; feeds per revolution
+    and non-positive ones are not honoured (NaN from there on, and a warning)."""
+    path = os.fspath(path)
+    found = (_gcode_feeds if gcode else _apt_feeds)(read_text(path, "tool-path"))
+    lines = np.array([0] + [n for n, _ in found], np.int64)
+    values = np.array([np.nan] + [np.nan if f is None else f / 60.0 for _, f in found])
+    feed = values[np.searchsorted(lines, np.asarray(line), side="right") - 1]
+    bad = [n for n, f in found if f is None]
+    word = "F word" if gcode else "FEDRAT"
+    warnings = [f"{os.path.basename(path)}: {len(bad)} {word}(s) not honoured (first at line {bad[0]}): "
+                "not a positive feed per minute; the machine's feed there"] if bad else []
+    return feed, warnings

@@ -1,0 +1,352 @@
+"""Tool choice, zoning and machining directions by machining time (seed 002), 3-axis or 3+2-axis.
+
+1. The whole surface's PCA rectangle gives the seed's closed-form rule: a ball along the principal
+   direction or a bull-nose along the steepest slope (s_c(mu) against the slope).
+2. The surface is split into zones: clustering of (u, v, s, theta) over the sample grid
+   (K-means, RPCL or Ward; Euclidean, Mahalanobis, std or PCA metric), then every 4-connected
+   component its own zone; components under ``min_zone`` of the cells join the neighbour they
+   share most border with (a zone costs a retract, a rapid and often a tool change).
+3. Each zone is machined (the zigzag black box, :mod:`meshmill.choice.machining`) with every
+   candidate: each cutter along the zone's principal and steepest directions, and in 3+2-axis also
+   on the PCA heuristic's tool axes; the plan keeps the fastest per zone, or a single cutter when
+   the tool change costs more than mixing saves. ``zones="auto"`` does this for K = 1..k_max and
+   keeps the fastest K.
+4. ``optimise`` > 0 runs NOMAD (MADS) on the weights, per-cluster feed offsets, cutters and tilts
+   (:mod:`meshmill.choice.optimise`).
+Predicted times are the seed's surrogate 3 (analytic PCA-rectangle time, annex E) per zone.
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry.bvh import build_bvh
+from ..kernels.backend import MeshKernels
+from ..machine.timing import path_time
+from ..tolerances import GOUGE_TOL
+from ..tools.table import Tool
+from ..choice import clustering
+from ..choice.machining import Machinist, ZonePlan
+from ..choice.orientation import accessible, azimuth_in_frame, heuristic_axis
+from ..choice.rectangle import choose_tool, pca_rectangle, zone_time_surrogate
+from ..choice.surface import cell_samples, load_patch, mesh_samples, mesh_surface, patch_mesh
+from ..geometry.mesh import SUPPORTED, load_mesh
+from ..choice.zigzag import frame_rotation
+from .verify import DEFAULT_STEP, verify_toolpath
+
+CLUSTERS = ("kmeans", "rpcl", "ward")
+HEURISTIC_TILTS = (0.0, 15.0, -15.0, 30.0, -30.0)  # degrees about X_II tried in 3+2
+
+
+@dataclass
+class ChooseParams:
+    scallop: float
+    zones: int | None = None  # None: auto
+    axes: str = "3"
+    optimise: int = 0
+    grid: int = 80
+    mesh_step: float = 0.5
+    sample: float = 0.5
+    cluster: str = "kmeans"
+    metric: str = "euclidean"
+    k_max: int = 6
+    min_zone: float = 0.01
+    seed: int = 0
+
+    def check(self):
+        if not (isinstance(self.scallop, (int, float)) and math.isfinite(self.scallop) and self.scallop > 0):
+            raise InputError(f"--scallop must be a positive number of mm, got {self.scallop}")
+        if self.zones is not None and not 1 <= self.zones <= 50:
+            raise InputError(f"--zones must be 'auto' or an integer from 1 to 50, got {self.zones}")
+        if self.axes not in ("3", "3+2"):
+            raise InputError(f"--axes must be 3 or 3+2, got {self.axes}")
+        if self.optimise < 0:
+            raise InputError(f"--optimise must be a number of evaluations >= 0, got {self.optimise}")
+        if not 4 <= self.grid <= 400:
+            raise InputError(f"--grid must be from 4 to 400 cells a side, got {self.grid}")
+        for name in ("mesh_step", "sample"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and 0.01 <= v <= 50):
+                raise InputError(f"--{name.replace('_', '-')} must be from 0.01 to 50 mm, got {v}")
+        if self.cluster not in CLUSTERS:
+            raise InputError(f"--cluster must be one of {', '.join(CLUSTERS)}, got {self.cluster}")
+        if self.metric not in clustering.METRICS:
+            raise InputError(f"--metric must be one of {', '.join(clustering.METRICS)}, got {self.metric}")
+        if not 1 <= self.k_max <= 20:
+            raise InputError(f"--k-max must be from 1 to 20, got {self.k_max}")
+
+
+def tool_pair(spec: str) -> list[Tool]:
+    """``"D,r"`` -> a ball of diameter D and a bull-nose of diameter D and corner radius r (mm),
+    fluted 3 D, shank D, gauge 5 D, no holder."""
+    try:
+        d, r = (float(x) for x in spec.split(","))
+    except ValueError:
+        raise InputError(f"--tool-pair wants 'DIAMETER,CORNER_RADIUS' in mm (e.g. 10,2), got '{spec}'") from None
+    if not (math.isfinite(d) and math.isfinite(r) and d > 0 and 0 < r < d / 2):
+        raise InputError(f"--tool-pair {spec}: need a diameter > 0 and 0 < corner radius < diameter/2")
+    body = dict(diameter=d, flute_length=3 * d, gauge_length=5 * d, shank_diameter=d)
+    return [Tool(name=f"BALL{d:g}", type="ball", corner_radius=d / 2, number=1, **body),
+            Tool(name=f"BULL{d:g}R{r:g}", type="bull", corner_radius=r, number=2, **body)]
+
+
+def candidate_tools(tools) -> list[Tool]:
+    """The ball and bull-nose cutters of a table (a flat end leaves no defined scallop)."""
+    out = [t for t in tools if t.type in ("ball", "bull")]
+    if not out:
+        raise InputError("the tool table has no ball or bull-nose cutter to choose from")
+    return out
+
+
+def merge_small(zones, grid_shape, min_cells):
+    """Zones ``(n,)`` (-1: no surface) with every zone under ``min_cells`` cells given to the
+    4-neighbour zone it shares most edges with, renumbered 0..Z-1 by first cell."""
+    nu, nv = grid_shape
+    zones = zones.copy()
+    while True:
+        ids, counts = np.unique(zones[zones >= 0], return_counts=True)
+        small = ids[counts < min_cells]
+        if len(small) == 0 or len(ids) == 1:
+            break
+        z = int(small[np.argmin(counts[counts < min_cells])])
+        g = zones.reshape(nu, nv)
+        pairs = np.concatenate([np.column_stack([g[:-1].ravel(), g[1:].ravel()]),
+                                np.column_stack([g[:, :-1].ravel(), g[:, 1:].ravel()])])
+        pairs = np.concatenate([pairs, pairs[:, ::-1]])
+        border = pairs[(pairs[:, 0] == z) & (pairs[:, 1] != z) & (pairs[:, 1] >= 0), 1]
+        if len(border) == 0:
+            break
+        zones[zones == z] = np.bincount(border).argmax()
+    out = np.full(len(zones), -1, np.intp)
+    out[zones >= 0] = clustering._first_seen_order(zones[zones >= 0])
+    return out
+
+
+def zone_ids(zones):
+    """The zone ids ``(Z,)`` of ``zones (n,)`` (without -1, the cells off the surface)."""
+    return np.unique(zones[zones >= 0])
+
+
+def axial_mean(theta):
+    """Axial mean (rad, in [-pi/2, pi/2)) of axial angles ``theta (n,)``."""
+    return 0.5 * math.atan2(np.sin(2 * theta).mean(), np.cos(2 * theta).mean())
+
+
+class Chooser:
+    """Zoning, candidate plans and their evaluation for one surface; see the module docstring."""
+
+    def __init__(self, samples, smesh, tools, machine, params: ChooseParams, device="cpu", say=None):
+        params.check()
+        smallest = min(tools, key=lambda t: t.corner_radius)
+        if params.scallop >= smallest.corner_radius:
+            raise InputError(f"--scallop {params.scallop:g} mm is not smaller than {smallest.name}'s corner radius "
+                             f"{smallest.corner_radius:g} mm: no stepover leaves it")
+        self.params, self.machine, self.tools = params, machine, tools
+        self.say = say or (lambda stage: None)
+        self.samples, self.smesh = samples, smesh
+        self.machinist = Machinist(self.smesh, self.samples, tools, params.scallop, machine, params.sample, device)
+        self.evaluations = 0
+
+    # -- zoning ----------------------------------------------------------------------------
+    def zoning(self, k, weights=None):
+        """``(zones (n,), clusters (n,))`` for K = ``k`` clusters (Ward: None keeps the partition
+        before the largest merge jump)."""
+        p, s = self.params, self.samples
+        if k == 1:
+            clusters = np.zeros(len(s.points), np.intp)
+        elif p.cluster == "kmeans":
+            clusters = clustering.kmeans(s.features, s.grid_shape, k, p.metric, weights, s.points)
+        elif p.cluster == "rpcl":
+            clusters = clustering.rpcl(s.features, s.grid_shape, k, p.metric, weights, s.points, seed=p.seed)
+        else:
+            clusters = clustering.ward(s.features, s.grid_shape, k, weights)
+        clusters = np.where(s.valid, clusters, -1)
+        zones = clustering.connected_zones(clusters, s.grid_shape)
+        zones[~s.valid] = -1
+        zones = merge_small(zones, s.grid_shape, max(1, int(p.min_zone * s.valid.sum())))
+        return zones, clusters
+
+    def zone_frame(self, zones, z):
+        """PCA rectangle and axial mean steepest azimuth of zone ``z``."""
+        inside = zones == z
+        return (pca_rectangle(self.samples.points[inside], self.samples.normals[inside]),
+                axial_mean(self.samples.theta[inside]))
+
+    # -- candidates ------------------------------------------------------------------------
+    def candidates(self, zones, z) -> list[ZonePlan]:
+        """Every cutter along the zone's principal and steepest directions (3-axis), and in 3+2
+        every cutter on the accessible PCA-heuristic axes along the zone's X_I."""
+        rect, steepest = self.zone_frame(zones, z)
+        principal = rect.principal_azimuth if math.isfinite(rect.principal_azimuth) else steepest
+        out = []
+        for t in range(len(self.tools)):
+            out += [ZonePlan(t, principal), ZonePlan(t, steepest)]
+        if self.params.axes == "3+2":
+            inside = zones == z
+            normals = self.samples.normals[inside]
+            for zeta in HEURISTIC_TILTS:
+                axis, x1 = heuristic_axis(self.samples.points[inside], math.radians(zeta))
+                if not accessible(normals, axis):
+                    continue
+                theta = azimuth_in_frame(x1, frame_rotation(axis))
+                out += [ZonePlan(t, theta, tuple(float(c) for c in axis)) for t in range(len(self.tools))]
+        return out
+
+    def best_plans(self, zones):
+        """``(plans, tried)``: the fastest plan per zone over :meth:`candidates` (or with one
+        cutter for all zones, when the tool changes cost more), and each zone's tried plans with
+        their times."""
+        tried = {}
+        for z in zone_ids(zones):
+            tried[int(z)] = [(c, self.zone_time(zones, z, c)) for c in self.candidates(zones, z)]
+        options = [{z: min(c, key=lambda x: x[1])[0] for z, c in tried.items()}]
+        for t in range(len(self.tools)):
+            only = {z: [x for x in c if x[0].tool == t] for z, c in tried.items()}
+            if all(only.values()):
+                options.append({z: min(c, key=lambda x: x[1])[0] for z, c in only.items()})
+        best = min(options, key=lambda plans: self.machinist.plan(zones, plans).total_s)
+        return best, tried
+
+    def zone_time(self, zones, z, plan) -> float:
+        self.evaluations += 1
+        return self.machinist.zone(zones, int(z), plan).time["total_s"]
+
+    def predicted(self, zones, z, plan) -> float:
+        """Surrogate 3 (annex E) for zone ``z`` with ``plan``, in the plan's machining frame."""
+        inside = zones == z
+        rot = frame_rotation(plan.axis)
+        rect = pca_rectangle(self.samples.points[inside] @ rot.T, self.samples.normals[inside] @ rot.T)
+        tool = self.tools[plan.tool]
+        return float(zone_time_surrogate(rect, plan.theta, tool.radius, tool.corner_radius, self.params.scallop,
+                                         self.machine.kinematics))
+
+    # -- the whole run ---------------------------------------------------------------------
+    def run(self):
+        """``(PlanResult, zones (n,), clusters (n,), summary dict)``."""
+        p = self.params
+        ks = [p.zones] if p.zones is not None else list(range(1, p.k_max + 1))
+        runs = []
+        for k in ks:
+            self.say(f"zoning K={k}")
+            zones, clusters = self.zoning(k)
+            plans, tried = self.best_plans(zones)
+            result = self.machinist.plan(zones, plans)
+            runs.append((result.total_s, k, zones, clusters, plans, tried, result))
+        total, k, zones, clusters, plans, tried, result = min(runs, key=lambda r: r[0])
+        by_k = {int(r[1]): round(r[0], 3) for r in runs}
+        optimisation = None
+        if p.optimise > 0:
+            from ..choice.optimise import optimise_plan
+
+            self.say(f"optimising K={k} ({p.optimise} evaluations)")
+            opt = optimise_plan(self, k, zones, clusters, plans, p.optimise, seed=p.seed)
+            optimisation = opt.summary
+            if opt.result.total_s < result.total_s:
+                zones, clusters, plans, result = opt.zones, opt.clusters, opt.plans, opt.result
+        return result, zones, clusters, self.summary(result, zones, clusters, tried if optimisation is None else {},
+                                                     by_k, optimisation)
+
+    def rule(self):
+        """The seed's closed-form choice on the whole surface, for each bull-nose cutter against
+        the ball of the same diameter (or the largest ball)."""
+        valid = self.samples.valid
+        rect = pca_rectangle(self.samples.points[valid], self.samples.normals[valid])
+        balls = [t for t in self.tools if t.type == "ball"]
+        out = []
+        for bull in (t for t in self.tools if t.type == "bull"):
+            ball = next((b for b in balls if b.diameter == bull.diameter), max(balls, key=lambda b: b.diameter, default=None))
+            choice = choose_tool(rect, bull.radius, bull.corner_radius, self.params.scallop, self.machine.kinematics)
+            out.append({
+                "ball": ball.name if ball else None, "bull": bull.name,
+                "choice": (ball.name if ball else f"a ball of diameter {bull.diameter:g}") if choice.tool == "ball" else bull.name,
+                "direction": "principal" if choice.tool == "ball" else "steepest slope",
+                "azimuth_deg": math.degrees(choice.azimuth),
+                "slope_deg": math.degrees(choice.slope), "critical_slope_deg": math.degrees(choice.critical_slope),
+                "shape_factor": choice.shape_factor, "critical_shape_factor": choice.critical_shape_factor,
+                "predicted_ball_principal_s": choice.time_ball_principal,
+                "predicted_bull_steepest_s": choice.time_toric_steepest,
+                "warnings": list(choice.warnings)})
+        return {"shape_factor": rect.shape_factor, "characteristic_size_mm2": rect.size,
+                "eigenvalues_mm2": rect.variances.tolist(), "plane_slope_deg": math.degrees(rect.plane_slope),
+                "principal_azimuth_deg": math.degrees(rect.principal_azimuth),
+                "steepest_azimuth_deg": math.degrees(rect.steepest_azimuth), "pairs": out}
+
+    def summary(self, result, zones, clusters, tried, by_k, optimisation):
+        s = self.samples
+        zone_rows = []
+        for r in result.zones:
+            inside = zones == r.zone
+            tool = self.tools[r.plan.tool]
+            tilt = math.degrees(math.acos(max(-1.0, min(1.0, r.plan.axis[2]))))
+            row = {
+                "zone": r.zone, "cells": int(inside.sum()), "area_mm2": float(s.area[inside].sum()),
+                "cluster": int(np.bincount(clusters[inside]).argmax()),
+                "tool": tool.name, "azimuth_deg": math.degrees(r.plan.theta), "axis": list(r.plan.axis),
+                "tilt_deg": tilt, "mean_slope_deg": math.degrees(float(s.slope[inside].mean())),
+                "predicted_s": self.predicted(zones, r.zone, r.plan), "measured_s": r.time["total_s"],
+                "cutting_mm": r.time["cutting_mm"], "planes": r.planes, "coverage": r.coverage,
+            }
+            if r.zone in tried:
+                row["tried"] = [{"tool": self.tools[c.tool].name, "azimuth_deg": math.degrees(c.theta),
+                                 "tilt_deg": math.degrees(math.acos(max(-1.0, min(1.0, c.axis[2])))), "measured_s": t}
+                                for c, t in tried[r.zone]]
+            zone_rows.append(row)
+        return {
+            "operation": "choose", "axes": self.params.axes, "scallop": self.params.scallop,
+            "grid": list(s.grid_shape), "cluster": self.params.cluster, "metric": self.params.metric,
+            "tools": [t.name for t in self.tools], "machine": self.machine.summary(),
+            "rule": self.rule(), "k": int(np.unique(clusters[clusters >= 0]).size), "zones": zone_rows,
+            "total_s": result.total_s, "tool_changes": result.tool_changes, "reorientations": result.reorientations,
+            "predicted_total_s": float(sum(z["predicted_s"] for z in zone_rows)),
+            "total_by_k": by_k, "optimisation": optimisation, "black_box_zone_runs": self.evaluations,
+        }
+
+
+def load_surface(path, params: ChooseParams):
+    """``(samples, surface mesh, description)`` of an STL/OBJ/PLY mesh (its top, seen from +Z) or
+    a patch (TOML file or a built-in name)."""
+    if os.path.splitext(path)[1].lower() in SUPPORTED:
+        mesh = load_mesh(path)
+        return mesh_samples(mesh, params.grid, params.grid), mesh_surface(mesh), {"file": os.path.abspath(path),
+                                                                                 **mesh.summary()}
+    patch = load_patch(path)
+    return (cell_samples(patch, params.grid, params.grid), patch_mesh(patch, params.mesh_step),
+            {"patch": patch.name, "degrees": [patch.degree_u, patch.degree_v],
+             "control_points": list(patch.points.shape[:2]), "file": os.path.abspath(path) if os.path.exists(path) else ""})
+
+
+def choose(surface, tools, machine, params: ChooseParams, progress=None, device="cpu"):
+    """Run the whole choice (module docstring) on ``surface`` (a path, or what
+    :func:`load_surface` returned); returns ``(toolpath, summary, zones (n,), chooser)``, the
+    tool path verified against the surface."""
+    say = progress or (lambda stage: None)
+    t_all = time.perf_counter()
+    params.check()
+    samples, smesh, described = load_surface(surface, params) if isinstance(surface, str) else surface
+    chooser = Chooser(samples, smesh, candidate_tools(tools), machine, params, device, say)
+    result, zones, clusters, summary = chooser.run()
+    say("refine")
+    plans = {r.zone: r.plan for r in result.zones}
+    result = chooser.machinist.plan(zones, plans, GOUGE_TOL)
+    summary.update({"total_s": result.total_s, "tool_changes": result.tool_changes,
+                    "reorientations": result.reorientations})
+    for row, r in zip(summary["zones"], result.zones):
+        row.update({"measured_s": r.time["total_s"], "cutting_mm": r.time["cutting_mm"],
+                    "moves_left_out": r.moves_left_out})
+    say("verify")
+    t = time.perf_counter()
+    kern = MeshKernels(build_bvh(chooser.smesh.mesh.vertices, chooser.smesh.mesh.faces), device)
+    report = verify_toolpath(kern, result.toolpath, chooser.tools, GOUGE_TOL, DEFAULT_STEP)
+    report.pop("problem_moves")
+    whole = path_time(result.toolpath.tip, result.toolpath.rapid, machine)
+    summary.update({
+        "verify": report, "moves": int(len(result.toolpath)), "cutting_length": result.toolpath.cutting_length(),
+        "path_time": whole, "device": device, "surface": described,
+        "seconds": {"verify": round(time.perf_counter() - t, 4), "total": round(time.perf_counter() - t_all, 4)},
+    })
+    return result.toolpath, summary, zones, chooser
