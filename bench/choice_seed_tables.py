@@ -43,7 +43,7 @@ from meshmill.choice.surface import bezier, cell_samples, load_patch, mesh_sampl
 from meshmill.choice.zigzag import frame_rotation
 from meshmill.geometry.mesh import mesh_from_arrays
 from meshmill.machine.config import load_machine
-from meshmill.ops.choose import ChooseParams, Chooser, axial_mean, tool_pair, zone_ids
+from meshmill.ops.choose import ChooseParams, Chooser, tool_pair, zone_ids
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 BALL, BULL = tool_pair("10,2")
@@ -224,12 +224,12 @@ def plan_cost(ch, zones, plans):
 def direction_plans(ch, zones, direction):
     plans = {}
     for z in zone_ids(zones):
-        rect, steepest = ch.zone_frame(zones, z)
+        principal, steepest = ch.zone_frame(zones, z)
         if direction == "steepest":
             plans[int(z)] = ZonePlan(1, steepest)
         else:
-            principal = rect.principal_azimuth if math.isfinite(rect.principal_azimuth) else steepest
-            plans[int(z)] = min((ZonePlan(t, principal) for t in (0, 1)), key=lambda c: ch.zone_time(zones, z, c))
+            plans[int(z)] = min((ZonePlan(t, principal) for t in (0, 1)),
+                                key=lambda c: ch.machinist.zone(zones, int(z), c).time["total_s"])
     return plans
 
 
@@ -281,7 +281,7 @@ def ch4_rows(ks, evals, axes_modes=("3", "3+2"), heuristic=False):
                     plans = {}
                     for z in zone_ids(zones):
                         inside = zones == z
-                        axis, x1 = heuristic_axis(ch.samples.points[inside])
+                        axis, x1 = heuristic_axis(ch.samples.points[inside], ch.samples.normals[inside])
                         plans[int(z)] = ZonePlan(0, azimuth_in_frame(x1, frame_rotation(axis)), tuple(axis))
                 else:
                     plans = direction_plans(ch, zones, "steepest")

@@ -355,3 +355,10 @@ def test_time_command_bad_input(tmp_path, tools, tools_file, capsys):
     assert "no such CL file" in _one_line_error(capsys, ["time", str(tmp_path / "x.cl"), "--machine", "seed-002",
                                                          "--tools", t])
     _one_line_error(capsys, ["time", str(cl), "--tools", t])  # no --machine
+    # no --tools: the tools.toml beside the path, else one line
+    assert main(["time", str(cl), "--machine", "seed-002", "--json"]) == (0 if (cl.parent / "tools.toml").exists() else 2)
+    capsys.readouterr()
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    (alone / "job.cl").write_text(cl.read_text())
+    assert "no --tools given" in _one_line_error(capsys, ["time", str(alone / "job.cl"), "--machine", "seed-002"])

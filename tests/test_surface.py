@@ -76,9 +76,12 @@ def test_tilted_plane_samples_and_mesh():
     assert np.allclose(s.slope, math.radians(30)) and np.allclose(s.theta, 0.0)
     assert (s.normals[:, 2] > 0).all() and s.valid.all()
     sm = patch_mesh(patch, 2.0)
-    assert sm.edge.sum() == 2 * (sm.uv[:, 0] == 0).sum() + 2 * (sm.uv[:, 1] == 0).sum() - 4
-    uv, edge = sm.locate(sm.points[:5])
-    assert np.allclose(uv, sm.uv[:5]) and (edge == sm.edge[:5]).all()
+    boundary = ((sm.uv == 0) | (sm.uv == 1)).any(axis=1)
+    uv, usable, normals = sm.locate(sm.points)
+    assert np.allclose(uv, sm.uv) and (usable == ~boundary).all() and np.allclose(normals, s.normals[0])
+    # a point on a boundary edge between nodes, and one just inside
+    mid = 0.5 * (sm.points[0] + sm.points[1])
+    assert sm.on_free_edge(np.array([mid, mid + [1e-3, 0.0, 0.0]])).tolist() == [True, False]
 
 
 def test_mesh_samples_see_the_top_and_mark_empty_cells():
@@ -95,7 +98,26 @@ def test_mesh_samples_see_the_top_and_mark_empty_cells():
                            np.array([[0, 1, 2], [3, 4, 5]]), "two")
     s2 = mesh_samples(gap, 10, 10)
     assert 0 < s2.valid.mean() < 0.6
-    assert mesh_surface(gap).edge.all()
+    # on a coarse open mesh only the boundary is a free edge, not the whole triangle
+    surf = mesh_surface(gap)
+    assert surf.on_free_edge(np.array([[2.0, 2.0, 0.0], [5.0, 0.0, 0.0], [5.0, 5.0, 0.0]])).tolist() == [False, True, True]
+
+
+def test_patch_mesh_keeps_its_chord_tolerance():
+    patch = load_patch("choi")
+    coarse = patch_mesh(patch, 5.0)
+    assert coarse.chord_error > 0.05
+    fine = patch_mesh(patch, 5.0, chord_tol=0.0025)
+    assert fine.chord_error <= 0.0025 and fine.step < 1.0
+    # measured independently: random points of the patch against the triangles
+    from meshmill.geometry.bvh import build_bvh
+    from meshmill.kernels.backend import MeshKernels
+    rng = np.random.default_rng(3)
+    u, v = rng.random(300), rng.random(300)
+    pts = np.array([patch.grid(np.array([a]), np.array([b]))[0][0, 0] for a, b in zip(u, v)])
+    d = MeshKernels(build_bvh(fine.mesh.vertices, fine.mesh.faces)).mesh_distances(pts)
+    d = d[0] if isinstance(d, tuple) else d
+    assert np.max(d) <= 0.0025
 
 
 @pytest.mark.parametrize("text, message", [

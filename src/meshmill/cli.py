@@ -439,6 +439,11 @@ def cmd_time(args):
     if args.feed is not None and not (math.isfinite(args.feed) and args.feed > 0):
         raise InputError(f"--feed must be a positive number of mm/min, got {args.feed}")
     machine = load_machine(args.machine)
+    if args.tools is None:
+        beside = os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "tools.toml")
+        if not os.path.exists(beside):
+            raise InputError(f"no --tools given and no tools.toml beside {args.toolpath}: give the tool table")
+        args.tools = beside
     tools = load_tools(args.tools)
     tp, warnings = read_toolpath(args.toolpath, tools, args.tool)
     feed_move = ~tp.rapid[1:]
@@ -518,7 +523,7 @@ def cmd_choose(args):
     v = summary["verify"]
     if not _quiet(args):
         _end_status()
-        for pair in summary["rule"]["pairs"]:
+        for pair in (summary["rule"] or {}).get("pairs", []):
             print(f"rule (whole surface, seed 002): {pair['choice']} along the {pair['direction']} "
                   f"(slope {pair['slope_deg']:.2f} deg, critical slope {pair['critical_slope_deg']:.2f} deg; "
                   f"predicted ball {pair['predicted_ball_principal_s']:.1f} s, bull {pair['predicted_bull_steepest_s']:.1f} s)")
@@ -532,13 +537,17 @@ def cmd_choose(args):
               f"{summary['tool_changes']} tool change(s) and {summary['reorientations']} re-orientation(s) on {machine.name}")
         if summary["optimisation"]:
             o = summary["optimisation"]
-            print(f"NOMAD: {o['start_s']:.1f} s -> {o['optimum_s']:.1f} s after {o['black_box_evaluations']} "
+            print(f"NOMAD: rule-based {o['rule_s']:.1f} s -> {o['optimum_s']:.1f} s after {o['black_box_evaluations']} "
                   f"black-box and {o['surrogate_evaluations']} surrogate evaluations")
+    for z in summary["zones"]:
+        if not z["machined"]:
+            _say(args, f"warning: zone {z['zone']} ({z['cells']} cells) is not machined: no candidate covers it "
+                       f"(best {100 * z['coverage']:.0f} % of its cells{', no passes' if not z['planes'] else ''})")
     _say(args, f"verify: {'OK' if v['ok'] else 'PROBLEMS'} (max gouge {v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
     _say(args, f"wrote {os.path.join(out, 'toolpath.cl')}, tools.toml, zones.npz and summary.json in "
                f"{summary['seconds']['total']:.1f} s (device {device})")
     _finish_json(args, summary)
-    return 0 if v["ok"] else 1
+    return 0 if v["ok"] and not summary["incomplete_zones"] else 1
 
 
 def build_parser():
@@ -676,7 +685,8 @@ def build_parser():
     tm.add_argument("toolpath", help="APT CL file (.cl) or 3-axis G-code (.nc, .ngc, .gcode, .tap)")
     tm.add_argument("--machine", required=True,
                     help="TOML machine file, or a shipped one: generic-3axis, seed-002")
-    tm.add_argument("--tools", required=True, help="TOML tool table")
+    tm.add_argument("--tools", default=None,
+                    help="TOML tool table (default: tools.toml beside the tool path, as choose writes it)")
     tm.add_argument("--tool", default=None, help="tool name for G-code without T words")
     tm.add_argument("--feed", type=float, default=None,
                     help="cutting feed for every feed move, mm/min (default: as programmed, else the machine's)")

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..errors import InputError
 from .machining import UP, ZonePlan
+from .clustering import wrap_axial
 from .orientation import accessible, azimuth_in_frame, heuristic_axis
 from .zigzag import frame_rotation
 
@@ -87,7 +88,7 @@ class Problem:
             v = x[4 + c * self.per_cluster: 4 + (c + 1) * self.per_cluster] if c < self.k else [0.0, 0]
             delta, tool = math.radians(v[0]), int(round(v[1]))
             if self.axes32 and int(round(v[2])) == 1:
-                axis, x1 = heuristic_axis(s.points[inside], math.radians(v[3]))
+                axis, x1 = heuristic_axis(s.points[inside], s.normals[inside], math.radians(v[3]))
                 if not accessible(s.normals[inside], axis):
                     return None
                 base = azimuth_in_frame(x1, frame_rotation(axis))
@@ -112,19 +113,21 @@ class Problem:
             if np.allclose(plan.axis, UP):
                 base, mode, zeta = self.chooser.zone_frame(zones, z)[1], 0, 0.0
             else:
-                mode, zeta = 1, _tilt_of(plan.axis, s.points[inside])
-                axis, x1 = heuristic_axis(s.points[inside], math.radians(zeta))
+                mode, zeta = 1, _tilt_of(plan.axis, s.points[inside], s.normals[inside])
+                axis, x1 = heuristic_axis(s.points[inside], s.normals[inside], math.radians(zeta))
                 base = azimuth_in_frame(x1, frame_rotation(axis))
-            delta = math.degrees(_axial(plan.theta - base))
+            delta = math.degrees(wrap_axial(plan.theta - base))
             x += [delta, plan.tool] + ([mode, zeta] if self.axes32 else [])
         return x
 
     def black_box(self, x):
+        """The plan's :attr:`~meshmill.choice.machining.PlanResult.score`; None when it does not
+        decode."""
         decoded = self.decode(x)
         if decoded is None:
             return None
         zones, _, plans = decoded
-        return self.chooser.machinist.plan(zones, plans).total_s
+        return self.chooser.machinist.plan(zones, plans).score
 
     def surrogate(self, x):
         decoded = self.decode(x)
@@ -138,16 +141,11 @@ class Problem:
                 + (len(tools) - 1) * ch.machine.tool_change + (len(axes) - 1) * ch.machine.reorient)
 
 
-def _axial(a):
-    """``a`` rad wrapped to [-pi/2, pi/2)."""
-    return (a + 0.5 * math.pi) % math.pi - 0.5 * math.pi
-
-
-def _tilt_of(axis, points):
-    """The heuristic tilt (degrees) that gives ``axis`` for a zone of ``points`` (nearest of a
-    fine scan)."""
+def _tilt_of(axis, points, normals):
+    """The heuristic tilt (degrees) that gives ``axis`` for a zone of ``points``, ``normals``
+    (nearest of a fine scan)."""
     zetas = np.linspace(-45.0, 45.0, 181)
-    best = max(zetas, key=lambda z: float(heuristic_axis(points, math.radians(z))[0] @ np.asarray(axis)))
+    best = max(zetas, key=lambda z: float(heuristic_axis(points, normals, math.radians(z))[0] @ np.asarray(axis)))
     return float(best)
 
 
@@ -158,9 +156,18 @@ def _mads(f, x0, lo, hi, kinds, evals, quad, seed, history):
     except ImportError:  # pragma: no cover - a dependency of the package
         raise InputError("--optimise needs the PyNomadBBO package (pip install PyNomadBBO)") from None
 
+    failure = []
+
     def bb(point):
-        x = [point.get_coord(i) for i in range(point.size())]
-        value = f(x)
+        if failure:
+            return 0
+        try:
+            value = f([point.get_coord(i) for i in range(point.size())])
+        except InputError:  # this point cannot be machined (e.g. a zone too small or vertical)
+            return 0
+        except BaseException as exc:  # noqa: BLE001 - re-raised below, PyNomad would swallow it
+            failure.append(exc)
+            return 0
         if value is None or not math.isfinite(value):
             return 0
         history.append(value)
@@ -171,7 +178,11 @@ def _mads(f, x0, lo, hi, kinds, evals, quad, seed, history):
               f"BB_INPUT_TYPE ( {' '.join(kinds)} )", f"SEED {int(seed)}",
               f"QUAD_MODEL_SEARCH {'yes' if quad else 'no'}", "NM_SEARCH no"]
     x0 = [min(max(v, a), b) for v, a, b in zip(x0, lo, hi)]
+    if not x0:
+        return x0, None
     out = PyNomad.optimize(bb, x0, lo, hi, params)
+    if failure:
+        raise failure[0]
     if out["x_best_feas"] is None or not len(out["x_best_feas"]):
         return x0, None
     return list(out["x_best_feas"][0] if isinstance(out["x_best_feas"][0], (list, tuple)) else out["x_best_feas"]), \
@@ -190,20 +201,27 @@ def _free(f, x0, free):
 
 
 def optimise_plan(chooser, k, zones, clusters, plans, evals, seed=0, heuristic=False) -> Optimised:
-    """MADS over :class:`Problem` from ``plans`` with ``evals`` black-box evaluations. With
-    ``heuristic`` (3+2 only; the seed's eq. 4.6): the weights stay 1 and every zone stays on its
-    PCA-heuristic axis, only the offsets, cutters and tilts move."""
+    """MADS over :class:`Problem` from ``plans`` (the rule-based plan on ``zones``) with
+    ``evals`` black-box evaluations. With ``heuristic`` (3+2 only; the seed's eq. 4.6): the
+    weights stay 1 and every zone stays on its PCA-heuristic axis, only the offsets, cutters and
+    tilts move. The result is never worse than ``plans``: that plan is kept when MADS finds no
+    better one."""
     problem = Problem(chooser, k)
     lo, hi, kinds = problem.bounds()
+    rule = chooser.machinist.plan(zones, plans)
+    f_rule = rule.score
     x0 = problem.encode(zones, clusters, plans)
     free = list(range(len(x0)))
+    if k == 1:
+        free = free[4:]  # the weights of a single cluster change nothing
     if heuristic:
         if not problem.axes32:
             raise InputError("the PCA heuristic is a 3+2-axis method (--axes 3+2)")
         x0[:4] = [1.0] * 4
         modes = [4 + c * problem.per_cluster + 2 for c in range(k)]
         for i in modes:
-            x0[i] = 1
+            if x0[i] != 1:  # a vertical cluster starts on its heuristic axis, untilted, along X_I
+                x0[i], x0[i - 2], x0[i + 1] = 1, 0.0, 0.0
         free = [i for i in free if i >= 4 and i not in modes]
     free = [i for i in free if lo[i] < hi[i]]
     sub = lambda v: [v[i] for i in free]  # noqa: E731
@@ -214,29 +232,33 @@ def optimise_plan(chooser, k, zones, clusters, plans, evals, seed=0, heuristic=F
     xs = list(x0)
     for i, v in zip(free, ys):
         xs[i] = v
-    f0 = problem.black_box(x0)
-    start = x0
-    if xs != x0:
-        f_s = problem.black_box(xs)
-        if f_s is not None and (f0 is None or f_s < f0):
-            start = xs
+    # start from the better of the encoded plan and the surrogate's optimum
+    starts = [(problem.black_box(x), x) for x in ([x0, xs] if xs != x0 else [x0])]
+    starts = [(f, x) for f, x in starts if f is not None]
+    summary = {"k": k, "variables": len(free), "rule_s": rule.total_s, "surrogate_evaluations": len(surrogate_history),
+               "surrogate_optimum_predicted_s": fs}
+    if not starts:  # neither decodes (a zone's axis is not accessible): keep the rule-based plan
+        summary.update({"black_box_evaluations": 2, "optimum_s": rule.total_s, "gain": 0.0, "best_so_far_s": [],
+                        "started_from": "nothing: the rule-based plan does not encode"})
+        return Optimised(zones, clusters, plans, rule, summary)
+    f_start, start = min(starts, key=lambda t: t[0])
     y, f = _mads(_free(problem.black_box, start, free), sub(start), sub(lo), sub(hi), sub(kinds),
-                 max(1, evals - 2), quad, seed, history)
+                 max(1, evals - len(starts)), quad, seed, history)
     x = list(start)
     if f is not None:
         for i, v in zip(free, y):
             x[i] = v
-    decoded = problem.decode(x)
-    if decoded is None:  # cannot happen for a point MADS evaluated; the start always decodes
-        x, decoded = start, problem.decode(start)
-    zones_o, clusters_o, plans_o = decoded
-    result = chooser.machinist.plan(zones_o, plans_o)
-    best = np.minimum.accumulate(history).tolist() if history else []
-    summary = {
-        "k": k, "variables": problem.dimension, "black_box_evaluations": len(history) + 1 + (xs != x0),
-        "surrogate_evaluations": len(surrogate_history), "start_s": f0, "surrogate_optimum_predicted_s": fs,
-        "started_from": "surrogate optimum" if start is xs and xs != x0 else "rule-based plan",
-        "optimum_s": result.total_s, "gain": (f0 - result.total_s) / f0 if f0 else None,
-        "weights": [float(w) for w in x[:4]], "x": [float(v) for v in x], "best_so_far_s": best,
-    }
+    best_f = min([f_start] + history)
+    if best_f < f_rule:
+        zones_o, clusters_o, plans_o = problem.decode(x) if f is not None and f <= f_start else problem.decode(start)
+        result = chooser.machinist.plan(zones_o, plans_o)
+    else:
+        zones_o, clusters_o, plans_o, result = zones, clusters, plans, rule
+    summary.update({
+        "black_box_evaluations": len(history) + len(starts),
+        "started_from": "surrogate optimum" if start is xs and xs != x0 else "rule-based plan (encoded)",
+        "start_s": f_start, "optimum_s": result.total_s, "gain": (rule.total_s - result.total_s) / rule.total_s,
+        "weights": [float(w) for w in x[:4]], "x": [float(v) for v in x],
+        "best_so_far_s": np.minimum.accumulate([f_start] + history).tolist(),
+    })
     return Optimised(zones_o, clusters_o, plans_o, result, summary)

@@ -21,29 +21,25 @@ def rotate(v, axis, angle):
     return v * math.cos(angle) + np.cross(k, v) * math.sin(angle) + k * (k @ v) * (1 - math.cos(angle))
 
 
-def pca_frame(points):
+def pca_frame(points, normals=None):
     """``X_I, X_II, X_III (3,)`` of ``points (n, 3)``: eigenvectors of their 1/n covariance by
-    decreasing eigenvalue, X_III pointing up and the frame right-handed."""
+    decreasing eigenvalue, X_III on the side of the mean of ``normals (n, 3)`` (else up), the
+    frame right-handed."""
     w, v = np.linalg.eigh(np.cov(np.asarray(points, float).T, bias=True))
     x1, x2, x3 = v[:, 2], v[:, 1], v[:, 0]
-    if x3[2] < 0:
+    side = np.asarray(normals, float).sum(axis=0) if normals is not None else np.array([0.0, 0.0, 1.0])
+    if x3 @ side < 0:
         x3 = -x3
     if np.cross(x1, x2) @ x3 < 0:
         x2 = -x2
     return x1, x2, x3
 
 
-def heuristic_axis(points, zeta=0.0):
-    """The PCA heuristic's tool axis ``(3,)`` for a zone of ``points (n, 3)``, tilted by ``zeta``
-    rad about X_II, and the principal direction X_I ``(3,)``."""
-    x1, x2, x3 = pca_frame(points)
+def heuristic_axis(points, normals, zeta=0.0):
+    """The PCA heuristic's tool axis ``(3,)`` for a zone of ``points (n, 3)`` with ``normals
+    (n, 3)``, tilted by ``zeta`` rad about X_II, and the principal direction X_I ``(3,)``."""
+    x1, x2, x3 = pca_frame(points, normals)
     return rotate(x3, x2, zeta), x1
-
-
-def axis_from_angles(phi, psi):
-    """Unit axis ``(3,)`` at ``phi`` rad from +Z, its XY projection at azimuth ``psi`` (the
-    seed's Phi_k, Psi_k)."""
-    return np.array([math.sin(phi) * math.cos(psi), math.sin(phi) * math.sin(psi), math.cos(phi)])
 
 
 def accessible(normals, axis, margin=0.0) -> bool:

@@ -48,3 +48,50 @@ def stepover(scallop, r_eff, radius=None, corner=None):
     if radius is not None:
         sod = np.minimum(sod, flat_bottom_stepover(radius, corner, scallop))
     return sod
+
+
+RING_SAMPLES = 720  # points of the torus's centre circle in the exact stepover
+
+
+def stepover_exact(scallop, radius, corner, normals, feeds, samples=RING_SAMPLES):
+    """Exact stepover ``(k,)`` mm of a vertical ball or bull-nose cutter on a locally plane surface:
+    the distance, on the surface and square to the feed, between two passes whose cusp is
+    ``scallop`` high. ``normals (k, 3)`` unit surface normals, ``feeds (k, 3)`` unit feed
+    directions tangent to the surface (machining frame, tool axis +Z).
+
+    Seen along the feed, the cutter (its corner circle swept by a ball of radius r) is the union of
+    the discs of radius r centred on the projected centre circle, an ellipse E; the surface is a
+    line. A pass leaves the lower outline of that shape; two passes d apart leave a cusp h high
+    exactly when d is the width of the shape h above its lowest point. So the stepover is
+    max(x_E + w) - min(x_E - w) over the circle, w = sqrt(r² - (y_E - y_min - h - r)²) the
+    half-chord of each disc at that height. For a ball this is 2 sqrt(2 h R - h²) (eq. 2.3); on a
+    horizontal surface 2(R - r) + 2 sqrt(2 h r - h²), the flat bottom; at a slope it tends to eq.
+    1.5's circle as h -> 0, but unlike eq. 1.5 it sees that a bull-nose fed along the contour of a
+    gentle slope (alpha near 90 deg) leaves the flat bottom's tilt, not its corner radius, as the
+    scallop on one side: the step grows as the slope vanishes instead of dropping to the corner's."""
+    normals = np.asarray(normals, float).reshape(-1, 3)
+    feeds = np.asarray(feeds, float).reshape(-1, 3)
+    if not (np.isfinite(scallop) and scallop > 0):
+        raise InputError(f"the scallop height must be a positive number, got {scallop}")
+    r, flat = float(corner), float(radius - corner)
+    if scallop >= r:
+        raise InputError(f"scallop height {scallop:g} mm is not smaller than the corner radius {r:g} mm")
+    ball = 2.0 * np.sqrt(2.0 * scallop * r - scallop * scallop)
+    if flat <= 0.0 or len(normals) == 0:
+        return np.full(len(normals), ball)
+    across = np.cross(normals, feeds)
+    across /= np.linalg.norm(across, axis=1, keepdims=True)
+    psi = np.linspace(0.0, 2.0 * np.pi, samples, endpoint=False)
+    c, s = np.cos(psi), np.sin(psi)
+    # the centre circle (flat * (cos, sin, 0)) in (across, normal) coordinates, per contact
+    x = flat * (np.outer(across[:, 0], c) + np.outer(across[:, 1], s))
+    y = flat * (np.outer(normals[:, 0], c) + np.outer(normals[:, 1], s))
+    lowest = -flat * np.hypot(normals[:, 0], normals[:, 1])  # min of y, exact
+    rise = y - lowest[:, None]  # >= 0: how far each disc's centre sits above the lowest one's
+    w2 = r * r - (r + rise - scallop) ** 2
+    reach = w2 >= 0.0
+    w = np.sqrt(np.where(reach, w2, 0.0))
+    right = np.where(reach, x + w, -np.inf).max(axis=1)
+    left = np.where(reach, x - w, np.inf).min(axis=1)
+    # sampling the circle may miss the lowest disc by a hair: never below the ball's chord
+    return np.maximum(right - left, ball)

@@ -212,48 +212,98 @@ def cell_samples(patch: Patch, nu: int = 80, nv: int = 80) -> Samples:
                    np.ones(nu * nv, bool))
 
 
+EDGE_TOL = 1e-5  # mm: a contact this close to a free edge is on it (the tool rolls over the edge)
+TOP_TOL = 0.01  # mm: a mesh contact this far below the top at its XY is on a wall or underside
+
+
 @dataclass
 class SurfaceMesh:
     """A surface's triangles: the :class:`Mesh`, and per node ``uv (k, 2)`` in [0, 1]²,
-    ``points (k, 3)`` mm, unit ``normals (k, 3)`` (up on average) and ``edge (k,)``: on the
-    surface's free edge (a tool touching only there rolls over the edge and machines nothing)."""
+    ``points (k, 3)`` mm and unit ``normals (k, 3)`` (up on average). A mesh (``xy_box (2, 2)``
+    given) is located by XY in that box and its top seen from +Z; a patch by its nearest node."""
 
     mesh: Mesh
     uv: np.ndarray
     points: np.ndarray
     normals: np.ndarray
-    edge: np.ndarray
-    xy_box: np.ndarray | None = None  # (2, 2) for a mesh: uv is the position in this XY box
-
-    def locate(self, points):
-        """``uv (k, 2)`` of surface points ``(k, 3)`` and whether each is on the free edge
-        ``(k,)``: a patch's nearest node, a mesh's XY position (and its nearest vertex's edge flag)."""
-        if self._tree is None:
-            self._tree = cKDTree(self.points)
-        node = self._tree.query(points)[1]
-        if self.xy_box is None:
-            return self.uv[node], self.edge[node]
-        lo, hi = self.xy_box
-        return np.clip((points[:, :2] - lo) / np.maximum(hi - lo, 1e-12), 0.0, 1.0), self.edge[node]
+    xy_box: np.ndarray | None = None
 
     def __post_init__(self):
-        self._tree = None
+        self.chord_error, self.step = 0.0, None  # a patch's triangulation: deviation from it, node spacing (mm)
+        self._tree = cKDTree(self.points)
+        f = self.mesh.faces
+        e = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1).astype(np.int64)
+        keys, counts = np.unique(e[:, 0] * len(self.mesh.vertices) + e[:, 1], return_counts=True)
+        free = keys[counts == 1]
+        v = self.mesh.vertices
+        self._free = (v[free // len(v)], v[free % len(v)])
+        self._free_tree = cKDTree(0.5 * (self._free[0] + self._free[1])) if len(free) else None
+        self._top = None
+
+    def on_free_edge(self, points) -> np.ndarray:
+        """``(k,)``: each of ``points (k, 3)`` lies on a free (boundary) edge, within ``EDGE_TOL``
+        (exact distances to the nearest edges)."""
+        if self._free_tree is None or len(points) == 0:
+            return np.zeros(len(points), bool)
+        a, b = self._free
+        k = min(16, len(a))
+        idx = self._free_tree.query(points, k=k)[1].reshape(len(points), k)
+        pa, ab = points[:, None, :] - a[idx], b[idx] - a[idx]
+        t = np.clip(np.einsum("ijk,ijk->ij", pa, ab) / np.maximum(np.einsum("ijk,ijk->ij", ab, ab), 1e-300), 0, 1)
+        gap = np.linalg.norm(pa - t[..., None] * ab, axis=2).min(axis=1)
+        return gap <= EDGE_TOL
+
+    def locate(self, points):
+        """For surface points ``(k, 3)`` (part frame): ``uv (k, 2)``, ``usable (k,)`` (not on a
+        free edge, and for a mesh on its top seen from +Z) and the surface normal ``(k, 3)`` at
+        the nearest node (patches) or None (meshes: take the cell's)."""
+        usable = ~self.on_free_edge(points)
+        if self.xy_box is None:
+            node = self._tree.query(points)[1]
+            return self.uv[node], usable, self.normals[node]
+        lo, hi = self.xy_box
+        uv = np.clip((points[:, :2] - lo) / np.maximum(hi - lo, 1e-12), 0.0, 1.0)
+        return uv, usable & (points[:, 2] >= self.top_height(points[:, :2]) - TOP_TOL), None
+
+    def top_height(self, xy) -> np.ndarray:
+        """Height ``(k,)`` of the mesh's top over ``xy (k, 2)`` (a 1 µm ball dropped on it)."""
+        from ..geometry.bvh import build_bvh
+        from ..kernels.backend import MeshKernels
+
+        if self._top is None:
+            self._top = MeshKernels(build_bvh(self.mesh.vertices, self.mesh.faces), "cpu")
+        floor = float(self.mesh.vertices[:, 2].min()) - 1.0
+        return self._top.drop_cutter(np.ascontiguousarray(xy, float), 1e-3, 1e-3, floor)[0]
 
 
-def patch_mesh(patch: Patch, step: float = 0.5) -> SurfaceMesh:
+def patch_mesh(patch: Patch, step: float = 0.5, chord_tol: float | None = None) -> SurfaceMesh:
     """Triangulate ``patch`` with node spacing about ``step`` mm along both parameter directions
-    (two triangles per grid quad)."""
+    (two triangles per grid quad); with ``chord_tol``, the step shrinks until the triangles
+    leave the patch by at most that much at the quads' centres and edge midpoints. The mesh's
+    ``chord_error`` (mm, measured there) and ``step`` are kept on it."""
     if not (math.isfinite(step) and step > 0):
         raise InputError(f"the mesh step must be a positive number, got {step}")
     (u0, u1), (v0, v1) = patch.domain
     probe, _, _ = patch.grid(np.linspace(u0, u1, 33), np.linspace(v0, v1, 33))
     len_u = np.linalg.norm(np.diff(probe, axis=0), axis=2).sum(axis=0).max()
     len_v = np.linalg.norm(np.diff(probe, axis=1), axis=2).sum(axis=1).max()
-    nu, nv = int(math.ceil(len_u / step)) + 1, int(math.ceil(len_v / step)) + 1
-    if nu * nv > 20_000_000:
-        raise InputError(f"a mesh step of {step:g} mm gives {nu * nv} nodes: use a larger step")
-    fu, fv = np.linspace(0.0, 1.0, nu), np.linspace(0.0, 1.0, nv)
-    s, su, sv = patch.grid(u0 + (u1 - u0) * fu, v0 + (v1 - v0) * fv)
+    for _ in range(8):
+        nu, nv = int(math.ceil(len_u / step)) + 1, int(math.ceil(len_v / step)) + 1
+        if nu * nv > 20_000_000:
+            raise InputError(f"a mesh step of {step:g} mm gives {nu * nv} nodes: use a larger step or tolerance")
+        fu, fv = np.linspace(0.0, 1.0, nu), np.linspace(0.0, 1.0, nv)
+        su_, sv_ = u0 + (u1 - u0) * fu, v0 + (v1 - v0) * fv
+        s, su, sv = patch.grid(su_, sv_)
+        mu_, mv_ = 0.5 * (su_[1:] + su_[:-1]), 0.5 * (sv_[1:] + sv_[:-1])
+        centre = patch.grid(mu_, mv_)[0]
+        chord = max(np.linalg.norm(centre - 0.5 * (s[:-1, :-1] + s[1:, 1:]), axis=2).max(),
+                    np.linalg.norm(patch.grid(mu_, sv_)[0] - 0.5 * (s[:-1] + s[1:]), axis=2).max(),
+                    np.linalg.norm(patch.grid(su_, mv_)[0] - 0.5 * (s[:, :-1] + s[:, 1:]), axis=2).max())
+        if chord_tol is None or chord <= chord_tol:
+            break
+        step *= 0.9 * math.sqrt(chord_tol / chord)  # the chord error grows with the square of the step
+    else:
+        raise InputError(f"{patch.name}: could not triangulate within {chord_tol:g} mm of the patch")
     cross = np.cross(su, sv) * patch.upward()
     norm = np.linalg.norm(cross, axis=2, keepdims=True)
     normals = np.divide(cross, norm, out=np.zeros_like(cross), where=norm > 1e-12).reshape(-1, 3)
@@ -263,8 +313,9 @@ def patch_mesh(patch: Patch, step: float = 0.5) -> SurfaceMesh:
     uu, vv = np.meshgrid(fu, fv, indexing="ij")
     points = s.reshape(-1, 3)
     uv = np.column_stack([uu.ravel(), vv.ravel()])
-    return SurfaceMesh(mesh_from_arrays(points, faces, patch.name), uv, points, normals,
-                       ((uv == 0.0) | (uv == 1.0)).any(axis=1))
+    out = SurfaceMesh(mesh_from_arrays(points, faces, patch.name), uv, points, normals)
+    out.chord_error, out.step = float(chord), float(step)
+    return out
 
 
 @numba.njit(cache=True)
@@ -325,7 +376,7 @@ def mesh_samples(mesh: Mesh, nu: int = 80, nv: int = 80) -> Samples:
 
 def mesh_surface(mesh: Mesh) -> SurfaceMesh:
     """A mesh as a :class:`SurfaceMesh`: uv = position in its XY box, area-weighted vertex
-    normals turned up, free (open) edges' vertices marked."""
+    normals turned up."""
     lo, hi = mesh.bounds
     v, f = mesh.vertices, mesh.faces
     uv = (v[:, :2] - lo[:2]) / np.maximum(hi[:2] - lo[:2], 1e-12)
@@ -335,10 +386,4 @@ def mesh_surface(mesh: Mesh) -> SurfaceMesh:
     for k in range(3):
         np.add.at(normals, f[:, k], cross)
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
-    e = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1).astype(np.int64)
-    keys, counts = np.unique(e[:, 0] * len(v) + e[:, 1], return_counts=True)
-    free = keys[counts == 1]
-    edge = np.zeros(len(v), bool)
-    edge[free // len(v)] = True
-    edge[free % len(v)] = True
-    return SurfaceMesh(mesh, uv, v, normals, edge, np.array([lo[:2], hi[:2]]))
+    return SurfaceMesh(mesh, uv, v, normals, np.array([lo[:2], hi[:2]]))

@@ -31,7 +31,7 @@ from ..machine.timing import path_time
 from ..tolerances import GOUGE_TOL
 from ..tools.table import Tool
 from ..choice import clustering
-from ..choice.machining import Machinist, ZonePlan
+from ..choice.machining import UP, Machinist, ZonePlan
 from ..choice.orientation import accessible, azimuth_in_frame, heuristic_axis
 from ..choice.rectangle import choose_tool, pca_rectangle, zone_time_surrogate
 from ..choice.surface import cell_samples, load_patch, mesh_samples, mesh_surface, patch_mesh
@@ -41,6 +41,7 @@ from .verify import DEFAULT_STEP, verify_toolpath
 
 CLUSTERS = ("kmeans", "rpcl", "ward")
 HEURISTIC_TILTS = (0.0, 15.0, -15.0, 30.0, -30.0)  # degrees about X_II tried in 3+2
+CHORD_SHARE = 0.25  # a patch's triangles stay within this share of the gouge tolerance of it
 
 
 @dataclass
@@ -77,6 +78,8 @@ class ChooseParams:
             raise InputError(f"--cluster must be one of {', '.join(CLUSTERS)}, got {self.cluster}")
         if self.metric not in clustering.METRICS:
             raise InputError(f"--metric must be one of {', '.join(clustering.METRICS)}, got {self.metric}")
+        if not (math.isfinite(self.min_zone) and 0 <= self.min_zone < 1):
+            raise InputError(f"--min-zone must be a fraction of the cells from 0 to below 1, got {self.min_zone}")
         if not 1 <= self.k_max <= 20:
             raise InputError(f"--k-max must be from 1 to 20, got {self.k_max}")
 
@@ -104,27 +107,38 @@ def candidate_tools(tools) -> list[Tool]:
 
 
 def merge_small(zones, grid_shape, min_cells):
-    """Zones ``(n,)`` (-1: no surface) with every zone under ``min_cells`` cells given to the
-    4-neighbour zone it shares most edges with, renumbered 0..Z-1 by first cell."""
+    """Zones ``(n,)`` (-1: no surface) with every zone under ``min_cells`` cells given, smallest
+    first, to the 4-neighbour zone it shares most edges with (a zone with no neighbour stays),
+    renumbered 0..Z-1 by first cell."""
     nu, nv = grid_shape
     zones = zones.copy()
+    isolated = set()
     while True:
         ids, counts = np.unique(zones[zones >= 0], return_counts=True)
-        small = ids[counts < min_cells]
-        if len(small) == 0 or len(ids) == 1:
+        small = [(c, z) for z, c in zip(ids, counts) if c < min_cells and z not in isolated]
+        if not small or len(ids) == 1:
             break
-        z = int(small[np.argmin(counts[counts < min_cells])])
+        z = int(min(small)[1])
         g = zones.reshape(nu, nv)
         pairs = np.concatenate([np.column_stack([g[:-1].ravel(), g[1:].ravel()]),
                                 np.column_stack([g[:, :-1].ravel(), g[:, 1:].ravel()])])
         pairs = np.concatenate([pairs, pairs[:, ::-1]])
         border = pairs[(pairs[:, 0] == z) & (pairs[:, 1] != z) & (pairs[:, 1] >= 0), 1]
         if len(border) == 0:
-            break
+            isolated.add(z)
+            continue
         zones[zones == z] = np.bincount(border).argmax()
     out = np.full(len(zones), -1, np.intp)
-    out[zones >= 0] = clustering._first_seen_order(zones[zones >= 0])
+    out[zones >= 0] = _first_seen(zones[zones >= 0])
     return out
+
+
+def _first_seen(labels):
+    """Labels ``(n,)`` renumbered 0..m-1 in the order their first element appears."""
+    ids, first, inverse = np.unique(labels, return_index=True, return_inverse=True)
+    rank = np.empty(len(ids), np.intp)
+    rank[np.argsort(first)] = np.arange(len(ids))
+    return rank[inverse]
 
 
 def zone_ids(zones):
@@ -150,7 +164,6 @@ class Chooser:
         self.say = say or (lambda stage: None)
         self.samples, self.smesh = samples, smesh
         self.machinist = Machinist(self.smesh, self.samples, tools, params.scallop, machine, params.sample, device)
-        self.evaluations = 0
 
     # -- zoning ----------------------------------------------------------------------------
     def zoning(self, k, weights=None):
@@ -172,25 +185,32 @@ class Chooser:
         return zones, clusters
 
     def zone_frame(self, zones, z):
-        """PCA rectangle and axial mean steepest azimuth of zone ``z``."""
+        """``(principal azimuth, steepest azimuth)`` of zone ``z`` (rad): the PCA rectangle's
+        principal direction (the steepest slope where it has none: too few cells, or vertical)
+        and the axial mean of the cells' steepest-slope azimuths."""
         inside = zones == z
-        return (pca_rectangle(self.samples.points[inside], self.samples.normals[inside]),
-                axial_mean(self.samples.theta[inside]))
+        steepest = axial_mean(self.samples.theta[inside])
+        try:
+            principal = pca_rectangle(self.samples.points[inside], self.samples.normals[inside]).principal_azimuth
+        except InputError:
+            principal = steepest
+        return (principal if math.isfinite(principal) else steepest), steepest
 
     # -- candidates ------------------------------------------------------------------------
     def candidates(self, zones, z) -> list[ZonePlan]:
         """Every cutter along the zone's principal and steepest directions (3-axis), and in 3+2
         every cutter on the accessible PCA-heuristic axes along the zone's X_I."""
-        rect, steepest = self.zone_frame(zones, z)
-        principal = rect.principal_azimuth if math.isfinite(rect.principal_azimuth) else steepest
+        principal, steepest = self.zone_frame(zones, z)
         out = []
         for t in range(len(self.tools)):
             out += [ZonePlan(t, principal), ZonePlan(t, steepest)]
         if self.params.axes == "3+2":
             inside = zones == z
             normals = self.samples.normals[inside]
+            if inside.sum() < 3:
+                return out
             for zeta in HEURISTIC_TILTS:
-                axis, x1 = heuristic_axis(self.samples.points[inside], math.radians(zeta))
+                axis, x1 = heuristic_axis(self.samples.points[inside], normals, math.radians(zeta))
                 if not accessible(normals, axis):
                     continue
                 theta = azimuth_in_frame(x1, frame_rotation(axis))
@@ -198,32 +218,45 @@ class Chooser:
         return out
 
     def best_plans(self, zones):
-        """``(plans, tried)``: the fastest plan per zone over :meth:`candidates` (or with one
-        cutter for all zones, when the tool changes cost more), and each zone's tried plans with
-        their times."""
-        tried = {}
-        for z in zone_ids(zones):
-            tried[int(z)] = [(c, self.zone_time(zones, z, c)) for c in self.candidates(zones, z)]
-        options = [{z: min(c, key=lambda x: x[1])[0] for z, c in tried.items()}]
-        for t in range(len(self.tools)):
-            only = {z: [x for x in c if x[0].tool == t] for z, c in tried.items()}
-            if all(only.values()):
-                options.append({z: min(c, key=lambda x: x[1])[0] for z, c in only.items()})
-        best = min(options, key=lambda plans: self.machinist.plan(zones, plans).total_s)
-        return best, tried
+        """``(plans, tried)``: each zone's fastest candidate among those that machine it (see
+        :attr:`~meshmill.choice.machining.ZoneResult.ok`; the best-covering one where none
+        does), or with one cutter for all zones, or (3+2) all on the vertical axis, whichever
+        plan is fastest as a whole (tool changes and re-orientations counted); and each zone's
+        candidates with their results."""
+        tried = {int(z): [(c, self.machinist.zone(zones, int(z), c)) for c in self.candidates(zones, z)]
+                 for z in zone_ids(zones)}
 
-    def zone_time(self, zones, z, plan) -> float:
-        self.evaluations += 1
-        return self.machinist.zone(zones, int(z), plan).time["total_s"]
+        def pick(options):
+            good = [x for x in options if x[1].ok]
+            if good:
+                return min(good, key=lambda x: x[1].time["total_s"])[0]
+            return max(options, key=lambda x: (x[1].coverage, -x[1].time["total_s"]))[0]
+
+        filters = [lambda c: True] + [lambda c, t=t: c.tool == t for t in range(len(self.tools))]
+        if self.params.axes == "3+2":
+            filters += [lambda c, f=f: f(c) and c.axis == UP for f in list(filters)]
+        options = []
+        for keep in filters:
+            chosen = {z: [x for x in c if keep(x[0])] for z, c in tried.items()}
+            if all(chosen.values()):
+                options.append({z: pick(c) for z, c in chosen.items()})
+        best = min(options, key=lambda plans: self.machinist.plan(zones, plans).score)
+        return best, tried
 
     def predicted(self, zones, z, plan) -> float:
         """Surrogate 3 (annex E) for zone ``z`` with ``plan``, in the plan's machining frame."""
         inside = zones == z
         rot = frame_rotation(plan.axis)
-        rect = pca_rectangle(self.samples.points[inside] @ rot.T, self.samples.normals[inside] @ rot.T)
+        try:
+            rect = pca_rectangle(self.samples.points[inside] @ rot.T, self.samples.normals[inside] @ rot.T)
+        except InputError:  # too few cells for a rectangle
+            return math.inf
         tool = self.tools[plan.tool]
-        return float(zone_time_surrogate(rect, plan.theta, tool.radius, tool.corner_radius, self.params.scallop,
-                                         self.machine.kinematics))
+        try:
+            return float(zone_time_surrogate(rect, plan.theta, tool.radius, tool.corner_radius, self.params.scallop,
+                                             self.machine.kinematics))
+        except InputError:  # a vertical plane: no feed direction in XY lies in it
+            return math.inf
 
     # -- the whole run ---------------------------------------------------------------------
     def run(self):
@@ -236,9 +269,9 @@ class Chooser:
             zones, clusters = self.zoning(k)
             plans, tried = self.best_plans(zones)
             result = self.machinist.plan(zones, plans)
-            runs.append((result.total_s, k, zones, clusters, plans, tried, result))
-        total, k, zones, clusters, plans, tried, result = min(runs, key=lambda r: r[0])
-        by_k = {int(r[1]): round(r[0], 3) for r in runs}
+            runs.append((result.score, k, zones, clusters, plans, tried, result))
+        _, k, zones, clusters, plans, tried, result = min(runs, key=lambda r: r[0])
+        by_k = {int(r[1]): round(r[6].total_s, 3) for r in runs}
         optimisation = None
         if p.optimise > 0:
             from ..choice.optimise import optimise_plan
@@ -246,24 +279,28 @@ class Chooser:
             self.say(f"optimising K={k} ({p.optimise} evaluations)")
             opt = optimise_plan(self, k, zones, clusters, plans, p.optimise, seed=p.seed)
             optimisation = opt.summary
-            if opt.result.total_s < result.total_s:
-                zones, clusters, plans, result = opt.zones, opt.clusters, opt.plans, opt.result
-        return result, zones, clusters, self.summary(result, zones, clusters, tried if optimisation is None else {},
-                                                     by_k, optimisation)
+            if opt.result is not result and opt.result.score < result.score:
+                zones, clusters, plans, result, tried = opt.zones, opt.clusters, opt.plans, opt.result, {}
+        return result, zones, clusters, self.summary(result, zones, clusters, tried, by_k, optimisation)
 
     def rule(self):
         """The seed's closed-form choice on the whole surface, for each bull-nose cutter against
-        the ball of the same diameter (or the largest ball)."""
+        a ball of its diameter (the table's, if it has one); None when the surface has no PCA
+        rectangle (vertical)."""
         valid = self.samples.valid
-        rect = pca_rectangle(self.samples.points[valid], self.samples.normals[valid])
+        try:
+            rect = pca_rectangle(self.samples.points[valid], self.samples.normals[valid])
+        except InputError:
+            return None
         balls = [t for t in self.tools if t.type == "ball"]
         out = []
         for bull in (t for t in self.tools if t.type == "bull"):
-            ball = next((b for b in balls if b.diameter == bull.diameter), max(balls, key=lambda b: b.diameter, default=None))
+            ball = next((b for b in balls if b.diameter == bull.diameter), None)
             choice = choose_tool(rect, bull.radius, bull.corner_radius, self.params.scallop, self.machine.kinematics)
             out.append({
                 "ball": ball.name if ball else None, "bull": bull.name,
-                "choice": (ball.name if ball else f"a ball of diameter {bull.diameter:g}") if choice.tool == "ball" else bull.name,
+                "choice": (ball.name if ball else f"a ball of diameter {bull.diameter:g} (not in the table)")
+                if choice.tool == "ball" else bull.name,
                 "direction": "principal" if choice.tool == "ball" else "steepest slope",
                 "azimuth_deg": math.degrees(choice.azimuth),
                 "slope_deg": math.degrees(choice.slope), "critical_slope_deg": math.degrees(choice.critical_slope),
@@ -276,35 +313,44 @@ class Chooser:
                 "principal_azimuth_deg": math.degrees(rect.principal_azimuth),
                 "steepest_azimuth_deg": math.degrees(rect.steepest_azimuth), "pairs": out}
 
-    def summary(self, result, zones, clusters, tried, by_k, optimisation):
+    def zone_row(self, r, zones, clusters):
+        """Summary of one :class:`~meshmill.choice.machining.ZoneResult`."""
         s = self.samples
-        zone_rows = []
+        inside = zones == r.zone
+        return {
+            "zone": r.zone, "cells": int(inside.sum()), "area_mm2": float(s.area[inside].sum()),
+            "cluster": int(np.bincount(clusters[inside]).argmax()),
+            "tool": self.tools[r.plan.tool].name, "azimuth_deg": math.degrees(r.plan.theta),
+            "axis": list(r.plan.axis), "tilt_deg": _tilt_deg(r.plan.axis),
+            "mean_slope_deg": math.degrees(float(s.slope[inside].mean())),
+            "predicted_s": self.predicted(zones, r.zone, r.plan), "measured_s": r.time["total_s"],
+            "cutting_mm": r.time["cutting_mm"], "planes": r.planes, "coverage": r.coverage,
+            "machined": r.ok, "moves_left_out": r.moves_left_out,
+        }
+
+    def summary(self, result, zones, clusters, tried, by_k, optimisation):
+        rows = []
         for r in result.zones:
-            inside = zones == r.zone
-            tool = self.tools[r.plan.tool]
-            tilt = math.degrees(math.acos(max(-1.0, min(1.0, r.plan.axis[2]))))
-            row = {
-                "zone": r.zone, "cells": int(inside.sum()), "area_mm2": float(s.area[inside].sum()),
-                "cluster": int(np.bincount(clusters[inside]).argmax()),
-                "tool": tool.name, "azimuth_deg": math.degrees(r.plan.theta), "axis": list(r.plan.axis),
-                "tilt_deg": tilt, "mean_slope_deg": math.degrees(float(s.slope[inside].mean())),
-                "predicted_s": self.predicted(zones, r.zone, r.plan), "measured_s": r.time["total_s"],
-                "cutting_mm": r.time["cutting_mm"], "planes": r.planes, "coverage": r.coverage,
-            }
+            row = self.zone_row(r, zones, clusters)
             if r.zone in tried:
                 row["tried"] = [{"tool": self.tools[c.tool].name, "azimuth_deg": math.degrees(c.theta),
-                                 "tilt_deg": math.degrees(math.acos(max(-1.0, min(1.0, c.axis[2])))), "measured_s": t}
-                                for c, t in tried[r.zone]]
-            zone_rows.append(row)
+                                 "tilt_deg": _tilt_deg(c.axis), "measured_s": x.time["total_s"],
+                                 "coverage": x.coverage, "planes": x.planes} for c, x in tried[r.zone]]
+            rows.append(row)
         return {
             "operation": "choose", "axes": self.params.axes, "scallop": self.params.scallop,
-            "grid": list(s.grid_shape), "cluster": self.params.cluster, "metric": self.params.metric,
+            "grid": list(self.samples.grid_shape), "cluster": self.params.cluster, "metric": self.params.metric,
             "tools": [t.name for t in self.tools], "machine": self.machine.summary(),
-            "rule": self.rule(), "k": int(np.unique(clusters[clusters >= 0]).size), "zones": zone_rows,
+            "rule": self.rule(), "k": int(np.unique(clusters[clusters >= 0]).size), "zones": rows,
             "total_s": result.total_s, "tool_changes": result.tool_changes, "reorientations": result.reorientations,
-            "predicted_total_s": float(sum(z["predicted_s"] for z in zone_rows)),
-            "total_by_k": by_k, "optimisation": optimisation, "black_box_zone_runs": self.evaluations,
+            "covered": result.covered, "incomplete_zones": [r.zone for r in result.incomplete],
+            "predicted_zones_s": float(sum(z["predicted_s"] for z in rows)),
+            "total_by_k": by_k, "optimisation": optimisation, "zone_runs": self.machinist.runs,
         }
+
+
+def _tilt_deg(axis) -> float:
+    return math.degrees(math.acos(max(-1.0, min(1.0, axis[2]))))
 
 
 def load_surface(path, params: ChooseParams):
@@ -315,9 +361,11 @@ def load_surface(path, params: ChooseParams):
         return mesh_samples(mesh, params.grid, params.grid), mesh_surface(mesh), {"file": os.path.abspath(path),
                                                                                  **mesh.summary()}
     patch = load_patch(path)
-    return (cell_samples(patch, params.grid, params.grid), patch_mesh(patch, params.mesh_step),
+    smesh = patch_mesh(patch, params.mesh_step, CHORD_SHARE * GOUGE_TOL)
+    return (cell_samples(patch, params.grid, params.grid), smesh,
             {"patch": patch.name, "degrees": [patch.degree_u, patch.degree_v],
-             "control_points": list(patch.points.shape[:2]), "file": os.path.abspath(path) if os.path.exists(path) else ""})
+             "control_points": list(patch.points.shape[:2]), "file": os.path.abspath(path) if os.path.exists(path) else "",
+             "mesh_step": smesh.step, "chord_error": smesh.chord_error, "triangles": int(len(smesh.mesh.faces))})
 
 
 def choose(surface, tools, machine, params: ChooseParams, progress=None, device="cpu"):
@@ -334,10 +382,13 @@ def choose(surface, tools, machine, params: ChooseParams, progress=None, device=
     plans = {r.zone: r.plan for r in result.zones}
     result = chooser.machinist.plan(zones, plans, GOUGE_TOL)
     summary.update({"total_s": result.total_s, "tool_changes": result.tool_changes,
-                    "reorientations": result.reorientations})
-    for row, r in zip(summary["zones"], result.zones):
-        row.update({"measured_s": r.time["total_s"], "cutting_mm": r.time["cutting_mm"],
-                    "moves_left_out": r.moves_left_out})
+                    "reorientations": result.reorientations, "covered": result.covered,
+                    "incomplete_zones": [r.zone for r in result.incomplete]})
+    final = {r.zone: r for r in result.zones}
+    for row in summary["zones"]:
+        r = final[row["zone"]]
+        row.update({"measured_s": r.time["total_s"], "cutting_mm": r.time["cutting_mm"], "coverage": r.coverage,
+                    "machined": r.ok, "moves_left_out": r.moves_left_out})
     say("verify")
     t = time.perf_counter()
     kern = MeshKernels(build_bvh(chooser.smesh.mesh.vertices, chooser.smesh.mesh.faces), device)
