@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from meshmill.choice.machining import Machinist, ZonePlan
-from meshmill.choice.orientation import accessible, heuristic_axis, pca_frame
+from meshmill.choice.orientation import accessible, heuristic_axis, heuristic_tilts, pca_frame
 from meshmill.choice.scallop import effective_radius, flat_bottom_stepover, stepover, stepover_exact
 from meshmill.choice.surface import bezier, cell_samples, load_patch, patch_mesh
 from meshmill.choice.zigzag import SurfaceSetup, frame_rotation
@@ -116,6 +116,10 @@ def test_frame_rotation_and_heuristic_axis():
     assert np.allclose(axis, s.normals[0]) and accessible(s.normals, axis)
     tilted, _ = heuristic_axis(s.points, s.normals, math.radians(20))
     assert math.degrees(math.acos(tilted @ axis)) == pytest.approx(20.0)
+    for zeta, eta in ((0.3, -0.2), (-0.7, 0.5), (0.0, 0.6)):
+        a, _ = heuristic_axis(s.points, s.normals, zeta, eta)
+        assert np.linalg.norm(a) == pytest.approx(1.0)
+        assert heuristic_tilts(a, s.points, s.normals) == pytest.approx((zeta, eta), abs=1e-12)
     assert not accessible(s.normals, -axis)
 
 

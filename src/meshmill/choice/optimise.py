@@ -3,7 +3,9 @@
 For a fixed number of clusters K the variables are the clustering weights omega (4, in [0, 1]) and,
 per cluster, the feed offset delta (degrees, [-90, 90]) from the zone's base direction and the
 cutter (integer); in 3+2-axis also a mode (integer: 0 vertical axis, 1 the PCA heuristic's axis)
-and the heuristic's tilt zeta (degrees, [-45, 45]). Every connected zone of a cluster uses its
+and two tilts of that axis, zeta about X_II (the seed's) and eta about X_I (degrees, [-45, 45]
+each), which together reach every axis within 45 degrees of X_III: the seed's (Phi_k, Psi_k)
+measured from the zone's own best-fit normal instead of from +Z. Every connected zone of a cluster uses its
 cluster's variables on its own base direction (the steepest slope for a vertical axis, X_I on a
 heuristic axis), so the dimension stays fixed while omega changes the zones (the seed's
 variable-dimension gap, notes §8.17). An inaccessible axis (eq. 4.1) fails the evaluation.
@@ -23,7 +25,7 @@ import numpy as np
 from ..errors import InputError
 from .machining import UP, ZonePlan
 from .clustering import wrap_axial
-from .orientation import accessible, azimuth_in_frame, heuristic_axis
+from .orientation import accessible, azimuth_in_frame, heuristic_axis, heuristic_tilts
 from .zigzag import frame_rotation
 
 SURROGATE_FACTOR = 4  # surrogate evaluations per black-box evaluation of the budget
@@ -45,7 +47,7 @@ class Problem:
     def __init__(self, chooser, k):
         self.chooser, self.k = chooser, k
         self.axes32 = chooser.params.axes == "3+2"
-        self.per_cluster = 4 if self.axes32 else 2
+        self.per_cluster = 5 if self.axes32 else 2
         self._zoning = {}
 
     @property
@@ -60,9 +62,9 @@ class Problem:
             hi += [90.0, n_tools - 1]
             kinds += ["R", "I"]
             if self.axes32:
-                lo += [0, -45.0]
-                hi += [1, 45.0]
-                kinds += ["I", "R"]
+                lo += [0, -45.0, -45.0]
+                hi += [1, 45.0, 45.0]
+                kinds += ["I", "R", "R"]
         return lo, hi, kinds
 
     def zoning(self, weights):
@@ -88,7 +90,7 @@ class Problem:
             v = x[4 + c * self.per_cluster: 4 + (c + 1) * self.per_cluster] if c < self.k else [0.0, 0]
             delta, tool = math.radians(v[0]), int(round(v[1]))
             if self.axes32 and int(round(v[2])) == 1:
-                axis, x1 = heuristic_axis(s.points[inside], s.normals[inside], math.radians(v[3]))
+                axis, x1 = heuristic_axis(s.points[inside], s.normals[inside], math.radians(v[3]), math.radians(v[4]))
                 if not accessible(s.normals[inside], axis):
                     return None
                 base = azimuth_in_frame(x1, frame_rotation(axis))
@@ -106,18 +108,20 @@ class Problem:
         for c in range(self.k):
             members = [z for z in plans if np.bincount(clusters[zones == z]).argmax() == c]
             if not members:
-                x += [0.0, 0] + ([0, 0.0] if self.axes32 else [])
+                x += [0.0, 0] + ([0, 0.0, 0.0] if self.axes32 else [])
                 continue
             z = max(members, key=lambda z: int((zones == z).sum()))
             plan, inside = plans[z], zones == z
             if np.allclose(plan.axis, UP):
-                base, mode, zeta = self.chooser.zone_frame(zones, z)[1], 0, 0.0
+                base, mode, zeta, eta = self.chooser.zone_frame(zones, z)[1], 0, 0.0, 0.0
             else:
-                mode, zeta = 1, _tilt_of(plan.axis, s.points[inside], s.normals[inside])
-                axis, x1 = heuristic_axis(s.points[inside], s.normals[inside], math.radians(zeta))
+                mode = 1
+                zeta, eta = heuristic_tilts(plan.axis, s.points[inside], s.normals[inside])
+                axis, x1 = heuristic_axis(s.points[inside], s.normals[inside], zeta, eta)
                 base = azimuth_in_frame(x1, frame_rotation(axis))
+                zeta, eta = math.degrees(zeta), math.degrees(eta)
             delta = math.degrees(wrap_axial(plan.theta - base))
-            x += [delta, plan.tool] + ([mode, zeta] if self.axes32 else [])
+            x += [delta, plan.tool] + ([mode, zeta, eta] if self.axes32 else [])
         return x
 
     def black_box(self, x):
@@ -139,14 +143,6 @@ class Problem:
         axes = {tuple(np.round(p.axis, 9)) for p in plans.values()}
         return (sum(ch.predicted(zones, z, p) for z, p in plans.items()) + TRANSIT_S * len(plans)
                 + (len(tools) - 1) * ch.machine.tool_change + (len(axes) - 1) * ch.machine.reorient)
-
-
-def _tilt_of(axis, points, normals):
-    """The heuristic tilt (degrees) that gives ``axis`` for a zone of ``points``, ``normals``
-    (nearest of a fine scan)."""
-    zetas = np.linspace(-45.0, 45.0, 181)
-    best = max(zetas, key=lambda z: float(heuristic_axis(points, normals, math.radians(z))[0] @ np.asarray(axis)))
-    return float(best)
 
 
 def _mads(f, x0, lo, hi, kinds, evals, quad, seed, history):
@@ -222,7 +218,8 @@ def optimise_plan(chooser, k, zones, clusters, plans, evals, seed=0, heuristic=F
         for i in modes:
             if x0[i] != 1:  # a vertical cluster starts on its heuristic axis, untilted, along X_I
                 x0[i], x0[i - 2], x0[i + 1] = 1, 0.0, 0.0
-        free = [i for i in free if i >= 4 and i not in modes]
+            x0[i + 2] = 0.0  # eq. 4.6 tilts about X_II only
+        free = [i for i in free if i >= 4 and i not in modes and i - 2 not in modes]
     free = [i for i in free if lo[i] < hi[i]]
     sub = lambda v: [v[i] for i in free]  # noqa: E731
     quad = not problem.axes32

@@ -35,11 +35,20 @@ def pca_frame(points, normals=None):
     return x1, x2, x3
 
 
-def heuristic_axis(points, normals, zeta=0.0):
+def heuristic_axis(points, normals, zeta=0.0, eta=0.0):
     """The PCA heuristic's tool axis ``(3,)`` for a zone of ``points (n, 3)`` with ``normals
-    (n, 3)``, tilted by ``zeta`` rad about X_II, and the principal direction X_I ``(3,)``."""
+    (n, 3)``, tilted by ``zeta`` rad about X_II (the seed's second rotation) and then by ``eta``
+    about X_I (our addition, so that the two angles reach every axis near X_III), and the
+    principal direction X_I ``(3,)``: sin(zeta) X_I - cos(zeta) sin(eta) X_II + cos(zeta) cos(eta) X_III."""
     x1, x2, x3 = pca_frame(points, normals)
-    return rotate(x3, x2, zeta), x1
+    return math.sin(zeta) * x1 - math.cos(zeta) * math.sin(eta) * x2 + math.cos(zeta) * math.cos(eta) * x3, x1
+
+
+def heuristic_tilts(axis, points, normals):
+    """``(zeta, eta)`` rad with :func:`heuristic_axis` = ``axis (3,)`` for this zone."""
+    x1, x2, x3 = pca_frame(points, normals)
+    a = np.asarray(axis, float)
+    return math.asin(max(-1.0, min(1.0, float(a @ x1)))), math.atan2(-float(a @ x2), float(a @ x3))
 
 
 def accessible(normals, axis, margin=0.0) -> bool:

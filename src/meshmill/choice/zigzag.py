@@ -22,6 +22,7 @@ from scipy.spatial import cKDTree
 from ..geometry.bvh import build_bvh
 from ..kernels.backend import MeshKernels
 from ..ops.dropcutter import ToolDrop
+from .clustering import wrap_axial
 from .scallop import stepover, stepover_exact
 from .surface import SurfaceMesh
 
@@ -125,7 +126,7 @@ class SurfaceSetup:
         contacts where the cutter's normal is within ``SMOOTH`` of the surface's (the nearest
         node's, or the cell's sample normal ``normals (n_cells, 3)``; all contacts if none is):
         a tool rolling over an edge or a crease does not set the scallop of the faces beside it."""
-        theta = (theta + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+        theta = float(wrap_axial(theta))
         cell_normals = normals @ self.rotation.T
         R, r = self.tool.radius, self.tool.corner_radius
         d = np.array([math.cos(theta), math.sin(theta)])

@@ -260,28 +260,33 @@ class Chooser:
 
     # -- the whole run ---------------------------------------------------------------------
     def run(self):
-        """``(PlanResult, zones (n,), clusters (n,), summary dict)``."""
+        """``(PlanResult, zones (n,), clusters (n,), summary dict)``: for each K (``zones``, or
+        1..``k_max``) the rule-based plan, optimised when ``optimise`` > 0 (as the seed: K fixed,
+        MADS per K); the best by :attr:`~meshmill.choice.machining.PlanResult.score`."""
+        from ..choice.optimise import optimise_plan
+
         p = self.params
-        ks = [p.zones] if p.zones is not None else list(range(1, p.k_max + 1))
         runs = []
-        for k in ks:
+        for k in ([p.zones] if p.zones is not None else range(1, p.k_max + 1)):
             self.say(f"zoning K={k}")
             zones, clusters = self.zoning(k)
             plans, tried = self.best_plans(zones)
-            result = self.machinist.plan(zones, plans)
-            runs.append((result.score, k, zones, clusters, plans, tried, result))
-        _, k, zones, clusters, plans, tried, result = min(runs, key=lambda r: r[0])
-        by_k = {int(r[1]): round(r[6].total_s, 3) for r in runs}
-        optimisation = None
-        if p.optimise > 0:
-            from ..choice.optimise import optimise_plan
-
-            self.say(f"optimising K={k} ({p.optimise} evaluations)")
-            opt = optimise_plan(self, k, zones, clusters, plans, p.optimise, seed=p.seed)
-            optimisation = opt.summary
-            if opt.result is not result and opt.result.score < result.score:
-                zones, clusters, plans, result, tried = opt.zones, opt.clusters, opt.plans, opt.result, {}
-        return result, zones, clusters, self.summary(result, zones, clusters, tried, by_k, optimisation)
+            result, optimisation = self.machinist.plan(zones, plans), None
+            if p.optimise > 0:
+                self.say(f"optimising K={k} ({p.optimise} evaluations)")
+                opt = optimise_plan(self, k, zones, clusters, plans, p.optimise, seed=p.seed)
+                optimisation = opt.summary
+                if opt.result.score < result.score:
+                    zones, clusters, plans, result, tried = opt.zones, opt.clusters, opt.plans, opt.result, {}
+            runs.append({"k": k, "zones": zones, "clusters": clusters, "tried": tried, "result": result,
+                         "optimisation": optimisation})
+        best = min(runs, key=lambda r: r["result"].score)
+        by_k = {int(r["k"]): round(r["result"].total_s, 3) for r in runs}
+        optimisation = best["optimisation"]
+        if optimisation is not None and len(runs) > 1:
+            optimisation = {**optimisation, "by_k": {int(r["k"]): r["optimisation"] for r in runs}}
+        return best["result"], best["zones"], best["clusters"], self.summary(
+            best["result"], best["zones"], best["clusters"], best["tried"], by_k, optimisation)
 
     def rule(self):
         """The seed's closed-form choice on the whole surface, for each bull-nose cutter against
