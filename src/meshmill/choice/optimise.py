@@ -12,8 +12,10 @@ variable-dimension gap, notes §8.17). An inaccessible axis (eq. 4.1) fails the 
 
 PyNomad takes one Python black box, so the seed's static surrogate (surrogate 3, the analytic
 PCA-rectangle time) is used as a first phase: MADS on the surrogate, then MADS on the black box
-from whichever of the start and the surrogate's optimum the black box finds faster. Options as
-the seed: ORTHO 2N directions; the quadratic-model search only in 3-axis.
+(the plan's score: time raised for unmachined cells) from whichever of the start and the
+surrogate's optimum the black box finds better. Options as the seed: ORTHO 2N directions; the
+quadratic-model search only in 3-axis. Errors inside the black box are raised after MADS returns
+(PyNomad would swallow them); an :class:`InputError` there fails that evaluation only.
 """
 from __future__ import annotations
 

@@ -8,12 +8,13 @@
    share most border with (a zone costs a retract, a rapid and often a tool change).
 3. Each zone is machined (the zigzag black box, :mod:`meshmill.choice.machining`) with every
    candidate: each cutter along the zone's principal and steepest directions, and in 3+2-axis also
-   on the PCA heuristic's tool axes; the plan keeps the fastest per zone, or a single cutter when
-   the tool change costs more than mixing saves. ``zones="auto"`` does this for K = 1..k_max and
-   keeps the fastest K.
-4. ``optimise`` > 0 runs NOMAD (MADS) on the weights, per-cluster feed offsets, cutters and tilts
+   on the PCA heuristic's tool axes; the plan keeps the fastest candidate that machines each zone,
+   or one cutter for all, or (3+2) all on the vertical axis, whichever is fastest as a whole.
+4. ``optimise`` > 0 runs NOMAD (MADS) on the weights, per-cluster feed offsets, cutters and axes
    (:mod:`meshmill.choice.optimise`).
-Predicted times are the seed's surrogate 3 (analytic PCA-rectangle time, annex E) per zone.
+``zones=None`` (auto) does 2-4 for K = 1..k_max and keeps the best K. Plans compare by
+:attr:`~meshmill.choice.machining.PlanResult.score`. Predicted times are the seed's surrogate 3
+(analytic PCA-rectangle time, annex E) per zone.
 """
 from __future__ import annotations
 
