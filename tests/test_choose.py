@@ -199,9 +199,30 @@ def test_choose_3plus2_is_accessible_and_verified():
         assert any(t["tilt_deg"] > 1 for t in z["tried"])  # heuristic axes were tried
 
 
+def bump_stl(path):
+    """A closed block, 40 x 40 mm, whose top is a bump z = 10 + 6 exp(-r²/150) on 2 mm squares."""
+    import trimesh
+    n = 21
+    x, y = np.meshgrid(np.linspace(0, 40, n), np.linspace(0, 40, n), indexing="ij")
+    z = 10 + 6 * np.exp(-((x - 20) ** 2 + (y - 20) ** 2) / 150)
+    top = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    ring = np.concatenate([idx[:, 0], idx[-1, 1:], idx[::-1, -1][1:], idx[0, ::-1][1:-1]])
+    bottom = top[ring] * [1, 1, 0]
+    v = np.concatenate([top, bottom, [[20.0, 20.0, 0.0]]])
+    m, centre = len(ring), len(v) - 1
+    sides = [[ring[i], n * n + i, ring[(i + 1) % m]] for i in range(m)]
+    sides += [[ring[(i + 1) % m], n * n + i, n * n + (i + 1) % m] for i in range(m)]
+    floor = [[n * n + i, centre, n * n + (i + 1) % m] for i in range(m)]
+    trimesh.Trimesh(v, np.concatenate([faces, sides, floor]), process=True).export(path)
+    return str(path)
+
+
 def test_cli_choose_on_a_mesh_writes_a_path_time_reads(tmp_path, capsys):
     out = tmp_path / "ch"
-    rc = main(["choose", "../shared/parts/sphere_on_plate.stl", "--tool-pair", "6,1", "--scallop", "0.02",
+    rc = main(["choose", bump_stl(tmp_path / "bump.stl"), "--tool-pair", "6,1", "--scallop", "0.02",
                "--zones", "auto", "--k-max", "2", "--grid", "24", "--sample", "1", "--machine", "seed-002",
                "--out", str(out), "--quiet"])
     assert rc == 0
@@ -232,11 +253,13 @@ def test_cli_choose_on_a_mesh_writes_a_path_time_reads(tmp_path, capsys):
     (["rubio", "--tool-pair", "10,2", "--scallop", "0.01", "--zones", "x"], "--zones"),
     (["rubio", "--tool-pair", "10,2", "--scallop", "6"], "corner radius 2 mm"),
     (["rubio", "--tool-pair", "10,2", "--scallop", "0.01", "--machine", "nosuch.toml"], "nosuch"),
-    (["../shared/parts/README.md", "--tool-pair", "10,2", "--scallop", "0.01"], "README"),
+    (["NOTES.md", "--tool-pair", "10,2", "--scallop", "0.01"], "NOTES.md"),
     (["rubio", "--tool-pair", "10,2", "--scallop", "0.01", "--min-zone", "nan"], "--min-zone"),
     (["rubio", "--tool-pair", "10,2", "--scallop", "0.01", "--min-zone", "1.5"], "--min-zone"),
 ])
-def test_cli_choose_bad_input(tmp_path, capsys, args, message):
+def test_cli_choose_bad_input(tmp_path, capsys, monkeypatch, args, message):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "NOTES.md").write_text("# not a surface\n")
     rc = main(["choose", *args, "--out", str(tmp_path / "o"), "--grid", "8"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and message in err[0]
