@@ -72,3 +72,14 @@ def brute_point_triangle_dist(p, tris):
         s = np.clip(np.einsum("ij,ij->i", p - u, d) / np.einsum("ij,ij->i", d, d), 0, 1)
         best = np.minimum(best, np.linalg.norm(p - (u + s[:, None] * d), axis=1))
     return best
+
+
+def one_line_error(capsys, argv):
+    """Run the command line ``argv``: it must exit 2 with one line on stderr; returns that line."""
+    from meshmill.cli import main
+
+    rc = main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2
+    assert len(err) == 1 and err[0].startswith("meshmill: error:")
+    return err[0]

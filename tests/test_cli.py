@@ -8,6 +8,7 @@ import pytest
 import trimesh
 
 from meshmill.cli import main
+from conftest import one_line_error
 from meshmill.geometry.shapes import overhang_column
 
 
@@ -40,29 +41,21 @@ def test_verify_finds_a_gouge(tmp_path, part, tools_file, capsys):
     assert rc == 1 and "PROBLEMS" in out and "gouge" in out and "line 2" in out
 
 
-def _one_line_error(capsys, argv):
-    rc = main(argv)
-    err = capsys.readouterr().err.strip().splitlines()
-    assert rc == 2
-    assert len(err) == 1 and err[0].startswith("meshmill: error:")
-    return err[0]
-
-
 def test_bad_inputs_give_one_line_and_exit_2(tmp_path, part, tools_file, capsys):
     t = str(tools_file)
-    assert "no such file" in _one_line_error(capsys, ["finish", str(tmp_path / "missing.stl"), "--tools", t, "--step-down", "1"])
+    assert "no such file" in one_line_error(capsys, ["finish", str(tmp_path / "missing.stl"), "--tools", t, "--step-down", "1"])
     (tmp_path / "empty.stl").write_bytes(b"")
-    assert "empty" in _one_line_error(capsys, ["finish", str(tmp_path / "empty.stl"), "--tools", t, "--step-down", "1"])
+    assert "empty" in one_line_error(capsys, ["finish", str(tmp_path / "empty.stl"), "--tools", t, "--step-down", "1"])
     (tmp_path / "junk.stl").write_text("this is no mesh at all")
-    _one_line_error(capsys, ["finish", str(tmp_path / "junk.stl"), "--tools", t, "--step-down", "1"])
+    one_line_error(capsys, ["finish", str(tmp_path / "junk.stl"), "--tools", t, "--step-down", "1"])
     m = trimesh.Trimesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, np.nan]]), [[0, 1, 2]], process=False)
     m.export(tmp_path / "nan.stl")
-    assert "NaN" in _one_line_error(capsys, ["finish", str(tmp_path / "nan.stl"), "--tools", t, "--step-down", "1"])
-    assert "tool table" in _one_line_error(capsys, ["finish", str(part), "--tools", str(tmp_path / "no.toml"), "--step-down", "1"])
-    assert "larger than the part" in _one_line_error(capsys, ["finish", str(part), "--tools", t, "--step-down", "500"])
-    assert "step" in _one_line_error(capsys, ["finish", str(part), "--tools", t, "--step-down", "-1"])
-    assert "no such CL file" in _one_line_error(capsys, ["verify", str(part), str(tmp_path / "x.cl"), "--tools", t])
-    _one_line_error(capsys, ["finish", str(part), "--tools", t])  # missing --step-down
+    assert "NaN" in one_line_error(capsys, ["finish", str(tmp_path / "nan.stl"), "--tools", t, "--step-down", "1"])
+    assert "tool table" in one_line_error(capsys, ["finish", str(part), "--tools", str(tmp_path / "no.toml"), "--step-down", "1"])
+    assert "larger than the part" in one_line_error(capsys, ["finish", str(part), "--tools", t, "--step-down", "500"])
+    assert "step" in one_line_error(capsys, ["finish", str(part), "--tools", t, "--step-down", "-1"])
+    assert "no such CL file" in one_line_error(capsys, ["verify", str(part), str(tmp_path / "x.cl"), "--tools", t])
+    one_line_error(capsys, ["finish", str(part), "--tools", t])  # missing --step-down
 
 
 def test_entry_point_exit_code(tmp_path):
@@ -74,17 +67,17 @@ def test_entry_point_exit_code(tmp_path):
 def test_more_bad_inputs(tmp_path, part, tools_file, capsys):
     t = str(tools_file)
     for opt in (["--safe-z", "nan"], ["--clearance", "nan"], ["--tolerance", "inf"], ["--sample", "1e-9"]):
-        _one_line_error(capsys, ["finish", str(part), "--tools", t, "--step-down", "2", *opt])
+        one_line_error(capsys, ["finish", str(part), "--tools", t, "--step-down", "2", *opt])
     (tmp_path / "c.cl").write_text("LOADTL/1\nGOTO/1e308, 0, 100\n")
-    assert "out of range" in _one_line_error(capsys, ["verify", str(part), str(tmp_path / "c.cl"), "--tools", t])
+    assert "out of range" in one_line_error(capsys, ["verify", str(part), str(tmp_path / "c.cl"), "--tools", t])
     (tmp_path / "ok.cl").write_text("LOADTL/1\nGOTO/0, 0, 100\n")
-    _one_line_error(capsys, ["verify", str(part), str(tmp_path / "ok.cl"), "--tools", t, "--tolerance", "nan"])
-    _one_line_error(capsys, ["verify", str(part), str(tmp_path / "ok.cl"), "--tools", t, "--step", "nan"])
-    _one_line_error(capsys, ["verify", str(part), str(tmp_path / "ok.cl"), "--tools", t, "--out", str(tmp_path)])
-    _one_line_error(capsys, ["verify", str(part), str(tmp_path), "--tools", t])
-    _one_line_error(capsys, ["finish", str(part), "--tools", str(tmp_path), "--step-down", "2"])
+    one_line_error(capsys, ["verify", str(part), str(tmp_path / "ok.cl"), "--tools", t, "--tolerance", "nan"])
+    one_line_error(capsys, ["verify", str(part), str(tmp_path / "ok.cl"), "--tools", t, "--step", "nan"])
+    one_line_error(capsys, ["verify", str(part), str(tmp_path / "ok.cl"), "--tools", t, "--out", str(tmp_path)])
+    one_line_error(capsys, ["verify", str(part), str(tmp_path), "--tools", t])
+    one_line_error(capsys, ["finish", str(part), "--tools", str(tmp_path), "--step-down", "2"])
     (tmp_path / "list.toml").write_text("tools = [1, 2]\n")
-    _one_line_error(capsys, ["finish", str(part), "--tools", str(tmp_path / "list.toml"), "--step-down", "2"])
+    one_line_error(capsys, ["finish", str(part), "--tools", str(tmp_path / "list.toml"), "--step-down", "2"])
 
 
 def test_latin1_ascii_stl(tmp_path):

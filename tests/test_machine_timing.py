@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from meshmill.cli import main
+from conftest import one_line_error
 from meshmill.errors import InputError
 from meshmill.machine.config import Machine, load_machine, shipped_machines
 from meshmill.machine.timing import Kinematics, path_time, programmed_feeds, segment_time, tool_times
@@ -247,13 +248,33 @@ def test_machine_files_load():
     (MACHINE_TOML.replace("accel_mm_s2 = 6000", "accel_mm_s2 = true"), ["accel_mm_s2", "number"]),
     (MACHINE_TOML.replace("jerk_mm_s3", "jerk"), ["unknown key 'jerk'"]),
     (MACHINE_TOML.replace("reorient_s = 3\n", ""), ["missing key 'reorient_s'"]),
-    (MACHINE_TOML + "[axes]\nx_mm = 500\n", ["unknown section", "axes"]),
+    (MACHINE_TOML + "[spindle]\nmax_rpm = 500\n", ["unknown section", "spindle"]),
+    (MACHINE_TOML + "[axes]\nx_mm = 500\n", ["unknown axis", "x_mm"]),
     (MACHINE_TOML.replace('name = "test VMC"', "colour = 'red'"), ["unknown", "colour"]),
     (MACHINE_TOML.replace('name = "test VMC"', "name = 3"), ["'name'"]),
     ('name = "x"\n', ["missing section [motion]"]),
     ('name = "x"\nmotion = 5\n', ["'motion' must be a table"]),
     (MACHINE_TOML.replace("feed_mm_min = 5000", "feed_mm_min = 50000"), ["feed_mm_min", "rapid_mm_min"]),
     (MACHINE_TOML.replace("corner_angle_deg = 5", "corner_angle_deg = 180"), ["corner_angle_deg", "180"]),
+    # [axes], [kinematics], [gcode]
+    (MACHINE_TOML + "[axes]\nX = [5, -5]\n", ["'X'", "low < high"]),
+    (MACHINE_TOML + "[axes]\nX = [0, nan]\n", ["'X'"]),
+    (MACHINE_TOML + "[axes]\nQ = [0, 1]\n", ["unknown axis 'Q'"]),
+    (MACHINE_TOML + "[axes]\nA = [0, 90]\n", ["'A' is not a rotary axis of this machine"]),
+    (MACHINE_TOML + "[kinematics]\ntype = 'robot'\n", ["'type'", "robot"]),
+    (MACHINE_TOML + "[kinematics]\ntype = 'table-table'\nrotary = ['C', 'A']\n", ["'rotary'"]),
+    (MACHINE_TOML + "[kinematics]\ntype = 'table-table'\nrotary = ['A', 'B']\n", ["'rotary'"]),
+    (MACHINE_TOML + "[kinematics]\ntype = 'head-table'\nrotary = ['B', 'C']\nhead_length_mm = -5\n", ["'head_length_mm'"]),
+    (MACHINE_TOML + "[kinematics]\ntype = 'table-table'\nrotary = ['A', 'C']\npivot_mm = [0, 0]\n", ["'pivot_mm'"]),
+    (MACHINE_TOML + "[kinematics]\ntype = 'table-table'\nrotary = ['A', 'C']\nreversed = ['B']\n", ["'reversed'"]),
+    (MACHINE_TOML + "[kinematics]\ntype = '3-axis'\nrotary = ['A', 'C']\n", ["3-axis machine has no 'rotary'"]),
+    (MACHINE_TOML + "[kinematics]\nsingular_deg = 45\n", ["'singular_deg'"]),
+    (MACHINE_TOML + "[gcode]\ndialect = 'heidenhain'\n", ["'dialect'"]),
+    (MACHINE_TOML + "[gcode]\ndecimals = 12\n", ["'decimals'"]),
+    (MACHINE_TOML + "[gcode]\ninverse_time = 'yes'\n", ["'inverse_time'"]),
+    (MACHINE_TOML + "[gcode]\nstart = 'G21'\n", ["'start'"]),
+    (MACHINE_TOML + "[gcode]\nbeep = 1\n", ["unknown key 'beep'"]),
+    (MACHINE_TOML + "[motion]\n", []),  # a second [motion] table is a TOML error
 ])
 def test_bad_machine_files(tmp_path, text, words):
     p = tmp_path / "m.toml"
@@ -336,29 +357,71 @@ def test_time_command_reads_gcode_feeds(tmp_path, tools_file, capsys):
     assert summary["total"]["cutting_s"] == pytest.approx(segment_time(5.0, 10.0, SEED.accel, SEED.jerk) + 4 * seg)
 
 
-def _one_line_error(capsys, argv):
-    rc = main(argv)
-    err = capsys.readouterr().err.strip().splitlines()
-    assert rc == 2
-    assert len(err) == 1 and err[0].startswith("meshmill: error:")
-    return err[0]
-
-
 def test_time_command_bad_input(tmp_path, tools, tools_file, capsys):
     cl, _ = _cl(tmp_path, tools)
     t = str(tools_file)
     bad = tmp_path / "bad.toml"
     bad.write_text(MACHINE_TOML.replace("jerk_mm_s3 = 40000", "jerk_mm_s3 = -1"))
-    assert "jerk_mm_s3" in _one_line_error(capsys, ["time", str(cl), "--machine", str(bad), "--tools", t])
-    assert "no such machine file" in _one_line_error(capsys, ["time", str(cl), "--machine", "nope.toml", "--tools", t])
-    assert "--feed" in _one_line_error(capsys, ["time", str(cl), "--machine", "seed-002", "--tools", t, "--feed", "-5"])
-    assert "no such CL file" in _one_line_error(capsys, ["time", str(tmp_path / "x.cl"), "--machine", "seed-002",
+    assert "jerk_mm_s3" in one_line_error(capsys, ["time", str(cl), "--machine", str(bad), "--tools", t])
+    assert "no such machine file" in one_line_error(capsys, ["time", str(cl), "--machine", "nope.toml", "--tools", t])
+    assert "--feed" in one_line_error(capsys, ["time", str(cl), "--machine", "seed-002", "--tools", t, "--feed", "-5"])
+    assert "no such CL file" in one_line_error(capsys, ["time", str(tmp_path / "x.cl"), "--machine", "seed-002",
                                                          "--tools", t])
-    _one_line_error(capsys, ["time", str(cl), "--tools", t])  # no --machine
+    one_line_error(capsys, ["time", str(cl), "--tools", t])  # no --machine
     # no --tools: the tools.toml beside the path, else one line
     assert main(["time", str(cl), "--machine", "seed-002", "--json"]) == (0 if (cl.parent / "tools.toml").exists() else 2)
     capsys.readouterr()
     alone = tmp_path / "alone"
     alone.mkdir()
     (alone / "job.cl").write_text(cl.read_text())
-    assert "no --tools given" in _one_line_error(capsys, ["time", str(alone / "job.cl"), "--machine", "seed-002"])
+    assert "no --tools given" in one_line_error(capsys, ["time", str(alone / "job.cl"), "--machine", "seed-002"])
+
+
+def test_rotary_axes_bound_the_time_of_a_5axis_path():
+    """The tool axis circling at 30 deg tilt with the tip nearly still: C turns 360 deg, which at
+    the trunnion's 9000 deg/min takes 2.4 s, far longer than the 1 mm of linear motion."""
+    from meshmill.machine.config import load_machine
+    from meshmill.machine.timing import rotary_seconds
+
+    m = load_machine("table-table-ac")
+    t = np.linspace(0.0, 2 * np.pi, 73)
+    axis = np.column_stack([0.5 * np.cos(t), 0.5 * np.sin(t), np.full(len(t), np.sqrt(0.75))])
+    tip = np.column_stack([np.linspace(0, 1, len(t)), np.zeros(len(t)), np.zeros(len(t))])
+    rapid = np.zeros(len(t), bool)
+    rot = rotary_seconds(m, tip, axis)
+    assert rot.sum() == pytest.approx(360.0 / 150.0, rel=1e-9)
+    assert path_time(tip, rapid, m)["total_s"] < 0.2
+    assert path_time(tip, rapid, m, rotary_s=rot)["total_s"] == pytest.approx(2.4, rel=1e-9)
+    assert rotary_seconds(load_machine("generic-3axis"), tip, axis) is None
+
+
+def test_time_of_a_posted_5axis_program_matches_its_cl(tmp_path, capsys):
+    """CL -> post (G93 inverse-time feeds) -> time: the program's time (its F words read back as
+    block times) agrees with the CL file's at the machine's feed, rotaries included."""
+    from meshmill.machine.config import load_machine
+    from meshmill.machine.post import post_program
+    from meshmill.tools.table import Tool, write_tools
+
+    tools = [Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1)]
+    k = 60
+    t = np.linspace(0.0, 1.0, k)
+    tilt, turn = np.radians(10 + 30 * t), np.radians(-40 + 160 * t)
+    axis = np.column_stack([np.sin(tilt) * np.cos(turn), np.sin(tilt) * np.sin(turn), np.cos(tilt)])
+    tip = np.column_stack([30 * np.cos(2 * np.pi * t), 30 * np.sin(2 * np.pi * t), 5 * t])
+    tip = np.concatenate([[tip[0] + [0, 0, 20]], tip, [tip[-1] + [0, 0, 20]]])
+    axis = np.concatenate([axis[:1], axis, axis[-1:]])
+    rapid = np.zeros(k + 2, bool)
+    rapid[[0, -1]] = True
+    tp = Toolpath(tip=tip, axis=axis, rapid=rapid, tool=np.zeros(k + 2, np.int64))
+    write_apt(tmp_path / "job.cl", tp, tools)
+    write_tools(tmp_path / "tools.toml", tools)
+    machine = load_machine("table-table-ac")
+    lines, report = post_program(tp, tools, machine, tolerance=0.005)
+    (tmp_path / "job.nc").write_text("\n".join(lines) + "\n")
+    assert report["feed_mode"].startswith("G93")
+    times = {}
+    for name in ("job.cl", "job.nc"):
+        assert main(["time", str(tmp_path / name), "--machine", "table-table-ac", "--json"]) == 0
+        times[name] = json.loads(capsys.readouterr().out)["total"]
+    assert times["job.nc"]["cutting_mm"] == pytest.approx(times["job.cl"]["cutting_mm"], rel=1e-3)
+    assert times["job.nc"]["cutting_s"] == pytest.approx(times["job.cl"]["cutting_s"], rel=0.05)

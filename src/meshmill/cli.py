@@ -95,6 +95,19 @@ def _load_part(args, path):
     return mesh
 
 
+def _tools_beside(args):
+    """The tool table of ``--tools``, else the ``tools.toml`` beside ``args.toolpath`` (as choose
+    writes it); sets ``args.tools`` to the file read."""
+    from .tools.table import load_tools
+
+    if args.tools is None:
+        beside = os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "tools.toml")
+        if not os.path.exists(beside):
+            raise InputError(f"no --tools given and no tools.toml beside {args.toolpath}: give the tool table")
+        args.tools = beside
+    return load_tools(args.tools)
+
+
 def _write_json(path, data):
     try:
         with open(path, "w") as fh:
@@ -236,17 +249,19 @@ def cmd_plunge(args):
 
 def cmd_verify(args):
     from .geometry.bvh import build_bvh
+    from .machine.config import load_machine
+    from .ops.simulate import read_toolpath
     from .ops.verify import verify_toolpath
     from .tools.table import load_tools
-    from .toolpath.cldata import read_apt
 
     if not (math.isfinite(args.step) and args.step >= 1e-4):
         raise InputError(f"--step must be a finite number of at least 0.0001 mm, got {args.step}")
     if not (math.isfinite(args.tolerance) and args.tolerance >= 0):
         raise InputError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
     tools = load_tools(args.tools)
+    machine = load_machine(args.machine) if args.machine else None
     mesh = _load_part(args, args.part)
-    tp, warnings = read_apt(args.toolpath, tools)
+    tp, warnings = read_toolpath(args.toolpath, tools, machine=machine)
     for w in warnings:
         _say(args, f"warning: {w}")
     device = _device(args)
@@ -306,6 +321,7 @@ def _mesh_volume(mesh):
 def cmd_simulate(args):
     import numpy as np
 
+    from .machine.config import load_machine
     from .ops.simulate import read_toolpath, simulate
     from .tools.table import load_tools
 
@@ -318,7 +334,8 @@ def cmd_simulate(args):
         stock = _load_part(args, args.stock)
         if not stock.closed:
             raise InputError(f"{args.stock}: the stock mesh is open (not watertight)")
-    tp, warnings = read_toolpath(args.toolpath, tools, args.tool)
+    machine = load_machine(args.machine) if args.machine else None
+    tp, warnings = read_toolpath(args.toolpath, tools, args.tool, machine)
     for w in warnings:
         _say(args, f"warning: {w}")
     out = _out_dir(args.out)
@@ -432,28 +449,23 @@ def cmd_time(args):
     import numpy as np
 
     from .machine.config import load_machine
-    from .machine.timing import programmed_feeds, tool_times
+    from .machine.timing import programmed_feeds, rotary_seconds, tool_times
     from .ops.simulate import TOOLPATH_GCODE, read_toolpath
-    from .tools.table import load_tools
 
     if args.feed is not None and not (math.isfinite(args.feed) and args.feed > 0):
         raise InputError(f"--feed must be a positive number of mm/min, got {args.feed}")
     machine = load_machine(args.machine)
-    if args.tools is None:
-        beside = os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "tools.toml")
-        if not os.path.exists(beside):
-            raise InputError(f"no --tools given and no tools.toml beside {args.toolpath}: give the tool table")
-        args.tools = beside
-    tools = load_tools(args.tools)
-    tp, warnings = read_toolpath(args.toolpath, tools, args.tool)
+    tools = _tools_beside(args)
+    is_gcode = os.path.splitext(args.toolpath)[1].lower() in TOOLPATH_GCODE
+    tp, warnings = read_toolpath(args.toolpath, tools, args.tool,
+                                 machine if is_gcode and machine.chain.type != "3-axis" else None)
     feed_move = ~tp.rapid[1:]
     nominal = f"the machine's {machine.kinematics.feed * 60.0:g} mm/min"
     if args.feed is not None:
         feed, unset = np.full(len(tp), args.feed / 60.0), 0
         notes = [f"feed {args.feed:g} mm/min (--feed) on every feed move"]
     else:
-        gcode = os.path.splitext(args.toolpath)[1].lower() in TOOLPATH_GCODE
-        feed, more = programmed_feeds(args.toolpath, tp.line, gcode)
+        feed, more = programmed_feeds(args.toolpath, tp.line, is_gcode, tp.tip)
         warnings += more
         unset = int((feed_move & np.isnan(feed[1:])).sum())
         if not unset:
@@ -462,9 +474,17 @@ def cmd_time(args):
             notes = [f"no feed programmed: every feed move at {nominal}"]
         else:
             notes = [f"{unset} of {feed_move.sum()} feed moves without a programmed feed: {nominal}"]
+    rotary = None
     if np.ptp(tp.axis, axis=0).max() > 1e-9:
-        notes.append("the tool axis turns along the path: rotary-axis motion is not timed")
-    times = tool_times(tp.tip, tp.rapid, tp.tool, machine, feed)
+        if machine.chain.type == "3-axis":
+            notes.append("the tool axis turns along the path: rotary-axis motion is not timed on a 3-axis machine")
+        else:
+            try:
+                rotary = rotary_seconds(machine, tp.tip, tp.axis, tools, tp.tool)
+                notes.append(f"rotary axes at {machine.rotary_rapid * 60.0:g} deg/min bound each move's time")
+            except InputError as exc:
+                notes.append(f"rotary-axis motion is not timed ({exc})")
+    times = tool_times(tp.tip, tp.rapid, tp.tool, machine, feed, rotary)
     summary = {"operation": "time", "toolpath": os.path.abspath(args.toolpath), "moves": len(tp),
                "machine": machine.summary(), "tools_file": os.path.abspath(args.tools), "notes": notes,
                "feed_moves": int(feed_move.sum()), "feed_moves_at_machine_feed": unset,
@@ -483,6 +503,75 @@ def cmd_time(args):
         print(f"{name:<12}{e['cutting_s']:>11.1f}{e['rapid_s']:>10.1f}{e['tool_changes']:>8}{e['tool_change_s']:>10.1f}"
               f"{e['total_s']:>11.1f}{e['cutting_mm']:>13.1f}{e['rapid_mm']:>11.1f}{e['stops']:>9}")
     print(f"machining time {_clock(summary['total']['total_s'])} (h:mm:ss)")
+    return 0
+
+
+def cmd_post(args):
+    import numpy as np
+
+    from .machine.config import load_machine
+    from .machine.post import post_program
+    from .machine.timing import programmed_feeds
+    from .toolpath.cldata import read_apt
+
+    if args.feed is not None and not (math.isfinite(args.feed) and args.feed > 0):
+        raise InputError(f"--feed must be a positive number of mm/min, got {args.feed}")
+    if not (math.isfinite(args.tolerance) and args.tolerance > 0):
+        raise InputError(f"--tolerance must be a positive number of mm, got {args.tolerance}")
+    machine = load_machine(args.machine)
+    tools = _tools_beside(args)
+    tp, warnings = read_apt(args.toolpath, tools)
+    feed, more = programmed_feeds(args.toolpath, tp.line, False)
+    warnings += more
+    unset = ~tp.rapid & np.isnan(feed)
+    fill = (f"--feed {args.feed:g} mm/min" if args.feed is not None
+            else f"the machine's {machine.kinematics.feed * 60.0:g} mm/min")
+    if args.feed is not None:
+        feed[unset] = args.feed / 60.0
+    if not unset.any():
+        feeds = "feeds as programmed"
+    elif unset.sum() == (~tp.rapid).sum():
+        feeds = f"no feed programmed: {fill}"
+    else:
+        feeds = f"{unset.sum()} of {(~tp.rapid).sum()} feed moves without a programmed feed: {fill}"
+    origin = None
+    if args.origin is not None:
+        try:
+            origin = [float(v) for v in args.origin.split(",")]
+        except ValueError:
+            origin = []
+        if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
+            raise InputError(f"--origin wants X,Y,Z in mm (the program's zero in machine coordinates), got '{args.origin}'")
+    lines, report = post_program(tp, tools, machine, feed=feed, tolerance=args.tolerance, origin=origin)
+    out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "program.nc")
+    _out_dir(os.path.dirname(os.path.abspath(out)))
+    try:
+        with open(out, "w") as fh:
+            fh.write("\n".join(lines) + "\n")
+    except OSError as exc:
+        raise InputError(f"{out}: cannot write ({exc.strerror})") from None
+    report = {"operation": "post", "toolpath": os.path.abspath(args.toolpath), "program": os.path.abspath(out),
+              "tools_file": os.path.abspath(args.tools), "feeds": feeds, **report}
+    report["warnings"] = warnings + report["warnings"]
+    for w in report["warnings"]:
+        _say(args, f"warning: {w}")
+    if args.json:
+        _finish_json(args, report)
+        return 0
+    lin = report["linearisation"]
+    if lin["max_deviation_mm"] is None:
+        shape = "the control interpolates (TCP)"
+    elif report["mode"] == "3-axis":
+        shape = "straight moves"
+    else:
+        shape = (f"linearisation within {lin['tolerance_mm']:g} mm added {lin['blocks_added']} blocks (largest tip "
+                 f"deviation {lin['max_deviation_mm']:.4f} mm)")
+    ranges = ", ".join(f"{a} {lo:.3f}..{hi:.3f}" for a, (lo, hi) in report["axis_ranges"].items())
+    rewinds = (f"; {report['rewinds']} rewind(s) of the rotaries, retracted to Z {report['clearance_z_mm']:g}"
+               if report["rewinds"] else "")
+    print(f"wrote {out}: {report['blocks']} blocks for {report['moves']} CL moves on {machine.name} "
+          f"({report['dialect']}, {report['mode']}, {report['feed_mode']}); {shape}; axes {ranges}{rewinds}; "
+          f"tools {', '.join(report['tools'])}, {report['tool_changes']} tool change(s); {feeds}.")
     return 0
 
 
@@ -622,10 +711,12 @@ def build_parser():
     pl.add_argument("--quiet", action="store_true", help="print nothing but errors")
     pl.set_defaults(func=cmd_plunge)
 
-    v = sub.add_parser("verify", help="check an APT CL file for gouges and collisions")
+    v = sub.add_parser("verify", help="check an APT CL file or G-code for gouges and collisions")
     v.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
-    v.add_argument("toolpath", help="APT CL file")
+    v.add_argument("toolpath", help="APT CL file (.cl) or G-code (.nc, .ngc, .gcode, .tap)")
     v.add_argument("--tools", required=True, help="TOML tool table")
+    v.add_argument("--machine", default=None,
+                   help="G-code's machine (TOML file or shipped name): 5-axis words are read through its kinematics")
     v.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge tolerance, mm ({GOUGE_TOL})")
     v.add_argument("--step", type=float, default=0.5, help="largest distance between checked poses along a move, mm")
     v.add_argument("--worst", type=int, default=10, help="how many worst cases to print (10)")
@@ -656,6 +747,8 @@ def build_parser():
     s.add_argument("--toolpath", required=True, help="APT CL file (.cl) or 3-axis G-code (.nc, .ngc, .gcode, .tap)")
     s.add_argument("--tools", required=True, help="TOML tool table")
     s.add_argument("--tool", default=None, help="tool name for G-code without T words")
+    s.add_argument("--machine", default=None,
+                   help="G-code's machine (TOML file or shipped name): 5-axis words are read through its kinematics")
     s.add_argument("--step", type=float, required=True, help="dexel grid step, mm")
     s.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"deviation tolerance band ±MM ({GOUGE_TOL})")
     s.add_argument("--mode", choices=("sweep", "points"), default="sweep",
@@ -692,6 +785,23 @@ def build_parser():
                     help="cutting feed for every feed move, mm/min (default: as programmed, else the machine's)")
     tm.add_argument("--out", default=None, help="write the summary as JSON to this file")
     tm.set_defaults(func=cmd_time)
+    po = sub.add_parser("post", help="G-code for a machine from an APT CL file (3- and 5-axis)")
+    po.add_argument("toolpath", help="APT CL file")
+    po.add_argument("--machine", required=True,
+                    help="TOML machine file, or a shipped one: generic-3axis, linuxcnc-3axis, grbl-3axis, "
+                         "table-table-ac, head-table-bc")
+    po.add_argument("--tools", default=None,
+                    help="TOML tool table (default: tools.toml beside the tool path, as choose writes it)")
+    po.add_argument("--out", default=None, help="program file to write (program.nc beside the tool path)")
+    po.add_argument("--origin", default=None, metavar="X,Y,Z",
+                    help="the program's zero in machine coordinates (work offset), for the travel of X Y Z "
+                         "(default: each axis's span must fit its travel)")
+    po.add_argument("--tolerance", type=float, default=0.005,
+                    help="5-axis: largest tip deviation from a CL move between blocks, mm (0.005)")
+    po.add_argument("--feed", type=float, default=None,
+                    help="feed for the moves the CL file gives none, mm/min (default: the machine's)")
+    po.add_argument("--json", action="store_true", help="print the report as JSON on stdout (and nothing on stderr)")
+    po.set_defaults(func=cmd_post)
     ch = sub.add_parser("choose", help="tool choice, zones and directions by machining time (3-axis or 3+2)")
     ch.add_argument("surface", help="surface: patch TOML (Bezier/B-spline/NURBS), 'rubio' or 'choi', or a mesh (STL, OBJ, PLY)")
     ch.add_argument("--tool-pair", default=None, metavar="D,r",

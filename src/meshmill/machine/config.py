@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import os
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ..errors import InputError
 from .timing import Kinematics
@@ -30,20 +30,85 @@ SHIPPED = os.path.join(os.path.dirname(os.path.dirname(__file__)), "data", "mach
 
 MOTION_POSITIVE = ("feed_mm_min", "rapid_mm_min", "accel_mm_s2", "jerk_mm_s3")
 MOTION_NON_NEGATIVE = ("corner_angle_deg", "tool_change_s", "reorient_s")
+MOTION_OPTIONAL = {"rotary_rapid_deg_min": 3600.0}
+
+
+LINEAR = ("X", "Y", "Z")
+ROTARY = ("A", "B", "C")  # about X, Y, Z
+CHAINS = ("3-axis", "table-table", "head-table")
+DIALECTS = ("fanuc", "linuxcnc", "grbl")
+
+
+@dataclass(frozen=True)
+class Chain:
+    """The kinematic chain (``[kinematics]``). ``type``: "3-axis", "table-table" (both rotaries
+    carry the part: ``rotary[0]`` tilts the table, ``rotary[1]`` turns the part on it) or
+    "head-table" (``rotary[0]`` tilts the spindle head, ``rotary[1]`` turns the table). A rotary
+    named A, B or C turns about X, Y or Z (right hand, positive angle turns the table or the head
+    by that angle; ``reversed`` names the axes whose controller counts the other way).
+    ``pivot`` (3,) mm: a point of the first rotary's axis in work coordinates at zero angles
+    (table-table); ``offset`` (3,) mm: from there to a point of the second rotary's axis
+    (table-table, zero when the axes meet); ``head_length`` mm: from the head's pivot to the
+    spindle's gauge line along the tool (head-table). ``singular`` rad: within this of the pole
+    (tool axis on the table's turning axis) the turning angle is held."""
+
+    type: str = "3-axis"
+    rotary: tuple = ()
+    reversed: tuple = ()
+    pivot: tuple = (0.0, 0.0, 0.0)
+    offset: tuple = (0.0, 0.0, 0.0)
+    head_length: float = 0.0
+    singular: float = math.radians(0.05)
+
+
+@dataclass(frozen=True)
+class GcodeFormat:
+    """How programs are written (``[gcode]``); every text may use ``{number}`` (tool number),
+    ``{name}``, ``{text}`` (comments), ``{rpm}``. ``inverse_time``: 5-axis feed moves in G93 (F =
+    1 / minutes), else G94 mm/min; ``tcp``: the control does the kinematics (tool tip in work
+    coordinates and the rotary angles are written), its switch-on text (e.g. "G43.4 H{number}")."""
+
+    dialect: str = "fanuc"
+    decimals: int = 4
+    angle_decimals: int = 4
+    start: tuple = ("%", "O1000", "G21 G90 G17 G40 G49 G80 G94")
+    end: tuple = ("M5", "M9", "G91 G28 Z0", "G90", "M30", "%")
+    tool_change: str = "T{number} M6"
+    tool_length: str = "G43 H{number}"
+    spindle: str = "S{rpm} M3"
+    rpm: float = 10000.0
+    coolant_on: str = "M8"
+    coolant_off: str = "M9"
+    comment: str = "({text})"
+    inverse_time: bool = True
+    tcp: str = ""
+    tcp_off: str = "G49"
+    line_numbers: bool = False
 
 
 @dataclass(frozen=True)
 class Machine:
     """A machine tool: linear-axis limits (``kinematics``, mm and s), ``corner_angle`` (radians:
-    a sharper turn between moves stops the tool), ``tool_change`` and ``reorient`` (s), and the
-    ``path`` of the file it was read from."""
+    a sharper turn between moves stops the tool), ``tool_change`` and ``reorient`` (s), the axis
+    travel ``limits`` ({letter: (low, high)} mm or degrees; a rotary absent or "continuous" turns
+    freely), the kinematic ``chain``, the G-code ``gcode`` format, the rotary axes' speed
+    ``rotary_rapid`` (deg/s) and the ``path`` of the file it was read from."""
 
     name: str
     kinematics: Kinematics
     corner_angle: float
     tool_change: float
     reorient: float
+    limits: dict = field(default_factory=dict)
+    chain: Chain = Chain()
+    gcode: GcodeFormat = GcodeFormat()
+    rotary_rapid: float = 60.0
     path: str = ""
+
+    @property
+    def axes(self) -> tuple:
+        """The machine's axis letters in program order: X Y Z and its rotaries."""
+        return LINEAR + tuple(sorted(self.chain.rotary))
 
     def summary(self) -> dict:
         """The machine in the file's units, for summary JSON files."""
@@ -51,7 +116,10 @@ class Machine:
         return {"name": self.name, "file": os.path.abspath(self.path) if self.path else "",
                 "feed_mm_min": k.feed * 60.0, "rapid_mm_min": k.rapid * 60.0, "accel_mm_s2": k.accel,
                 "jerk_mm_s3": k.jerk, "corner_angle_deg": math.degrees(self.corner_angle),
-                "tool_change_s": self.tool_change, "reorient_s": self.reorient}
+                "tool_change_s": self.tool_change, "reorient_s": self.reorient,
+                "rotary_rapid_deg_min": self.rotary_rapid * 60.0, "kinematics": self.chain.type,
+                "rotary": list(self.chain.rotary), "limits": {a: list(v) for a, v in self.limits.items()},
+                "dialect": self.gcode.dialect}
 
 
 def _number(table, key, where, positive):
@@ -69,8 +137,8 @@ def _motion(table, where) -> dict:
     """``[motion]``: kinematics, corner angle, tool change and re-orientation times."""
     keys = MOTION_POSITIVE + MOTION_NON_NEGATIVE
     for key in table:
-        if key not in keys:
-            raise InputError(f"{where} unknown key '{key}' (known: {', '.join(keys)})")
+        if key not in keys and key not in MOTION_OPTIONAL:
+            raise InputError(f"{where} unknown key '{key}' (known: {', '.join(keys + tuple(MOTION_OPTIONAL))})")
     for key in keys:
         if key not in table:
             raise InputError(f"{where} missing key '{key}'")
@@ -82,11 +150,115 @@ def _motion(table, where) -> dict:
         raise InputError(f"{where} 'corner_angle_deg' must be below 180, got {v['corner_angle_deg']:g}")
     kinematics = Kinematics(feed=v["feed_mm_min"] / 60.0, accel=v["accel_mm_s2"], jerk=v["jerk_mm_s3"],
                             rapid=v["rapid_mm_min"] / 60.0)
+    rotary = _number({**MOTION_OPTIONAL, **table}, "rotary_rapid_deg_min", where, True)
     return {"kinematics": kinematics, "corner_angle": math.radians(v["corner_angle_deg"]),
-            "tool_change": v["tool_change_s"], "reorient": v["reorient_s"]}
+            "tool_change": v["tool_change_s"], "reorient": v["reorient_s"], "rotary_rapid": rotary / 60.0}
 
 
-SECTIONS = {"motion": _motion}  # section -> reader of its table into Machine fields
+def _axes(table, where) -> dict:
+    """``[axes]``: travel per axis letter, ``[low, high]`` (mm; degrees for A B C), or
+    "continuous" for a rotary that turns freely."""
+    limits = {}
+    for key, value in table.items():
+        if key not in LINEAR + ROTARY:
+            raise InputError(f"{where} unknown axis '{key}' (known: {', '.join(LINEAR + ROTARY)})")
+        if value == "continuous" and key in ROTARY:
+            continue
+        if (not isinstance(value, list) or len(value) != 2
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value)
+                or value[0] >= value[1]):
+            also = ' or "continuous"' if key in ROTARY else ""
+            raise InputError(f"{where} '{key}' must be [low, high] with low < high{also}, got {value!r}")
+        limits[key] = (float(value[0]), float(value[1]))
+    return {"limits": limits}
+
+
+def _vector(table, key, where):
+    value = table.get(key, [0.0, 0.0, 0.0])
+    if (not isinstance(value, list) or len(value) != 3
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value)):
+        raise InputError(f"{where} '{key}' must be three numbers [x, y, z] in mm, got {value!r}")
+    return tuple(float(x) for x in value)
+
+
+def _kinematics(table, where) -> dict:
+    """``[kinematics]``: the chain (see :class:`Chain`)."""
+    known = ("type", "rotary", "reversed", "pivot_mm", "offset_mm", "head_length_mm", "singular_deg")
+    for key in table:
+        if key not in known:
+            raise InputError(f"{where} unknown key '{key}' (known: {', '.join(known)})")
+    kind = table.get("type", "3-axis")
+    if kind not in CHAINS:
+        raise InputError(f"{where} 'type' must be one of {', '.join(CHAINS)}, got {kind!r}")
+    singular = table.get("singular_deg", 0.05)
+    if isinstance(singular, bool) or not isinstance(singular, (int, float)) or not 0 < singular < 10:
+        raise InputError(f"{where} 'singular_deg' must be between 0 and 10 degrees, got {singular!r}")
+    rotary = table.get("rotary", [])
+    if kind == "3-axis":
+        if rotary:
+            raise InputError(f"{where} a 3-axis machine has no 'rotary' axes")
+        return {"chain": Chain()}
+    if (not isinstance(rotary, list) or len(rotary) != 2 or not all(r in ROTARY for r in rotary)
+            or rotary[0] == rotary[1] or "C" not in rotary or rotary[0] == "C"):
+        raise InputError(f"{where} 'rotary' must name the tilting axis (A or B) and then C, e.g. ['A', 'C'], "
+                         f"got {rotary!r}")
+    rev = table.get("reversed", [])
+    if not isinstance(rev, list) or not all(r in rotary for r in rev):
+        raise InputError(f"{where} 'reversed' must list some of {rotary}, got {rev!r}")
+    head = table.get("head_length_mm", 0.0)
+    if kind == "head-table" and (isinstance(head, bool) or not isinstance(head, (int, float))
+                                 or not math.isfinite(head) or head < 0):
+        raise InputError(f"{where} 'head_length_mm' must be a length >= 0 mm, got {head!r}")
+    return {"chain": Chain(type=kind, rotary=tuple(rotary), reversed=tuple(rev), pivot=_vector(table, "pivot_mm", where),
+                           offset=_vector(table, "offset_mm", where), head_length=float(head),
+                           singular=math.radians(singular))}
+
+
+DIALECT_DEFAULTS = {
+    "fanuc": {},
+    "linuxcnc": {"start": ("%", "G21 G90 G17 G40 G49 G80 G94 G64 P0.005"), "end": ("M5", "M9", "G53 G0 Z0", "M2", "%"),
+                 "comment": "({text})", "tcp": ""},
+    "grbl": {"start": ("G21 G90 G17 G94",), "end": ("M5", "M9", "M2"), "tool_change": "", "tool_length": "",
+             "comment": "; {text}", "inverse_time": False, "decimals": 3},
+}
+
+
+def _gcode(table, where) -> dict:
+    """``[gcode]``: the program format (see :class:`GcodeFormat`); ``dialect`` sets the defaults
+    that the other keys override."""
+    dialect = table.get("dialect", "fanuc")
+    if dialect not in DIALECTS:
+        raise InputError(f"{where} 'dialect' must be one of {', '.join(DIALECTS)}, got {dialect!r}")
+    values = {**DIALECT_DEFAULTS[dialect]}
+    template = GcodeFormat()
+    for key, value in table.items():
+        if key == "dialect":
+            continue
+        if not hasattr(template, key):
+            raise InputError(f"{where} unknown key '{key}' (known: dialect, "
+                             f"{', '.join(f for f in GcodeFormat.__dataclass_fields__ if f != 'dialect')})")
+        want = type(getattr(template, key))
+        if want is tuple:
+            if not isinstance(value, list) or not all(isinstance(x, str) for x in value):
+                raise InputError(f"{where} '{key}' must be a list of lines (strings)")
+            value = tuple(value)
+        elif want is bool:
+            if not isinstance(value, bool):
+                raise InputError(f"{where} '{key}' must be true or false, got {value!r}")
+        elif want is int:
+            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 8:
+                raise InputError(f"{where} '{key}' must be an integer from 0 to 8, got {value!r}")
+        elif want is float:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+                raise InputError(f"{where} '{key}' must be a positive number, got {value!r}")
+            value = float(value)
+        elif not isinstance(value, str):
+            raise InputError(f"{where} '{key}' must be a string, got {value!r}")
+        values[key] = value
+    return {"gcode": GcodeFormat(dialect=dialect, **values)}
+
+
+SECTIONS = {"motion": _motion, "axes": _axes, "kinematics": _kinematics, "gcode": _gcode}  # section -> reader
 REQUIRED = ("motion",)
 
 
@@ -124,4 +296,8 @@ def load_machine(path) -> Machine:
     for section in REQUIRED:
         if section not in data:
             raise InputError(f"{path}: missing section [{section}]")
+    chain = fields.get("chain", Chain())
+    for axis in fields.get("limits", {}):
+        if axis in ROTARY and axis not in chain.rotary:
+            raise InputError(f"{path}: [axes] '{axis}' is not a rotary axis of this machine ([kinematics] rotary)")
     return Machine(name=name.strip(), path=path, **fields)

@@ -69,7 +69,7 @@ def _limits(machine, corner_angle):
     return kinematics, float(corner_angle)
 
 
-def _runs(tip, rapid, kinematics, corner_angle, feed=None, tool=None):
+def _runs(tip, rapid, kinematics, corner_angle, feed=None, tool=None, rotary_s=None):
     """The path's rest-to-rest runs: ``(length (r,) mm, seconds (r,), rapid (r,) bool, tool (r,)
     or None)``.
 
@@ -77,7 +77,8 @@ def _runs(tip, rapid, kinematics, corner_angle, feed=None, tool=None):
     feed) and ``tool[i]`` describe it. A run ends where rapid and feed moves meet, where the tool
     changes and where the direction turns by more than ``corner_angle``. Its time is that of one
     straight segment of its length whose cruise time is that of its moves at their own speeds
-    (the speed limit of the segment is the length-weighted harmonic mean of theirs).
+    (the speed limit of the segment is the length-weighted harmonic mean of theirs), and at least
+    the sum of its moves' ``rotary_s (k,)`` (the seconds the rotary axes need for each move).
     """
     tip = np.asarray(tip, np.float64)
     step = np.diff(tip, axis=0)
@@ -107,6 +108,12 @@ def _runs(tip, rapid, kinematics, corner_angle, feed=None, tool=None):
     run_length = np.add.reduceat(length, first)
     cruise = np.add.reduceat(length / speed, first)
     seconds = segment_time(run_length, run_length / cruise, kinematics.accel, kinematics.jerk)
+    if rotary_s is not None:
+        # the rotaries' moves that the linear axes' (kept) moves carry, run by run
+        rot = np.asarray(rotary_s, np.float64)
+        owner = np.searchsorted(end, np.arange(1, len(rot)), side="left")  # kept move that ends at or after each move
+        per_kept = np.bincount(np.minimum(owner, len(end) - 1), weights=rot[1:], minlength=len(end))
+        seconds = np.maximum(seconds, np.add.reduceat(per_kept, first))
     return run_length, seconds, is_rapid[first], None if move_tool is None else move_tool[first]
 
 
@@ -118,28 +125,29 @@ def _totals(length, seconds, rapid) -> dict:
             "stops": int(len(length))}
 
 
-def path_time(tip, rapid, machine, corner_angle=None, feed=None) -> dict:
+def path_time(tip, rapid, machine, corner_angle=None, feed=None, rotary_s=None) -> dict:
     """Machining time of a tool path, rest-to-rest run by run (see :func:`_runs`).
 
     ``tip (k, 3)`` mm, ``rapid (k,) bool`` (move i ends at ``tip[i]``), ``machine`` a
     :class:`~meshmill.machine.config.Machine` or :class:`Kinematics`, ``corner_angle`` radians
     (default: the machine's), ``feed (k,)`` mm/s per feed move (NaN: the machine's feed; capped at
-    the rapid rate). Returns ``total_s``, ``cutting_s``, ``rapid_s``, ``cutting_mm``, ``rapid_mm``
-    and ``stops`` (rest-to-rest runs, each ending at rest).
+    the rapid rate), ``rotary_s (k,)`` the least seconds the rotary axes need for each move (see
+    :func:`rotary_seconds`). Returns ``total_s``, ``cutting_s``, ``rapid_s``, ``cutting_mm``,
+    ``rapid_mm`` and ``stops`` (rest-to-rest runs, each ending at rest).
     """
     kinematics, corner_angle = _limits(machine, corner_angle)
-    length, seconds, is_rapid, _ = _runs(tip, rapid, kinematics, corner_angle, feed)
+    length, seconds, is_rapid, _ = _runs(tip, rapid, kinematics, corner_angle, feed, rotary_s=rotary_s)
     return _totals(length, seconds, is_rapid)
 
 
-def tool_times(tip, rapid, tool, machine, feed=None) -> dict:
+def tool_times(tip, rapid, tool, machine, feed=None, rotary_s=None) -> dict:
     """:func:`path_time` per tool: ``{"tools": {tool: dict}, "total": dict}``, tools in the order
     of first use; runs also end at tool changes. ``tool (k,) int``; each change of tool between
     consecutive moves adds ``machine.tool_change`` seconds to the incoming tool (``tool_changes``,
     ``tool_change_s``, included in ``total_s``); the first tool is in the spindle at the start."""
     tool = np.asarray(tool)
     kinematics, corner_angle = _limits(machine, None)
-    length, seconds, is_rapid, run_tool = _runs(tip, rapid, kinematics, corner_angle, feed, tool)
+    length, seconds, is_rapid, run_tool = _runs(tip, rapid, kinematics, corner_angle, feed, tool, rotary_s)
     changed_to = tool[1:][tool[1:] != tool[:-1]]
     used, first = np.unique(tool, return_index=True)
     tools = {}
@@ -154,6 +162,24 @@ def tool_times(tip, rapid, tool, machine, feed=None) -> dict:
     total.update(tool_changes=len(changed_to), tool_change_s=len(changed_to) * machine.tool_change)
     total["total_s"] += total["tool_change_s"]
     return {"tools": tools, "total": total}
+
+
+def rotary_seconds(machine, tip, axis, tools=None, tool=None):
+    """Least seconds ``(k,)`` the rotary axes of a 5-axis ``machine`` need for each move of a
+    tool path (``tip``, ``axis (k, 3)``): the largest joint change of the move (from
+    :func:`meshmill.machine.kinematics.inverse`, the post's own choice of solutions) at
+    ``machine.rotary_rapid``. None on a 3-axis machine. ``tools``/``tool (k,)``: the tool lengths
+    that a head-table machine needs (the move's tool's gauge plus holder length)."""
+    if machine.chain.type == "3-axis":
+        return None
+    from .kinematics import angle_step, inverse
+
+    length = 0.0
+    if tools is not None and tool is not None:
+        lengths = np.array([t.gauge_length + t.holder_length for t in tools])
+        length = lengths[np.asarray(tool)]
+    joints, _ = inverse(machine, tip, axis, tool_length=length)
+    return angle_step(joints) / machine.rotary_rapid
 
 
 # --- feed rates programmed in tool-path files -----------------------------------------------------
@@ -185,36 +211,59 @@ def _apt_feeds(text):
 
 
 def _gcode_feeds(text):
-    """``[(line, mm/min or None)]`` of the lines with F words (inch/min under G20; None: F <= 0)."""
-    out, scale = [], 1.0
+    """``[(line, value or None, kind)]`` of the lines with F words: kind "feed" (mm/min; inch/min
+    under G20), "inverse" (G93: 1 / the block's minutes, that block only) or "reset" (a G93 line
+    with no F, or G94 after G93: no feed per minute in force); None: F <= 0."""
+    out, scale, inverse = [], 1.0, False
     for number, raw in enumerate(text.splitlines(), start=1):
         code = "".join(_GCODE_COMMENT.sub("", raw).split(";", 1)[0].split()).upper()
-        if "F" not in code and "G2" not in code:
+        if "F" not in code and "G2" not in code and "G9" not in code:
             continue
-        feed = None
+        feed, switched = None, False
         for letter, value in _GCODE_WORD.findall(code):
             if letter == "G" and float(value) in (20.0, 21.0):
                 scale = INCH if float(value) == 20.0 else 1.0
+            elif letter == "G" and float(value) in (93.0, 94.0):
+                switched = inverse != (float(value) == 93.0)
+                inverse = float(value) == 93.0
             elif letter == "F":
                 feed = float(value)
         if feed is not None:
-            out.append((number, feed * scale if feed > 0 else None))
+            value = (feed if inverse else feed * scale) if feed > 0 else None
+            out.append((number, value, "inverse" if inverse else "feed"))
+        elif switched:
+            out.append((number, None, "reset"))
     return out
 
 
-def programmed_feeds(path, line, gcode) -> tuple[np.ndarray, list[str]]:
+def programmed_feeds(path, line, gcode, tip=None) -> tuple[np.ndarray, list[str]]:
     """Feed rates ``(k,)`` mm/s that a tool-path file programs for its moves, NaN where none is in
     force. ``line (k,)``: the source line of each move (:attr:`Toolpath.line`); ``gcode``: the
-    file is G-code (``F`` words, mm/min or inch/min under G20) rather than APT (``FEDRAT/f`` with
-    ``MMPM`` or ``IPM``, mm/min without). Feeds are modal from their line on; feeds per revolution
-    and non-positive ones are not honoured (NaN from there on, and a warning)."""
+    file is G-code (``F`` words, mm/min or inch/min under G20; under G93 1 / the block's minutes,
+    turned into the block's tip length per that time with ``tip (k, 3)``) rather than APT
+    (``FEDRAT/f`` with ``MMPM`` or ``IPM``, mm/min without). Feeds per minute are modal from their
+    line on; feeds per revolution and non-positive ones are not honoured (NaN from there on, and
+    a warning)."""
     path = os.fspath(path)
-    found = (_gcode_feeds if gcode else _apt_feeds)(read_text(path, "tool-path"))
-    lines = np.array([0] + [n for n, _ in found], np.int64)
-    values = np.array([np.nan] + [np.nan if f is None else f / 60.0 for _, f in found])
-    feed = values[np.searchsorted(lines, np.asarray(line), side="right") - 1]
-    bad = [n for n, f in found if f is None]
+    found = _gcode_feeds(read_text(path, "tool-path")) if gcode else \
+        [(n, f, "feed") for n, f in _apt_feeds(read_text(path, "tool-path"))]
+    line = np.asarray(line)
+    modal = [(n, f) for n, f, kind in found if kind != "inverse"]
+    lines = np.array([0] + [n for n, _ in modal], np.int64)
+    values = np.array([np.nan] + [np.nan if f is None else f / 60.0 for _, f in modal])
+    feed = values[np.searchsorted(lines, line, side="right") - 1]
+    bad = [n for n, f, kind in found if f is None and kind != "reset"]
+    warnings = []
+    blocks = [(n, f) for n, f, kind in found if kind == "inverse" and f is not None]
+    if blocks and tip is None:
+        warnings.append(f"{os.path.basename(path)}: inverse-time (G93) feeds need the path's moves; the machine's feed there")
+    elif blocks:
+        step = np.concatenate([[0.0], np.linalg.norm(np.diff(np.asarray(tip, np.float64), axis=0), axis=1)])
+        for n, f in blocks:
+            mine = line == n
+            feed[mine] = step[mine].sum() * f / 60.0 if step[mine].sum() > 0 else np.nan
     word = "F word" if gcode else "FEDRAT"
-    warnings = [f"{os.path.basename(path)}: {len(bad)} {word}(s) not honoured (first at line {bad[0]}): "
-                "not a positive feed per minute; the machine's feed there"] if bad else []
+    if bad:
+        warnings.append(f"{os.path.basename(path)}: {len(bad)} {word}(s) not honoured (first at line {bad[0]}): "
+                        "not a positive feed per minute; the machine's feed there")
     return feed, warnings

@@ -49,17 +49,24 @@ def dexel_model(mesh, step, index="bvh", partitions="1", init="k-means++", minib
     return model, summary
 
 
-def read_toolpath(path, tools, tool_name=None):
-    """A tool path from an APT CL file or 3-axis G-code, chosen by the file's extension."""
+def read_toolpath(path, tools, tool_name=None, machine=None):
+    """A tool path from an APT CL file or G-code, chosen by the file's extension, and warnings.
+    ``machine`` (:class:`~meshmill.machine.config.Machine` or None) is the one G-code is read for
+    (5-axis words through its kinematics); a CL file holds tips and axes already, and is read
+    without it (with a warning that it is not used)."""
     ext = os.path.splitext(os.fspath(path))[1].lower()
     if ext in TOOLPATH_APT:
         from ..toolpath.cldata import read_apt
 
-        return read_apt(path, tools)
+        tp, warnings = read_apt(path, tools)
+        if machine is not None:
+            warnings.append(f"{os.path.basename(path)}: an APT CL file gives tool tips and axes; the machine "
+                            f"({machine.name}) is not used")
+        return tp, warnings
     if ext in TOOLPATH_GCODE:
         from ..toolpath.gcode import read_gcode
 
-        return read_gcode(path, tools, tool_name=tool_name)
+        return read_gcode(path, tools, tool_name=tool_name, machine=machine)
     raise InputError(f"{path}: unknown tool-path format '{ext}' (APT CL: {', '.join(TOOLPATH_APT)}; "
                      f"G-code: {', '.join(TOOLPATH_GCODE)})")
 

@@ -1,4 +1,5 @@
-"""3-axis G-code (RS-274 / ISO 6983) read into a :class:`Toolpath`; the tool axis is always +Z.
+"""G-code (RS-274 / ISO 6983) read into a :class:`Toolpath`: 3-axis, or 5-axis through a machine's
+kinematics (:mod:`meshmill.machine.kinematics`).
 
 Read:
 
@@ -9,21 +10,49 @@ Read:
   arc makes a helix, Z linear in the angle. Arcs become linear moves whose chord deviation
   (sagitta) is at most ``chord_tol`` mm, ending exactly at the programmed end.
 - Motion is modal: a line with only coordinates repeats the last ``G0``-``G3``.
-- ``G90``/``G91`` absolute/incremental coordinates, ``G20`` inch (X Y Z I J K R times 25.4),
-  ``G21`` mm.
+- ``G90``/``G91`` absolute/incremental coordinates (rotary words too), ``G20`` inch (X Y Z I J K R
+  times 25.4; angles stay degrees), ``G21`` mm.
 - ``T<n>`` selects the tool whose ``number`` is n for the moves that follow (``M6`` or not); a
   move before the first T word is refused. With no T word in the program: the tool named
   ``tool_name``, else the table's only tool.
 - Skipped: ``F S M N O P H D Q`` words, ``%`` lines, ``( ... )`` and ``; ...`` comments, ``G4``
-  (dwell; its line does not move), ``G17 G40 G43 G49 G61 G64 G80 G94``; ``G54``-``G59`` with a
-  warning that work offsets are not applied.
+  (dwell; its line does not move), ``G17 G40 G43 G49 G61 G64 G80 G93 G94`` (``G93`` inverse-time
+  and ``G94`` feeds: F words are skipped anyway); ``G54``-``G59`` with a warning that work offsets
+  are not applied.
+- The program's final retract in machine coordinates, ``G91 G28 Z0`` (``G28`` with Z alone, its
+  intermediate point where the tool is) or ``G53 G0 Z..`` (Z alone): read when the path has begun
+  and no move follows, and left out of the tool path with a warning (the machine's Z is unknown);
+  elsewhere refused.
+
+Without a machine, or with a 3-axis one, the tool axis is always +Z and X Y Z are the tool tip.
+
+With a 5-axis ``machine`` (table-table or head-table): its rotary words (A or B, and C) are read,
+modal like X Y Z, in degrees; each block's axis values are the joints of
+:func:`~meshmill.machine.kinematics.forward`, which gives the tool tip and axis in work coordinates
+(head-table: for the tool length of the current tool, its ``gauge_length + holder_length``, as the
+post-processor computes programs). The control moves the joints linearly from block to block, so
+where the rotaries turn the tip leaves the straight line: such a block becomes as many equal steps
+of the joints as it takes for the tip, and the point ``tool.reach`` up the tool axis, to stay
+within ``chord_tol`` of the straight pieces between them (sampled at :data:`SAMPLES` points a
+piece; a piece is accepted at :data:`ACCEPT` of the tolerance, the margin for the deviation between
+samples). Rapids (``G0``) are taken as coordinated like ``G1``. Arcs keep the rotaries where they
+are (an arc with a rotary move is refused): the tip's arc is the machine's, turned.
+
+TCP (tool centre point control): the G code of the machine's ``gcode.tcp`` text (e.g. ``G43.4``),
+and ``G43.4``/``G43.5`` on any 5-axis machine, switch it on; ``G49``, ``G43`` (the same modal group)
+and the G code of ``gcode.tcp_off`` switch it off. In TCP mode X Y Z are the tool tip in work
+coordinates and the rotary words give the axis; the control moves the tip on the straight line, so
+nothing is split. The machine stays where it is at a switch: the modal X Y Z words are converted to
+the new mode's coordinates (unknown while the machine's place is).
 
 Refused with :class:`InputError` naming ``file:line``: ``G18``/``G19`` arcs, ``G41``/``G42``
 cutter compensation, canned cycles ``G81``-``G89``, ``G28``/``G30``/``G53`` (machine coordinates
-are unknown), other G codes and letters, malformed or non-finite numbers, values beyond 1e6 mm.
-The machine starts at an unknown place: the path starts at the first point where X, Y and Z have
-all been given (absolutely, by ``G0``/``G1``, over one or more lines); an arc cannot come before it,
-and a program that never gives all three has no moves.
+are unknown) but the final retract above, other G codes and letters, rotary words without a 5-axis
+machine or not of the machine's axes, ``G43.4``/``G43.5`` without a 5-axis machine, malformed or
+non-finite numbers, values beyond 1e6 mm (or degrees).
+The machine starts at an unknown place: the path starts at the first point where every axis (X, Y,
+Z and the rotaries) has been given (absolutely, by ``G0``/``G1``, over one or more lines); an arc
+cannot come before it, and a program that never gives them all has no moves.
 """
 from __future__ import annotations
 
@@ -35,11 +64,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..machine.kinematics import forward
 from .cldata import MAX_COORDINATE, read_text
 from .model import Toolpath
 
 MOTION = ("G0", "G1", "G2", "G3")
-IGNORED_G = {"G4", "G17", "G40", "G43", "G49", "G61", "G64", "G80", "G94"}
+IGNORED_G = {"G4", "G17", "G40", "G43", "G49", "G61", "G64", "G80", "G93", "G94"}
 WORK_OFFSETS = {f"G{n}" for n in range(54, 60)} | {"G59.1", "G59.2", "G59.3"}
 REFUSED_G = {
     "G18": "only XY-plane (G17) arcs are supported",
@@ -50,17 +80,26 @@ REFUSED_G = {
     "G30": "it moves in machine coordinates, which are unknown",
     "G53": "it moves in machine coordinates, which are unknown",
 } | {f"G{n}": "canned cycles are not supported" for n in range(81, 90)}
+END_RETRACT = ("G28", "G53")  # read as the program's final retract (Z alone, nothing moving after)
+TCP_ON = {"G43.4", "G43.5"}  # tool centre point control on (Fanuc-like controls)
+TCP_OFF = {"G49", "G43"}  # off: cancel, or plain tool length compensation (the same modal group)
 LENGTH_LETTERS = "XYZIJKR"
+ROTARY_LETTERS = "ABC"
 SKIPPED_LETTERS = "FSMNOPHDQ"
 KNOWN_LETTERS = set(LENGTH_LETTERS + SKIPPED_LETTERS + "T")
+LINEAR_AXES = ("X", "Y", "Z")
 INCH = 25.4
 FULL_CIRCLE_GAP = 1e-6  # mm: an arc ending this close to its start is a full circle
-MAX_ARC_SEGMENTS = 1_000_000
+MAX_ARC_SEGMENTS = 1_000_000  # pieces of one arc or one joint-linear block
+SAMPLES = 7  # points inside a piece of a joint-linear block where the tip is compared with the piece
+ACCEPT = 0.97  # a piece is accepted when its sampled deviation is within this fraction of chord_tol
+POSE_CHUNK = 65536  # poses per call of forward (memory: about 200 bytes a pose)
 
 _NUMBER = r"[+-]?(?:\d+\.?\d*|\.\d+)"
 _WORD = re.compile(rf"([A-Z])({_NUMBER})")
 _LINE = re.compile(rf"(?:[A-Z]{_NUMBER})+")
 _COMMENT = re.compile(r"\([^)]*\)")
+_G_CODE = re.compile(r"G(\d+(?:\.\d+)?)")
 
 
 @dataclass
@@ -69,7 +108,47 @@ class _Modes:
     absolute: bool = True
     arc_absolute: bool = False
     scale: float = 1.0
+    tcp: bool = False
     offsets: set = field(default_factory=set)
+
+
+@dataclass(frozen=True)
+class _Axes:
+    """The program's axes for ``machine`` (None: 3-axis): ``letters`` (X Y Z and the rotaries, in
+    ``machine.axes`` order: the columns of the joints), and the G codes that switch TCP on and off."""
+
+    machine: object
+    letters: tuple
+    tcp_on: frozenset
+    tcp_off: frozenset
+
+    @staticmethod
+    def of(machine) -> "_Axes":
+        if machine is None or machine.chain.type == "3-axis":
+            return _Axes(machine, LINEAR_AXES, frozenset(), frozenset())
+        return _Axes(machine, tuple(machine.axes), frozenset(TCP_ON | _first_g_code(machine.gcode.tcp)),
+                     frozenset(TCP_OFF | _first_g_code(machine.gcode.tcp_off)))
+
+    @property
+    def five_axis(self) -> bool:
+        return len(self.letters) > 3
+
+    def refuse_rotary(self, word, where):
+        """InputError for a rotary word that is not one of the machine's axes."""
+        if self.machine is None:
+            raise InputError(f"{where}: unsupported word {word}: rotary axes are read through the machine's "
+                             "kinematics; give the machine (--machine, e.g. table-table-ac or head-table-bc)")
+        if not self.five_axis:
+            raise InputError(f"{where}: unsupported word {word}: {self.machine.name} is a 3-axis machine")
+        raise InputError(f"{where}: unsupported word {word}: {self.machine.name} has no {word[0]} axis "
+                         f"(its rotary axes: {', '.join(self.letters[3:])})")
+
+
+def _first_g_code(text):
+    """The G code that a ``[gcode]`` text such as ``"G43.4 H{number}"`` starts with: ``{"G43.4"}``,
+    or an empty set for a text without one."""
+    found = _G_CODE.search(text.upper())
+    return {f"G{float(found.group(1)):g}"} if found else set()
 
 
 def _read_text(path):
@@ -81,7 +160,7 @@ def _read_text(path):
     return text
 
 
-def _parse_line(raw, where):
+def _parse_line(raw, where, axes):
     """``(G codes, {letter: value})`` of one line, or None for a line without words."""
     code = _COMMENT.sub("", raw).split(";", 1)[0]
     if "(" in code or ")" in code:
@@ -96,7 +175,9 @@ def _parse_line(raw, where):
         value = float(text)
         if letter == "G":
             gcodes.append(f"G{value:g}")
-        elif letter not in KNOWN_LETTERS:
+        elif letter in ROTARY_LETTERS and letter not in axes.letters:
+            axes.refuse_rotary(letter + text, where)
+        elif letter not in KNOWN_LETTERS and letter not in axes.letters:
             raise InputError(f"{where}: unsupported word {letter}{text}")
         elif letter in words and letter not in SKIPPED_LETTERS:
             raise InputError(f"{where}: {letter} given twice")
@@ -116,10 +197,13 @@ def _raise_bad_word(code, where):
     raise InputError(f"{where}: cannot read '{code}'")
 
 
-def _apply_g_codes(modes, gcodes, where):
+def _apply_g_codes(modes, gcodes, where, axes):
+    """Update ``modes`` with a line's G codes; returns the machine-coordinate code (``G28``/``G53``)
+    of the line, if any, for :func:`_check_end_retract`."""
     motions = [g for g in gcodes if g in MOTION]
     if len(motions) > 1:
         raise InputError(f"{where}: two motion codes ({' '.join(motions)}) on one line")
+    retract = None
     for g in gcodes:
         if g in MOTION:
             modes.motion = g
@@ -131,17 +215,38 @@ def _apply_g_codes(modes, gcodes, where):
             modes.arc_absolute = g == "G90.1"
         elif g in WORK_OFFSETS:
             modes.offsets.add(g)
+        elif g in axes.tcp_on:
+            modes.tcp = True
+        elif g in axes.tcp_off:
+            modes.tcp = False
+        elif g in TCP_ON:
+            raise InputError(f"{where}: {g} (tool centre point control) needs a 5-axis machine "
+                             f"({'give it: --machine' if axes.machine is None else axes.machine.name + ' has 3 axes'})")
+        elif g in END_RETRACT:
+            retract = g
         elif g in REFUSED_G:
             raise InputError(f"{where}: {g}: {REFUSED_G[g]}")
         elif g not in IGNORED_G:
             raise InputError(f"{where}: unknown G code {g}")
+    return retract
+
+
+def _check_end_retract(code, words, modes, pos, started, where):
+    """Refuse a ``G28``/``G53`` line unless it is a retract of Z alone (``G28``: through an
+    intermediate point where the tool already is) after the path has ``started``."""
+    moved = [k for k in words if k in LENGTH_LETTERS + ROTARY_LETTERS]
+    here = 0.0 if not modes.absolute else pos[2]
+    if not started or moved != ["Z"] or (code == "G28" and not abs(words["Z"] - here) <= 1e-9):
+        raise InputError(f"{where}: {code}: {REFUSED_G[code]} (read only as the program's final retract, Z alone: "
+                         "G91 G28 Z0 or G53 G0 Z0)")
 
 
 def _scaled(words, scale, where):
     out = {k: v * scale if k in LENGTH_LETTERS else v for k, v in words.items()}
     for k, v in out.items():
         if abs(v) > MAX_COORDINATE:
-            raise InputError(f"{where}: {k} {v:g} is out of range (|v| <= {MAX_COORDINATE:g} mm)")
+            unit = "degrees" if k in ROTARY_LETTERS else "mm"
+            raise InputError(f"{where}: {k} {v:g} is out of range (|v| <= {MAX_COORDINATE:g} {unit})")
     return out
 
 
@@ -220,69 +325,240 @@ def _arc_points(start, end, centre, ccw, chord_tol, where):
     return points
 
 
-def _move(modes, start, words, chord_tol, where):
-    """The points ``[[x, y, z], ...]`` of one programmed move from ``start`` (NaN: not known yet)."""
-    end = list(start)
-    for i, axis in enumerate("XYZ"):
+def head_table_tool_length(tool) -> float:
+    """The tool length mm a head-table program is computed for (tip to the spindle's gauge line):
+    ``gauge_length + holder_length``, the convention of :mod:`meshmill.machine.post`."""
+    return tool.gauge_length + tool.holder_length
+
+
+def _listed(letters):
+    """``"X, Y and Z"``."""
+    return ", ".join(letters[:-1]) + " and " + letters[-1]
+
+
+def _target(modes, pos, words, letters):
+    """The axis values ``[x, y, z, ...]`` (columns ``letters``) that a line's words move to from
+    ``pos`` (NaN: not known; an incremental word leaves an unknown value unknown)."""
+    end = list(pos)
+    for i, axis in enumerate(letters):
         if axis in words:
             end[i] = words[axis] if modes.absolute else end[i] + words[axis]
+    return end
+
+
+def _move(modes, start, words, letters, chord_tol, where):
+    """The axis values ``[[x, y, z, ...], ...]`` (columns ``letters``) of one programmed move from
+    ``start`` (NaN: not known yet): its end, or the points along an arc (rotaries held)."""
+    end = _target(modes, start, words, letters)
     if any(math.isnan(v) for v in end):
-        raise InputError(f"{where}: first move does not give X, Y and Z")
+        raise InputError(f"{where}: first move does not give {_listed(letters)}")
     if max(map(abs, end)) > MAX_COORDINATE:
         raise InputError(f"{where}: the move ends out of range (|v| <= {MAX_COORDINATE:g} mm)")
     if modes.motion in ("G0", "G1"):
         return [end]
     if any(math.isnan(v) for v in start):
         raise InputError(f"{where}: an arc cannot be the first move (its start is unknown)")
+    turned = [a for a, s, e in zip(letters[3:], start[3:], end[3:]) if s != e]
+    if turned:
+        raise InputError(f"{where}: an arc cannot turn a rotary axis ({', '.join(turned)}); program the rotary move "
+                         "in G1 blocks")
     ccw = modes.motion == "G3"
-    start, end = np.array(start), np.array(end)
-    centre = _arc_centre(start, end, words, ccw, modes.arc_absolute, where)
-    return _arc_points(start, end, centre, ccw, chord_tol, where).tolist()
+    xyz_start, xyz_end = np.array(start[:3]), np.array(end[:3])
+    centre = _arc_centre(xyz_start, xyz_end, words, ccw, modes.arc_absolute, where)
+    points = _arc_points(xyz_start, xyz_end, centre, ccw, chord_tol, where)
+    return np.hstack([points, np.broadcast_to(end[3:], (len(points), len(end) - 3))]).tolist()
 
 
-def read_gcode(path, tools, tool_name=None, chord_tol=0.001) -> tuple[Toolpath, list[str]]:
-    """Read a 3-axis G-code file (see the module notes); moves refer to ``tools`` by ``T`` words,
-    else to ``tool_name`` or the table's only tool. Returns the tool path and warnings."""
+# --- 5-axis: joints to tool tips and axes --------------------------------------------------------
+
+
+def _machine_xyz(machine, joints, tool_length):
+    """The machine's X Y Z ``(3,)`` mm that put the tip where TCP words ``joints (n,)`` (tip X Y Z,
+    rotaries) do: with the rotaries held the tip is affine in X Y Z, so one linear solve with
+    :func:`forward`'s X Y Z columns is exact."""
+    probe = np.repeat(joints[None], 4, axis=0)
+    probe[:, :3] = np.vstack([np.zeros(3), np.eye(3)])
+    tip, _ = forward(machine, probe, tool_length)
+    return np.linalg.solve((tip[1:] - tip[0]).T, joints[:3] - tip[0])
+
+
+def _switched_words(machine, pos, tcp, tool_length):
+    """The modal words ``pos`` (n values, ``machine.axes``) for the pose the machine is at, once TCP
+    is switched on (``tcp``: X Y Z become the tip) or off (X Y Z become the machine's); X Y Z
+    unknown (NaN) while the pose is. ``tool_length`` mm as in :func:`forward`."""
+    joints = np.array(pos, np.float64)
+    if np.isnan(joints).any():
+        joints[:3] = math.nan
+    elif tcp:
+        joints[:3] = forward(machine, joints[None], tool_length)[0][0]
+    else:
+        joints[:3] = _machine_xyz(machine, joints, tool_length)
+    return joints.tolist()
+
+
+def _forward_poses(machine, joints, tool_length, tcp):
+    """Tip and unit axis ``(k, 3)``, work coordinates, of ``joints (k, n)`` with ``tool_length (k,)``
+    mm and ``tcp (k,)`` bool per pose: :func:`forward` by groups of one length and mode."""
+    tip, axis = np.empty((len(joints), 3)), np.empty((len(joints), 3))
+    for length, on in set(zip(tool_length.tolist(), tcp.tolist())):
+        rows = np.flatnonzero((tool_length == length) & (tcp == on))
+        for c in range(0, len(rows), POSE_CHUNK):
+            chunk = rows[c:c + POSE_CHUNK]
+            tip[chunk], axis[chunk] = forward(machine, joints[chunk], length, on)
+    return tip, axis
+
+
+def _chord_distances(points):
+    """Distance ``(p, m)`` mm of ``points (p, m, 3)`` from the segment between the first and the
+    last point of their row."""
+    a, d = points[:, :1], points[:, -1:] - points[:, :1]
+    dd = np.einsum("pij,pij->pi", d, d)
+    t = np.clip(np.einsum("pmj,pij->pm", points - a, d) / np.where(dd > 0.0, dd, 1.0), 0.0, 1.0)
+    return np.linalg.norm(points - a - t[..., None] * d, axis=2)
+
+
+def _piece_deviation(machine, start, end, pieces, tool_length, reach):
+    """Largest distance ``(b,)`` mm, over the pieces of each block, of the tip and of the point
+    ``reach (b,)`` mm up the tool axis from the straight piece between the ends of that piece, where
+    the joints move linearly from ``start (b, n)`` to ``end (b, n)`` in ``pieces (b,)`` equal steps
+    (joints mode, ``tool_length (b,)`` mm); sampled at :data:`SAMPLES` points inside each piece."""
+    block = np.repeat(np.arange(len(start)), pieces)
+    step = np.arange(len(block)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    u = np.linspace(0.0, 1.0, SAMPLES + 2)
+    out = np.zeros(len(start))
+    per_chunk = max(1, POSE_CHUNK // len(u))
+    for c in range(0, len(block), per_chunk):
+        b, k = block[c:c + per_chunk], step[c:c + per_chunk]
+        s = (k[:, None] + u) / pieces[b][:, None]
+        joints = start[b][:, None, :] + s[..., None] * (end[b] - start[b])[:, None, :]
+        tip, axis = _forward_poses(machine, joints.reshape(-1, start.shape[1]), np.repeat(tool_length[b], len(u)),
+                                   np.zeros(len(b) * len(u), bool))
+        top = tip + np.repeat(reach[b], len(u))[:, None] * axis
+        shape = (len(b), len(u), 3)
+        deviation = np.maximum(_chord_distances(tip.reshape(shape)), _chord_distances(top.reshape(shape)))
+        np.maximum.at(out, b, deviation.max(axis=1))
+    return out
+
+
+def _joint_pieces(machine, start, end, tool_length, reach, chord_tol, where):
+    """Equal joint steps ``(b,)`` for each joint-linear block ``start (b, n)`` -> ``end (b, n)`` that
+    keep the tip and the point ``reach (b,)`` mm up the tool within ``chord_tol`` mm of the straight
+    pieces (:func:`_piece_deviation`); ``where(i)`` names block i's line for errors."""
+    pieces = np.ones(len(start), np.int64)
+    todo = np.arange(len(start))
+    target = ACCEPT * chord_tol
+    while len(todo):
+        deviation = _piece_deviation(machine, start[todo], end[todo], pieces[todo], tool_length[todo], reach[todo])
+        over = deviation > target
+        todo, deviation = todo[over], deviation[over]
+        # the deviation of a smooth curve from its chords falls with the square of their number
+        grown = np.ceil(1.1 * pieces[todo] * np.sqrt(deviation / target)).astype(np.int64)
+        pieces[todo] = np.maximum(pieces[todo] + 1, grown)
+        if len(todo) and pieces[todo].max() > MAX_ARC_SEGMENTS:
+            raise InputError(f"{where(todo[np.argmax(pieces[todo])])}: the move turns the rotary axes so far that it "
+                             f"needs over {MAX_ARC_SEGMENTS} pieces at chord_tol {chord_tol:g} mm")
+    return pieces
+
+
+def _tool_poses(axes, joints, start, tcp, tool_length, reach, chord_tol, where):
+    """The tool tips and unit axes of the points read, as straight pieces: ``(tip (m, 3), axis (m,
+    3), source (m,))``, ``source`` the point (row of ``joints (k, n)``) each piece ends in. A point
+    is a pose reached from ``start (k, n)`` (NaN: the path's first point) with ``tcp (k,)``,
+    ``tool_length (k,)`` and ``reach (k,)`` mm of its tool; ``where(i)`` is point i's file:line.
+    3-axis: the tips are X Y Z and the axis +Z. 5-axis: :func:`forward`, each joints-mode block
+    whose rotaries turn split in :func:`_joint_pieces` equal joint steps, the last at the point."""
+    k = len(joints)
+    if not axes.five_axis:
+        return joints[:, :3].copy(), np.tile([0.0, 0.0, 1.0], (k, 1)), np.arange(k)
+    machine = axes.machine
+    tip, axis = _forward_poses(machine, joints, tool_length, tcp)
+    turning = np.flatnonzero(~tcp & ~np.isnan(start).any(axis=1) & (start[:, 3:] != joints[:, 3:]).any(axis=1))
+    pieces = np.ones(k, np.int64)
+    pieces[turning] = _joint_pieces(machine, start[turning], joints[turning], tool_length[turning], reach[turning],
+                                    chord_tol, lambda i: where(turning[i]))
+    inner = pieces - 1
+    block = np.repeat(np.arange(k), inner)
+    s = (np.arange(len(block)) - np.repeat(np.cumsum(inner) - inner, inner) + 1) / pieces[block]
+    inserted = start[block] + s[:, None] * (joints[block] - start[block])
+    source = np.repeat(np.arange(k), pieces)
+    at_point = np.zeros(len(source), bool)
+    at_point[np.cumsum(pieces) - 1] = True
+    out_tip, out_axis = np.empty((len(source), 3)), np.empty((len(source), 3))
+    out_tip[at_point], out_axis[at_point] = tip, axis
+    out_tip[~at_point], out_axis[~at_point] = _forward_poses(machine, inserted, tool_length[block],
+                                                            np.zeros(len(block), bool))
+    return out_tip, out_axis, source
+
+
+def read_gcode(path, tools, tool_name=None, chord_tol=0.001, machine=None) -> tuple[Toolpath, list[str]]:
+    """Read a G-code file (see the module notes); moves refer to ``tools`` by ``T`` words, else to
+    ``tool_name`` or the table's only tool. ``machine``: a
+    :class:`~meshmill.machine.config.Machine` whose 5-axis kinematics turn the axis words into tool
+    tips and axes (None or a 3-axis machine: X Y Z are the tip, the axis +Z); ``chord_tol`` mm: how
+    far arcs and the tip of joint-linear rotary moves may stray from the straight moves that stand
+    for them. Returns the tool path (``tip``, ``axis (m, 3)``; ``line`` the source line of each
+    point) and warnings."""
     if not chord_tol > 0:
         raise InputError(f"chord_tol must be > 0 mm, got {chord_tol}")
     path = os.fspath(path)
     text = _read_text(path)
     name = os.path.basename(path)
+    axes = _Axes.of(machine)
     modes = _Modes()
-    pos = [math.nan] * 3
+    pos = [math.nan] * len(axes.letters)
     tool, t_given = -1, False
-    tips, rapid, tool_idx, lines = [], [], [], []
+    ends, starts, tcp, rapid, tool_idx, lines = [], [], [], [], [], []
+    warnings, retract = [], None
     for number, raw in enumerate(text.splitlines(), start=1):
         where = f"{name}:{number}"
-        parsed = _parse_line(raw, where)
+        parsed = _parse_line(raw, where, axes)
         if parsed is None:
             continue
         gcodes, words = parsed
-        _apply_g_codes(modes, gcodes, where)
+        was_tcp = modes.tcp
+        machine_code = _apply_g_codes(modes, gcodes, where, axes)
         words = _scaled(words, modes.scale, where)
         if "T" in words:
             tool, t_given = _tool_index(words["T"], tools, where), True
-        arc_words = modes.motion in ("G2", "G3") and any(k in words for k in "IJR")
-        if "G4" in gcodes or not (arc_words or any(k in words for k in "XYZ")):
+        if modes.tcp != was_tcp:
+            length = 0.0
+            if machine.chain.type == "head-table" and not any(math.isnan(v) for v in pos):
+                length = head_table_tool_length(tools[tool if tool >= 0 else _default_tool(tools, tool_name, path)])
+            pos = _switched_words(machine, pos, modes.tcp, length)
+        if machine_code:
+            _check_end_retract(machine_code, words, modes, pos, bool(ends), where)
+            retract = retract or (where, machine_code)
+            warnings.append(f"{where}: {machine_code} Z{words['Z']:g} (the final retract, in machine coordinates) "
+                            "is not in the tool path")
             continue
+        arc_words = modes.motion in ("G2", "G3") and any(k in words for k in "IJR")
+        if "G4" in gcodes or not (arc_words or any(k in words for k in axes.letters)):
+            continue
+        if retract:
+            raise InputError(f"{retract[0]}: {retract[1]}: {REFUSED_G[retract[1]]} (read only as the program's final "
+                             f"retract, and line {number} moves after it)")
         if modes.motion is None:
             raise InputError(f"{where}: coordinates without G0, G1, G2 or G3")
+        before = pos
         if any(math.isnan(v) for v in pos) and modes.motion in ("G0", "G1"):
-            # the start is unknown until X, Y and Z have all been given absolutely
-            pos = [words[a] if a in words and modes.absolute else pos[i] for i, a in enumerate("XYZ")]
+            # the start is unknown until every axis has been given absolutely
+            pos = _target(modes, pos, words, axes.letters)
             if any(math.isnan(v) for v in pos):
                 continue
             points = [pos]
         else:
-            points = _move(modes, pos, words, chord_tol, where)
-        tips += points
+            points = _move(modes, pos, words, axes.letters, chord_tol, where)
+        ends += points
+        starts += [before] + points[:-1]
+        tcp += [modes.tcp] * len(points)
         rapid += [modes.motion == "G0"] * len(points)
         tool_idx += [tool] * len(points)
         lines += [number] * len(points)
         pos = points[-1]
-    if not tips:
-        raise InputError(f"{path}: no moves")
-    warnings = []
+    if not ends:
+        missing = [a for a, v in zip(axes.letters, pos) if math.isnan(v)]
+        raise InputError(f"{path}: no moves" + (f" (the path starts where {_listed(axes.letters)} have all been given "
+                                                f"absolutely; never: {', '.join(missing)})" if missing else ""))
     if modes.offsets:
         warnings.append(f"{name}: work offsets ({', '.join(sorted(modes.offsets))}) are not applied; "
                         "coordinates are read as given")
@@ -294,6 +570,10 @@ def read_gcode(path, tools, tool_name=None, chord_tol=0.001) -> tuple[Toolpath, 
             raise InputError(f"{name}:{lines[np.argmax(tool_idx < 0)]}: move before the first T word")
     else:
         tool_idx[:] = _default_tool(tools, tool_name, path)
-    tp = Toolpath(tip=np.array(tips, np.float64), axis=np.tile([0.0, 0.0, 1.0], (len(tips), 1)),
-                  rapid=np.array(rapid, bool), tool=tool_idx, line=lines)
+    head_table = machine is not None and machine.chain.type == "head-table"
+    tool_length = np.array([head_table_tool_length(t) if head_table else 0.0 for t in tools])[tool_idx]
+    reach = np.array([t.reach for t in tools])[tool_idx]
+    tip, axis, source = _tool_poses(axes, np.array(ends, np.float64), np.array(starts, np.float64),
+                                    np.array(tcp, bool), tool_length, reach, chord_tol, lambda i: f"{name}:{lines[i]}")
+    tp = Toolpath(tip=tip, axis=axis, rapid=np.array(rapid, bool)[source], tool=tool_idx[source], line=lines[source])
     return tp, warnings

@@ -1,0 +1,578 @@
+"""G-code for a real machine from a CL tool path (``meshmill post``).
+
+:func:`post_program` writes a :class:`~meshmill.toolpath.model.Toolpath` as the lines of an NC
+program for a :class:`~meshmill.machine.config.Machine`, in the format of its ``[gcode]`` section
+(:class:`~meshmill.machine.config.GcodeFormat`). Units: mm, degrees, seconds; F in mm/min (G94)
+or 1/min (G93).
+
+Three modes, by the machine's chain and ``tcp``:
+
+- **3-axis**: the tool tip is programmed (the control adds the tool length: ``tool_length``, e.g.
+  ``G43 H1``). A tilted tool axis is refused.
+- **5-axis joints** (table-table or head-table, no TCP): the joints of every pose come from
+  :func:`meshmill.machine.kinematics.inverse`. The control moves the joints linearly from block to
+  block, so where the rotaries turn the tip leaves the straight CL move; feed moves are split
+  (:class:`_Linearisation`) until the tip of the joint-linear motion stays within the tolerance of
+  the CL segment. Feeds in G93 inverse time where ``gcode.inverse_time`` (F = 1 / the block's
+  minutes), else G94 with the tip's feed. table-table: the tool stays vertical, so the tool length
+  is the control's (``tool_length``); head-table: the program is computed for the tool length (tip to
+  the spindle's gauge line: the tool's ``gauge_length + holder_length``), said in a comment, and no
+  tool-length compensation is switched on.
+- **5-axis TCP** (``tcp``, or the machine's ``gcode.tcp`` text): the tool tip in work coordinates
+  and the rotary angles; the control does the kinematics and the interpolation, switched on with
+  ``gcode.tcp`` (in place of ``tool_length``) after each tool change and off with ``gcode.tcp_off``
+  before the next one and at the end. Feeds G94 (the tip's feed); nothing is linearised.
+
+Program layout: the ``start`` lines; a comment naming the machine; per tool: (after the first tool:
+``M5``, ``coolant_off``, ``tcp_off`` in TCP mode, and ``M0`` where the machine has no
+``tool_change`` text, so that the operator changes the tool), a comment with the tool, ``tool_change``,
+``tool_length`` (or the TCP text, or the head-table comment), ``spindle`` (S ``gcode.rpm``),
+``coolant_on``; the first pose of each tool is reached by ``G0`` in two blocks, every axis but Z
+first, then Z (the tool comes from the tool change, which leaves it high); then one block a move.
+``G94`` before a tool change and the ``end`` lines where G93 is on. Motion is modal: ``G0``/``G1``
+and each axis word are written when their text changes (fixed decimals: ``gcode.decimals`` for X Y
+Z, ``angle_decimals`` for A B C; never ``-0.000``), F when it changes (G94, one decimal) or on every
+feed block (G93, as the control needs, ``decimals`` places). Blocks that move no axis (by the
+written text) are left out. ``line_numbers``: N1, N2, ... on every line but ``%`` and the ``O``
+number. Comments go through ``gcode.comment`` with ``(`` ``)`` turned into ``[`` ``]`` and ``%``
+dropped, so that they cannot end a comment or the program early.
+
+Feeds (mm/s per move, :func:`post_program`'s ``feed``): as given, the machine's nominal feed where
+none is. The first move of each tool is a positioning ``G0`` whatever the CL says (the tool comes
+from the tool change, not from the previous pose).
+
+Limits: every written block is checked against the machine's travel (``[axes]``), in program
+coordinates (the work zero at the machine's zero): the first block out of range is an
+:class:`~meshmill.errors.InputError` naming the CL move and line, the axis, the value and the travel.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from .kinematics import VERTICAL_TOLERANCE, AxisLimitError, angle_step, forward, inverse
+
+SAMPLES = 16  # points inside a block where the joint-linear tip is compared with the CL segment
+MAX_DEPTH = 10  # one CL move is halved at most this deep (1024 blocks); beyond, the deviation is reported
+DEVIATION_CHUNK = 8192  # blocks checked per call of forward (memory: chunk x (SAMPLES + 2) poses)
+SPINDLE_STOP = "M5"  # RS-274, the same in every dialect: before a tool change
+OPERATOR_STOP = "M0"  # a machine without a tool changer pauses for the operator to change the tool
+
+
+@dataclass
+class _Run:
+    """The blocks of one tool, in order. ``joints (b, n)`` the program words' values as written
+    (machine.axes order, mm and degrees); ``rapid (b,)`` G0; ``feed (b,)`` the tip's feed mm/s
+    (NaN for G0); ``tip_length (b,)`` mm the tip travels along the CL path in the block; ``move
+    (b,)`` the CL move (0-based) the block belongs to; ``added (b,)`` inserted by linearisation;
+    ``rewind (b,)`` part of a retract-unwind-return."""
+
+    tool: int
+    joints: np.ndarray
+    rapid: np.ndarray
+    feed: np.ndarray
+    tip_length: np.ndarray
+    move: np.ndarray
+    added: np.ndarray
+    rewind: np.ndarray
+
+
+def format_number(value, decimals) -> str:
+    """``value`` with ``decimals`` places, never a negative zero ("-0.0000" is "0.0000")."""
+    text = f"{value:.{decimals}f}"
+    return text[1:] if text.startswith("-") and not text.strip("-0.") else text
+
+
+def head_table_tool_length(tool) -> float:
+    """The length a head-table program is computed for, mm: tip to the spindle's gauge line, taken
+    as the tool's ``gauge_length`` (tip to holder face) plus its ``holder_length``."""
+    return tool.gauge_length + tool.holder_length
+
+
+def _fill(template, tool, rpm, text=""):
+    """A ``[gcode]`` text with ``{number}``, ``{name}``, ``{rpm}`` and ``{text}`` filled in."""
+    try:
+        return template.format(number=tool.number if tool else "", name=tool.name if tool else "",
+                               rpm=format_number(rpm, 0), text=text)
+    except (KeyError, IndexError, ValueError) as exc:
+        raise InputError(f"[gcode] text {template!r} cannot be filled in ({exc!r}; known: {{number}}, {{name}}, "
+                         "{rpm}, {text})") from None
+
+
+def _comment(gcode, text):
+    clean = " ".join(text.replace("(", "[").replace(")", "]").replace("%", "").split())
+    return _fill(gcode.comment, None, gcode.rpm, clean)
+
+
+def _where(tp, move):
+    """``move N (CL line L)`` for error messages, N 1-based."""
+    line = int(tp.line[move])
+    return f"move {move + 1}" + (f" (CL line {line})" if line > 0 else "")
+
+
+def _tool_runs(tool):
+    """``[(tool, first, stop)]``: the stretches of ``tool (k,)`` with one tool, in order."""
+    tool = np.asarray(tool)
+    first = np.flatnonzero(np.r_[True, tool[1:] != tool[:-1]])
+    stop = np.r_[first[1:], len(tool)]
+    return [(int(tool[a]), int(a), int(b)) for a, b in zip(first, stop)]
+
+
+def _move_feeds(feed, k, machine):
+    """Feed (k,) mm/s per move: ``feed`` (None, a number or (k,) with NaN where none is
+    programmed), the machine's nominal feed where it gives none."""
+    nominal = machine.kinematics.feed
+    if feed is None:
+        return np.full(k, nominal)
+    out = np.broadcast_to(np.asarray(feed, np.float64), (k,)).copy()
+    given = ~np.isnan(out)
+    if not (np.isfinite(out[given]).all() and (out[given] > 0).all()):
+        raise InputError("feed must be a positive finite number of mm/s (or NaN: the machine's feed)")
+    out[~given] = nominal
+    return out
+
+
+def _round_joints(joints, gcode):
+    """``joints (..., n)`` rounded as the program writes them (linear ``decimals``, rotary
+    ``angle_decimals``)."""
+    out = np.array(joints, np.float64)
+    out[..., :3] = np.round(out[..., :3], gcode.decimals)
+    out[..., 3:] = np.round(out[..., 3:], gcode.angle_decimals)
+    return out
+
+
+def _great_circle(a0, a1, s):
+    """Unit axes ``(m, 3)`` at fractions ``s (m,)`` of the great circle from ``a0 (m, 3)`` to
+    ``a1 (m, 3)`` (unit vectors; not opposite)."""
+    a0, a1 = np.atleast_2d(a0), np.atleast_2d(a1)
+    s = np.asarray(s, np.float64).reshape(-1, 1)
+    cos = np.clip(np.einsum("ij,ij->i", a0, a1), -1.0, 1.0)[:, None]
+    angle = np.arccos(cos)
+    small = angle < 1e-9
+    sin = np.where(small, 1.0, np.sin(angle))
+    w0 = np.where(small, 1.0 - s, np.sin((1.0 - s) * angle) / sin)
+    w1 = np.where(small, s, np.sin(s * angle) / sin)
+    out = w0 * a0 + w1 * a1
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+# --- 3-axis ----------------------------------------------------------------------------------------
+
+def _three_axis_runs(tp, feed, machine):
+    """One :class:`_Run` per tool: the tips as they are; a tilted axis is an InputError."""
+    tilt = np.arccos(np.clip(tp.axis[:, 2], -1.0, 1.0))
+    bad = np.flatnonzero(np.linalg.norm(tp.axis - (0.0, 0.0, 1.0), axis=1) > VERTICAL_TOLERANCE)
+    if len(bad):
+        i = int(bad[0])
+        a = tp.axis[i]
+        raise InputError(f"{_where(tp, i)}: the tool axis ({a[0]:.4f}, {a[1]:.4f}, {a[2]:.4f}) is tilted "
+                         f"{math.degrees(tilt[i]):.3f} deg from +Z, and {machine.name} is a 3-axis machine: "
+                         f"post this path for a 5-axis machine ({len(bad)} tilted move(s))")
+    runs = []
+    for tool, a, b in _tool_runs(tp.tool):
+        rapid = tp.rapid[a:b].copy()
+        rapid[0] = True
+        tip = tp.tip[a:b]
+        length = np.r_[0.0, np.linalg.norm(np.diff(tip, axis=0), axis=1)]
+        zeros = np.zeros(b - a, bool)
+        runs.append(_Run(tool, _round_joints(tip, machine.gcode), rapid, np.where(rapid, np.nan, feed[a:b]),
+                         length, np.arange(a, b), zeros, zeros.copy()))
+    return runs
+
+
+# --- 5-axis ----------------------------------------------------------------------------------------
+
+def _solve(machine, tp, first, tip, axis, tool_length, tcp, start):
+    """:func:`~meshmill.machine.kinematics.inverse` of the poses ``tip (m, 3)``, ``axis (m, 3)``
+    of CL moves ``first``, ``first + 1``, ...: ``(joints (m, n) rounded as written, rewound (m,))``;
+    a pose beyond the travel is an InputError naming its CL move."""
+    try:
+        joints, rewound = inverse(machine, tip, axis, tool_length=tool_length, tcp=tcp, start=start,
+                                  lines=tp.line[first:first + len(tip)])
+    except AxisLimitError as exc:
+        value = format_number(exc.value, machine.gcode.decimals if exc.axis in "XYZ" else machine.gcode.angle_decimals)
+        raise InputError(f"{_where(tp, first + exc.move)}: {exc.axis} {value} is beyond its travel "
+                         f"[{exc.travel[0]:g}, {exc.travel[1]:g}] on {machine.name}") from None
+    return _round_joints(joints, machine.gcode), np.asarray(rewound, bool)
+
+
+class _Linearisation:
+    """Splits the feed moves of one tool until the joint-linear tip stays within ``tolerance`` mm
+    of the CL segment. Joints are compared as written (rounded), so the measured deviation is the
+    program's."""
+
+    def __init__(self, machine, tp, tool_length, tcp, tolerance):
+        self.machine, self.tp = machine, tp
+        self.tool_length, self.tcp, self.tolerance = tool_length, tcp, tolerance
+        self.largest = 0.0  # mm, over every accepted block
+        self.over = 0  # blocks left beyond the tolerance at MAX_DEPTH
+
+    def deviation(self, ja, jb, p0, p1):
+        """Largest distance (m,) mm from the tip of the joint-linear motion ``ja (m, n)`` ->
+        ``jb (m, n)`` (at its ends and SAMPLES points between) to the CL segments ``p0 (m, 3)`` ->
+        ``p1 (m, 3)``."""
+        s = np.linspace(0.0, 1.0, SAMPLES + 2)
+        out = np.empty(len(ja))
+        for c in range(0, len(ja), DEVIATION_CHUNK):
+            a, b = ja[c:c + DEVIATION_CHUNK], jb[c:c + DEVIATION_CHUNK]
+            q0, q1 = p0[c:c + DEVIATION_CHUNK], p1[c:c + DEVIATION_CHUNK]
+            joints = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]
+            tip, _ = forward(self.machine, joints.reshape(-1, a.shape[1]), self.tool_length, self.tcp)
+            rel = tip.reshape(len(a), len(s), 3) - q0[:, None, :]
+            d = q1 - q0
+            dd = np.einsum("ij,ij->i", d, d)
+            t = np.clip(np.einsum("iqj,ij->iq", rel, d) / np.where(dd > 0.0, dd, 1.0)[:, None], 0.0, 1.0)
+            out[c:c + DEVIATION_CHUNK] = _peak(np.linalg.norm(rel - t[..., None] * d[:, None, :], axis=2))
+        return out
+
+    def accept(self, deviation):
+        self.largest = max(self.largest, float(deviation))
+        self.over += int(deviation > self.tolerance)
+
+    def split(self, move, a0, a1, j0, j1):
+        """Poses inserted into CL feed move ``move`` (tips ``tp.tip[move - 1]`` -> ``tp.tip[move]``,
+        unit axes ``a0`` -> ``a1`` (3,)) whose joints ``j0`` -> ``j1`` (n,) stray beyond the
+        tolerance: ``(s (r,), joints (r, n))`` in order, ``s`` the fractions of the move (tip on the
+        segment, axis on the great circle), each half split again while it strays, MAX_DEPTH deep."""
+        p0, p1 = self.tp.tip[move - 1], self.tp.tip[move]
+        ends = np.stack([p0, p0]), np.stack([p1, p1])
+        inserted = []
+
+        def halve(s0, s1, ja, jb, depth):
+            sm = 0.5 * (s0 + s1)
+            jm = _solve(self.machine, self.tp, move, (p0 + sm * (p1 - p0))[None], _great_circle(a0, a1, [sm]),
+                        self.tool_length, self.tcp, ja)[0][0]
+            left, right = self.deviation(np.stack([ja, jm]), np.stack([jm, jb]), *ends)
+            if left > self.tolerance and depth < MAX_DEPTH:
+                halve(s0, sm, ja, jm, depth + 1)
+            else:
+                self.accept(left)
+            inserted.append((sm, jm))
+            if right > self.tolerance and depth < MAX_DEPTH:
+                halve(sm, s1, jm, jb, depth + 1)
+            else:
+                self.accept(right)
+
+        halve(0.0, 1.0, j0, j1, 1)
+        return np.array([s for s, _ in inserted]), np.array([j for _, j in inserted])
+
+
+def _peak(samples):
+    """The largest value (m,) of smooth functions sampled evenly, ``samples (m, q)``: the largest
+    sample raised to the vertex of the parabola through it and its two neighbours, so that a peak
+    between samples is not missed (what remains is third order in the spacing)."""
+    rows = np.arange(len(samples))
+    largest = np.argmax(samples, axis=1)
+    k = np.clip(largest, 1, samples.shape[1] - 2)
+    before, top, after = samples[rows, k - 1], samples[rows, k], samples[rows, k + 1]
+    bend = 2.0 * top - before - after  # >= |after - before| at an inner largest sample: the rise <= bend / 8
+    inner = (largest == k) & (bend > 0.0)
+    rise = np.where(inner, (after - before) ** 2 / (8.0 * np.where(inner, bend, 1.0)), 0.0)
+    return samples[rows, largest] + rise
+
+
+def _retract_joints(machine, joints, displacement, tool_length, tcp):
+    """Joints (n,) as written that move the tip of ``joints (n,)`` by ``displacement (3,)`` mm in
+    work coordinates with the rotaries held: for fixed rotaries the tip is affine in X Y Z, so one
+    linear solve with forward's X Y Z columns is exact."""
+    probe = np.repeat(joints[None], 4, axis=0)
+    probe[1:, :3] += np.eye(3)
+    tip, _ = forward(machine, probe, tool_length, tcp)
+    out = joints.copy()
+    out[:3] += np.linalg.solve((tip[1:] - tip[0]).T, displacement)
+    return _round_joints(out, machine.gcode)
+
+
+class _Blocks:
+    """A :class:`_Run` being built, block by block."""
+
+    def __init__(self, tool):
+        self.tool = tool
+        self.rows = []
+
+    def add(self, joints, rapid, feed, tip_length, move, added=False, rewind=False):
+        self.rows.append((joints, rapid, np.nan if rapid else feed, tip_length, move, added, rewind))
+
+    def run(self) -> _Run:
+        joints, rapid, feed, tip_length, move, added, rewind = zip(*self.rows)
+        return _Run(self.tool, np.array(joints), np.array(rapid), np.array(feed), np.array(tip_length),
+                    np.array(move), np.array(added), np.array(rewind))
+
+
+def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp):
+    """``(runs, stats, clearance_z)``: one :class:`_Run` per tool from the inverse kinematics,
+    feed moves linearised (joints mode), and a retract-unwind-return where the rotaries jump (see
+    :func:`post_program`); ``stats``: blocks added, largest deviation, blocks over the tolerance,
+    rewinds, warnings."""
+    clearance = float(tp.tip[:, 2].max())
+    stats = {"blocks_added": 0, "largest": 0.0, "over": 0, "rewinds": 0, "warnings": []}
+    runs, start = [], None
+    tilt = machine.axes.index(machine.chain.rotary[0])
+    for tool, a, b in _tool_runs(tp.tool):
+        length = head_table_tool_length(tools[tool]) if machine.chain.type == "head-table" else 0.0
+        tip, axis = tp.tip[a:b], tp.axis[a:b]
+        joints, rewound = _solve(machine, tp, a, tip, axis, length, tcp, start)
+        rewound[0] = False  # the first pose of a tool is reached from the tool change
+        lin = _Linearisation(machine, tp, length, tcp, tolerance)
+        # the joints each move i starts from: where the rotaries jump, pose i-1 solved next to pose i
+        before = joints[:-1].copy()
+        for i in np.flatnonzero(rewound):
+            before[i - 1] = _solve(machine, tp, a + i - 1, tip[i - 1:i], axis[i - 1:i], length, tcp, joints[i])[0][0]
+        cut = np.flatnonzero(~tp.rapid[a + 1:b]) + 1 if not tcp else np.zeros(0, np.int64)
+        deviation = np.zeros(b - a)
+        deviation[cut] = lin.deviation(before[cut - 1], joints[cut], tip[cut - 1], tip[cut])
+        step = np.r_[0.0, np.linalg.norm(np.diff(tip, axis=0), axis=1)]  # mm, the tip's travel of each move
+        blocks = _Blocks(tool)
+        blocks.add(joints[0], True, np.nan, 0.0, a)
+        for i in range(1, b - a):
+            move, f = a + i, feed[a + i]
+            if rewound[i]:
+                stats["rewinds"] += 1
+                _rewind(blocks, tp, machine, move, joints[i - 1], before[i - 1], f, clearance, length, tcp)
+                if abs(before[i - 1, tilt] - joints[i - 1, tilt]) > 1e-6:
+                    stats["warnings"].append(
+                        f"{_where(tp, move)}: the tool swings over to the other side ({machine.axes[tilt]} "
+                        f"{format_number(joints[i - 1, tilt], 3)} -> {format_number(before[i - 1, tilt], 3)}) in one G0 "
+                        f"at Z {clearance:g} (the path's clearance height): check that the part clears it")
+            if tp.rapid[move]:
+                blocks.add(joints[i], True, np.nan, 0.0, move)
+                continue
+            done = 0.0
+            if deviation[i] > tolerance:
+                s, inserted = lin.split(move, axis[i - 1], axis[i], before[i - 1], joints[i])
+                for sj, j in zip(s, inserted):
+                    blocks.add(j, False, f, (sj - done) * step[i], move, added=True)
+                    done = sj
+            else:
+                lin.accept(deviation[i])
+            blocks.add(joints[i], False, f, (1.0 - done) * step[i], move)
+        runs.append(blocks.run())
+        stats["blocks_added"] += int(runs[-1].added.sum())
+        stats["largest"] = max(stats["largest"], lin.largest)
+        stats["over"] += lin.over
+        start = joints[-1]
+    return runs, stats, clearance
+
+
+def _rewind(blocks, tp, machine, move, joints, unwound, feed, clearance, tool_length, tcp):
+    """The blocks before CL move ``move`` whose rotaries jump from ``joints (n,)`` (pose move-1)
+    to ``unwound (n,)`` (the same pose next to pose ``move``): up the tool axis to the tip at Z
+    ``clearance`` (G1 at ``feed`` mm/s), the jump (G0), down again (G1)."""
+    axis = tp.axis[move - 1]
+    if axis[2] <= 0.0:
+        raise InputError(f"{_where(tp, move)}: the rotaries must unwind here and the tool axis points "
+                         f"{'down' if axis[2] < 0 else 'sideways'}: the tool cannot retract up to Z {clearance:g}")
+    rise = max(0.0, (clearance - tp.tip[move - 1, 2]) / axis[2])
+    up = _retract_joints(machine, joints, rise * axis, tool_length, tcp)
+    up_unwound = _retract_joints(machine, unwound, rise * axis, tool_length, tcp)
+    if rise > 0.0:
+        blocks.add(up, False, feed, rise, move, rewind=True)
+    blocks.add(up_unwound, True, np.nan, 0.0, move, rewind=True)
+    if rise > 0.0:
+        blocks.add(unwound, False, feed, rise, move, rewind=True)
+
+
+# --- checks, feeds and text ------------------------------------------------------------------------
+
+def _check_limits(runs, tp, machine, origin):
+    """InputError for the first written block beyond the machine's travel (by more than half the
+    last written digit, as the kinematics' values are rounded). X Y Z are machine coordinates
+    less ``origin`` (3,) (the program's zero in machine coordinates); without an origin they are
+    only checked to fit: each axis's span within its travel. Returns ``{letter: [low, high]}``:
+    where the program's zero may lie in machine coordinates for X Y Z to stay within travel."""
+    letters = machine.axes
+    joints = np.concatenate([run.joints for run in runs])
+    fits = {}
+    for n, letter in enumerate(letters[:3]):
+        if letter in machine.limits:
+            low, high = machine.limits[letter]
+            lo, hi = float(joints[:, n].min()), float(joints[:, n].max())
+            fits[letter] = [low - lo, high - hi]
+            if origin is None and hi - lo > high - low + 1e-9:
+                raise InputError(f"the program spans {hi - lo:.3f} mm in {letter} ({lo:.3f} to {hi:.3f}) but "
+                                 f"{machine.name} travels {high - low:g} mm ([{low:g}, {high:g}])")
+    shift = np.zeros(len(letters))
+    if origin is not None:
+        shift[:3] = origin
+    first = None
+    for r, run in enumerate(runs):
+        for n, letter in enumerate(letters):
+            if letter not in machine.limits or (n < 3 and origin is None):
+                continue
+            low, high = machine.limits[letter]
+            slack = 0.5 * 10.0 ** -(machine.gcode.decimals if n < 3 else machine.gcode.angle_decimals)
+            value = run.joints[:, n] + shift[n]
+            out = np.flatnonzero((value < low - slack) | (value > high + slack))
+            if len(out) and (first is None or (r, out[0]) < first[:2]):
+                first = (r, int(out[0]), n, letter, low, high)
+    if first is None:
+        return fits
+    r, b, n, letter, low, high = first
+    run = runs[r]
+    value = format_number(run.joints[b, n] + shift[n], machine.gcode.decimals if n < 3 else machine.gcode.angle_decimals)
+    what = "the retract to unwind the rotaries before " if run.rewind[b] else ""
+    where = " (machine coordinates, origin " + ", ".join(f"{v:g}" for v in origin) + ")" if n < 3 else ""
+    raise InputError(f"{what}{_where(tp, int(run.move[b]))}: {letter} {value}{where} is beyond its travel "
+                     f"[{low:g}, {high:g}] on {machine.name}")
+
+
+def _feed_values(run, machine, inverse_time):
+    """F (b,) of a run's blocks, NaN for G0: the tip's feed in mm/min (G94), or 1 / the block's
+    minutes (G93): the longest of the tip at its feed along the CL path, the rotaries at
+    ``machine.rotary_rapid`` and the linear axes at the rapid rate, each axis on its own."""
+    if not inverse_time:
+        return np.where(run.rapid, np.nan, run.feed * 60.0)
+    linear = np.abs(np.diff(run.joints[:, :3], axis=0, prepend=run.joints[:1, :3])).max(axis=1)
+    seconds = np.maximum.reduce([run.tip_length / run.feed, angle_step(run.joints) / machine.rotary_rapid,
+                                 linear / machine.kinematics.rapid])
+    with np.errstate(divide="ignore"):
+        return np.where(run.rapid, np.nan, 60.0 / seconds)
+
+
+def _write(runs, tools, machine, mode, inverse_time):
+    """The program's lines and the number of motion blocks among them."""
+    g = machine.gcode
+    letters = machine.axes
+    places = [g.decimals if n < 3 else g.angle_decimals for n in range(len(letters))]
+    lines = list(g.start)
+    lines.append(_comment(g, f"meshmill post for {machine.name}: {mode}"))
+    motion_blocks = 0
+    g93 = False
+    for r, run in enumerate(runs):
+        tool = tools[run.tool]
+        if r:
+            lines += ["G94"] * g93 + [SPINDLE_STOP, g.coolant_off] + [g.tcp_off] * (mode == "5-axis TCP")
+            g93 = False
+        text = f"T{tool.number} {tool.name}: {tool.type} D{tool.diameter:g}"
+        text += f" R{tool.corner_radius:g}" if tool.type == "bull" else ""
+        lines.append(_comment(g, text))
+        lines += [OPERATOR_STOP] if r and not g.tool_change else []
+        lines.append(_fill(g.tool_change, tool, g.rpm))
+        if mode == "5-axis TCP":
+            lines.append(_fill(g.tcp, tool, g.rpm))
+        elif mode == "5-axis joints" and machine.chain.type == "head-table":
+            lines.append(_comment(g, f"posted for a tool length of {head_table_tool_length(tool):g} mm from the tip "
+                                     "to the gauge line: no tool length compensation"))
+        else:
+            lines.append(_fill(g.tool_length, tool, g.rpm))
+        lines += [_fill(g.spindle, tool, g.rpm), _fill(g.coolant_on, tool, g.rpm)]
+        f_values = _feed_values(run, machine, inverse_time)
+        modal = {}
+        for b in range(len(run.joints)):
+            texts = [format_number(v, p) for v, p in zip(run.joints[b], places)]
+            groups = [[n for n in range(len(letters)) if n != 2], [2]] if b == 0 else [range(len(letters))]
+            for group in groups:
+                words = [f"{letters[n]}{texts[n]}" for n in group if modal.get(letters[n]) != texts[n]]
+                if not words:
+                    continue
+                motion = "G0" if run.rapid[b] else "G1"
+                if not run.rapid[b]:
+                    f_text = format_number(f_values[b], g.decimals if inverse_time else 1)
+                    if inverse_time or modal.get("F") != f_text:
+                        words.append(f"F{f_text}")
+                        modal["F"] = f_text
+                if modal.get("G") != motion:
+                    words.insert(0, motion)
+                    modal["G"] = motion
+                if inverse_time and not run.rapid[b] and not g93:
+                    words.insert(0, "G93")
+                    g93 = True
+                modal.update((letters[n], texts[n]) for n in group)
+                lines.append(" ".join(words))
+                motion_blocks += 1
+    lines += ["G94"] * g93 + [g.tcp_off] * (mode == "5-axis TCP") + list(g.end)
+    lines = [line for line in lines if line]
+    if g.line_numbers:
+        count = 0
+        for n, line in enumerate(lines):
+            if line != "%" and not (line[0] == "O" and line[1:2].isdigit()):
+                count += 1
+                lines[n] = f"N{count} {line}"
+    return lines, motion_blocks
+
+
+def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None, origin=None) -> tuple[list[str], dict]:
+    """The NC program of ``toolpath`` on ``machine`` (see the module's docstring for the layout).
+
+    ``toolpath``: :class:`~meshmill.toolpath.model.Toolpath` (k moves; ``tool`` indexes
+    ``tools``, the :class:`~meshmill.tools.table.Tool` list). ``origin (3,)`` mm: the program's
+    zero in machine coordinates (the work offset), for the travel of X Y Z (None: each axis's span
+    must fit its travel; the report's ``origin_range`` says where the zero may lie). ``feed``: None, a number or (k,)
+    per move, mm/s, NaN where the machine's nominal feed applies. ``tolerance`` mm: how far the tip
+    may stray from a CL feed move between blocks in 5-axis joints mode. ``tcp``: write TCP
+    programs (None: where the machine's ``gcode.tcp`` is not empty).
+
+    Where the rotaries must jump (the kinematics' ``rewound`` at pose i: C unwinds, or the tilt
+    swings over to its other solution), the tool never does so in the cut: at pose i-1 it retracts
+    along its axis (G1, at move i's feed) until the tip reaches the highest tip Z of the whole path
+    (the CL's clearance height, above the part; no retract when already there), the rotaries jump
+    in one G0 to pose i-1 solved next to pose i, the tool comes back down along its axis (G1) to
+    pose i-1, and move i goes on from there. When only C unwinds (whole turns), the physical pose is
+    the same and X Y Z stay: the part turns about its Z under a tool whose tip is above it and whose
+    axis points up, so nothing meets. A tilt swing also moves X Y Z, through poses the program does
+    not control: a warning names the move. A tool axis that does not point up there cannot retract
+    and is an InputError.
+
+    Returns ``(lines, report)``: the program's lines (no line ends) and a dict: ``machine``,
+    ``dialect``, ``kinematics``, ``mode``, ``feed_mode``, ``moves`` (in), ``blocks`` (motion
+    blocks out), ``lines``, ``linearisation`` (``tolerance_mm``, ``blocks_added``,
+    ``max_deviation_mm``: largest tip deviation measured, None in TCP mode where the control
+    interpolates; ``blocks_over_tolerance``: left so at the depth limit), ``axis_ranges``
+    ({letter: [low, high]} as written), ``rewinds`` and ``clearance_z_mm`` (the retract height),
+    ``tools`` (names in order of use), ``tool_changes`` (after the first tool), ``warnings``.
+    Raises :class:`~meshmill.errors.InputError` for a tilted axis on a 3-axis machine, a block
+    beyond the travel, or a TCP program without a ``gcode.tcp`` text.
+    """
+    if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
+        raise InputError(f"the linearisation tolerance must be a positive number of mm, got {tolerance}")
+    if len(toolpath) == 0:
+        raise InputError("the tool path has no moves")
+    if origin is not None:
+        origin = np.asarray(origin, np.float64)
+        if origin.shape != (3,) or not np.isfinite(origin).all():
+            raise InputError(f"the origin must be three finite numbers X,Y,Z (mm), got {origin.tolist()}")
+    g = machine.gcode
+    five_axis = machine.chain.type != "3-axis"
+    tcp = bool(g.tcp) if tcp is None else bool(tcp)
+    if tcp and not five_axis:
+        raise InputError(f"TCP needs a 5-axis machine; {machine.name} is a 3-axis machine")
+    if tcp and not g.tcp:
+        raise InputError(f"{machine.name} has no [gcode] 'tcp' text to switch TCP on (e.g. \"G43.4 H{{number}}\")")
+    feeds = _move_feeds(feed, len(toolpath), machine)
+    if five_axis:
+        mode = "5-axis TCP" if tcp else "5-axis joints"
+        runs, stats, clearance = _five_axis_runs(toolpath, tools, feeds, machine, tolerance, tcp)
+    else:
+        mode = "3-axis"
+        runs = _three_axis_runs(toolpath, feeds, machine)
+        stats, clearance = {"blocks_added": 0, "largest": 0.0, "over": 0, "rewinds": 0, "warnings": []}, None
+    origin_range = _check_limits(runs, toolpath, machine, origin)
+    inverse_time = mode == "5-axis joints" and g.inverse_time
+    lines, blocks = _write(runs, tools, machine, mode, inverse_time)
+    warnings = stats["warnings"]
+    if stats["over"]:
+        warnings.append(f"{stats['over']} block(s) still stray up to {stats['largest']:.4f} mm from the CL path after "
+                        f"{MAX_DEPTH} halvings (more than the {tolerance:g} mm tolerance): a pose near the pole of "
+                        "the rotary axes?")
+    if len(runs) > 1 and not g.tool_change:
+        warnings.append(f"{machine.name} has no tool changer: the program stops ({OPERATOR_STOP}) at each of the "
+                        f"{len(runs) - 1} tool change(s) for the operator")
+    joints = np.concatenate([run.joints for run in runs])
+    names = list(dict.fromkeys(tools[run.tool].name for run in runs))
+    report = {
+        "machine": machine.name, "machine_file": machine.summary()["file"], "dialect": g.dialect, "kinematics": machine.chain.type,
+        "mode": mode, "feed_mode": "G93 inverse time" if inverse_time else "G94 mm/min",
+        "moves": len(toolpath), "blocks": blocks, "lines": len(lines),
+        "linearisation": {"tolerance_mm": float(tolerance), "blocks_added": stats["blocks_added"],
+                          "max_deviation_mm": None if tcp else stats["largest"],
+                          "blocks_over_tolerance": stats["over"]},
+        "axis_ranges": {letter: [float(joints[:, n].min()) + 0.0, float(joints[:, n].max()) + 0.0]
+                        for n, letter in enumerate(machine.axes)},
+        "rewinds": stats["rewinds"], "clearance_z_mm": clearance,
+        "origin": None if origin is None else [float(v) for v in origin], "origin_range": origin_range,
+        "tools": names, "tool_changes": len(runs) - 1, "warnings": warnings,
+    }
+    return lines, report

@@ -1,0 +1,459 @@
+"""meshmill post: G-code for 3-axis (Fanuc, LinuxCNC, grbl) and 5-axis (table-table, head-table,
+TCP) machines, checked by reading the program back."""
+import json
+import re
+
+import numpy as np
+import pytest
+
+from meshmill.cli import main
+from conftest import one_line_error
+from meshmill.errors import InputError
+from meshmill.machine.config import SHIPPED, load_machine
+from meshmill.machine.kinematics import forward
+from meshmill.machine.post import format_number, head_table_tool_length, post_program
+from meshmill.tools.table import write_tools
+from meshmill.toolpath.cldata import read_apt, write_apt
+from meshmill.toolpath.model import Toolpath
+
+WORD = re.compile(r"([A-Z])(-?\d+(?:\.\d*)?)")
+UP = (0.0, 0.0, 1.0)
+
+
+def _cl(tmp_path, tools, tp, name="job.cl"):
+    """Write ``tp`` as a CL file with tools.toml beside it; read it back (moves carry CL lines)."""
+    write_tools(tmp_path / "tools.toml", tools)
+    write_apt(tmp_path / name, tp, tools)
+    return read_apt(tmp_path / name, tools)[0]
+
+
+def _square():
+    """A 50 mm square at Z -20 with tool 2 (B10), then a slot with tool 3 (B6); rapids between."""
+    tip = np.array([[10, 10, -5], [10, 10, -20], [60, 10, -20], [60, 60, -20], [10, 60, -20], [10, 10, -20],
+                    [10, 10, -5], [20, 20, -5], [20, 20, -10], [40, 20, -10], [40, 20, -5]], float)
+    rapid = np.zeros(len(tip), bool)
+    rapid[[0, 6, 7, 10]] = True
+    tool = np.array([1] * 7 + [2] * 4)
+    return Toolpath(tip, np.tile(UP, (len(tip), 1)), rapid, tool)
+
+
+def _blocks(lines, machine):
+    """The motion blocks of a program (its start and end lines left out): ``[((motion, G93 on),
+    joints (n,) in machine.axes order with the modal values filled in, F or None, tool number)]``."""
+    letters = machine.axes
+    state = dict.fromkeys(letters, np.nan)
+    motion, inverse_time, tool, out = None, False, None, []
+    for line in lines:
+        if line in machine.gcode.start + machine.gcode.end:
+            continue
+        line = re.sub(r"\(.*?\)|;.*$", "", line).strip()
+        words = WORD.findall(line)
+        if not words:
+            continue
+        codes = [(a, float(v)) for a, v in words]
+        if ("M", 6.0) in codes:
+            tool = int(dict(codes)["T"])
+            continue
+        moves = {a: v for a, v in codes if a in letters}
+        for a, v in codes:
+            if a == "G" and v in (0.0, 1.0):
+                motion = int(v)
+            elif a == "G" and v in (93.0, 94.0):
+                inverse_time = v == 93.0
+        if not moves:
+            continue
+        state.update(moves)
+        f = dict(codes).get("F")
+        out.append(((motion, inverse_time), np.array([state[a] for a in letters]), f, tool))
+    return out
+
+
+def _machine_file(tmp_path, shipped, extra):
+    """A copy of a shipped machine file with ``extra`` keys added to its [gcode] table (the last)."""
+    text = open(f"{SHIPPED}/{shipped}.toml").read()
+    assert text.split("\n[")[-1].startswith("gcode]")
+    path = tmp_path / f"{shipped}-custom.toml"
+    path.write_text(text.rstrip() + "\n" + extra + "\n")
+    return load_machine(path)
+
+
+# --- 3-axis -------------------------------------------------------------------------------------
+
+FANUC = """%
+O1000
+G21 G90 G17 G40 G49 G80 G94
+(meshmill post for generic 3-axis VMC [Fanuc-like]: 3-axis)
+(T2 B10: ball D10)
+T2 M6
+G43 H2
+S10000 M3
+M8
+G0 X10.0000 Y10.0000
+Z-5.0000
+G1 Z-20.0000 F4000.0
+X60.0000
+Y60.0000
+X10.0000
+Y10.0000
+G0 Z-5.0000
+M5
+M9
+(T3 B6: ball D6)
+T3 M6
+G43 H3
+S10000 M3
+M8
+G0 X20.0000 Y20.0000
+Z-5.0000
+G1 Z-10.0000 F4000.0
+X40.0000
+G0 Z-5.0000
+M5
+M9
+G91 G28 Z0
+G90
+M30
+%""".splitlines()
+
+
+def test_fanuc_program_is_the_golden_one(tmp_path, tools):
+    tp = _cl(tmp_path, tools, _square())
+    lines, report = post_program(tp, tools, load_machine("generic-3axis"))
+    assert lines == FANUC
+    assert report["blocks"] == 13 and report["moves"] == 11 and report["tool_changes"] == 1
+    assert report["tools"] == ["B10", "B6"] and report["dialect"] == "fanuc" and report["mode"] == "3-axis"
+    assert report["axis_ranges"] == {"X": [10.0, 60.0], "Y": [10.0, 60.0], "Z": [-20.0, -5.0]}
+    assert report["linearisation"]["blocks_added"] == 0 and report["feed_mode"] == "G94 mm/min"
+
+
+def test_linuxcnc_and_grbl_key_lines(tmp_path, tools):
+    tp = _cl(tmp_path, tools, _square())
+    lines, _ = post_program(tp, tools, load_machine("linuxcnc-3axis"))
+    assert lines[:11] == ["%", "G21 G90 G17 G40 G49 G80 G94 G64 P0.005",
+                          "(meshmill post for LinuxCNC 3-axis mill: 3-axis)", "(T2 B10: ball D10)", "T2 M6", "G43 H2",
+                          "S10000 M3", "M8", "G0 X10.0000 Y10.0000", "Z-5.0000", "G1 Z-20.0000 F3000.0"]
+    change = lines.index("(T3 B6: ball D6)")
+    assert lines[change - 2:change + 6] == ["M5", "M9", "(T3 B6: ball D6)", "T3 M6", "G43 H3", "S10000 M3", "M8",
+                                            "G0 X20.0000 Y20.0000"]
+    assert lines[-6:] == ["G0 Z-5.0000", "M5", "M9", "G53 G0 Z0", "M2", "%"]
+
+    lines, report = post_program(tp, tools, load_machine("grbl-3axis"))
+    assert lines[:8] == ["G21 G90 G17 G94", "; meshmill post for grbl 3-axis router: 3-axis", "; T2 B10: ball D10",
+                         "S10000 M3", "M8", "G0 X10.000 Y10.000", "Z-5.000", "G1 Z-20.000 F1500.0"]
+    change = lines.index("; T3 B6: ball D6")
+    # no tool changer: spindle and coolant off, the tool named, then a pause for the operator
+    assert lines[change - 2:change + 5] == ["M5", "M9", "; T3 B6: ball D6", "M0", "S10000 M3", "M8",
+                                            "G0 X20.000 Y20.000"]
+    assert lines[-4:] == ["G0 Z-5.000", "M5", "M9", "M2"]
+    assert not any("M6" in line or "G43" in line for line in lines)
+    assert "no tool changer" in report["warnings"][0]
+
+
+@pytest.mark.parametrize("name", ["generic-3axis", "linuxcnc-3axis", "grbl-3axis"])
+def test_modal_words_decimals_and_the_path_read_back(tmp_path, tools, name):
+    tp = _square()
+    tp.tip[2, 0] -= 0.00004  # rounds to 60.0000 / 60.000: no new X word
+    tp.tip[:, 1] += np.where(tp.tip[:, 1] == 10, -9.99996, 0.0)  # Y 0.00004: written as Y0.0000, never negative
+    tp.tip[5, 1] = -0.00004
+    tp = _cl(tmp_path, tools, tp)
+    machine = load_machine(name)
+    lines, _ = post_program(tp, tools, machine)
+    places = machine.gcode.decimals
+    assert not re.search(r"[A-Z]-0\.0*(\s|$)", "\n".join(lines))
+    modal = {}
+    for line in lines:
+        if line.startswith(("T", "M5")):
+            modal.clear()  # a tool change writes every word again
+        if line.startswith(("(", ";")) or line in machine.gcode.start + machine.gcode.end:
+            continue
+        for letter, value in WORD.findall(line):
+            if letter in "XYZ":
+                assert len(value.split(".")[1]) == places, line
+                assert modal.get(letter) != value, f"{line}: {letter} repeats its modal value"
+                modal[letter] = value
+            elif letter == "F":
+                assert modal.get("F") != value, line
+                modal["F"] = value
+            elif letter == "G" and value in ("0", "1"):
+                assert modal.get("G") != value, f"{line}: G{value} repeats"
+                modal["G"] = value
+    blocks = _blocks(lines, machine)
+    ends = np.array([b[1] for b in blocks])
+    # every CL move ends where a block ends, in order (the first of each tool in two blocks: XY then Z)
+    expected = np.round(tp.tip, places)
+    at = 0
+    for p in expected:
+        at += int(np.flatnonzero(np.abs(ends[at:] - p).max(axis=1) < 1e-9)[0])
+    assert [b[0][0] for b in blocks] == [0, 0, 1, 1, 1, 1, 1, 0, 0, 0, 1, 1, 0]
+
+
+def test_line_numbers(tmp_path, tools):
+    machine = _machine_file(tmp_path, "generic-3axis", "line_numbers = true")
+    lines, _ = post_program(_square(), tools, machine)
+    assert lines[:4] == ["%", "O1000", "N1 G21 G90 G17 G40 G49 G80 G94",
+                         "N2 (meshmill post for generic 3-axis VMC [Fanuc-like]: 3-axis)"]
+    assert lines[-1] == "%" and lines[-2] == f"N{len(lines) - 3} M30"
+
+
+def test_limit_error_names_the_first_move_and_axis(tmp_path, tools):
+    tp = _square()
+    tp.tip[3] = [60, 450, -20]  # Y beyond [0, 400] at move 4
+    tp.tip[4] = [700, 450, -20]  # X beyond [0, 600] at move 5, too
+    tp = _cl(tmp_path, tools, tp)
+    with pytest.raises(InputError) as err:
+        post_program(tp, tools, load_machine("linuxcnc-3axis"), origin=(0.0, 0.0, 0.0))
+    assert str(err.value) == (f"move 4 (CL line {tp.line[3]}): Y 450.0000 (machine coordinates, origin 0, 0, 0) is "
+                              "beyond its travel [0, 400] on LinuxCNC 3-axis mill")
+    # without the work offset: each axis's span must fit, and the report says where the zero may lie
+    with pytest.raises(InputError, match=r"^the program spans 690\.000 mm in X \(10\.000 to 700\.000\) but "
+                                         r"LinuxCNC 3-axis mill travels 600 mm"):
+        post_program(tp, tools, load_machine("linuxcnc-3axis"))
+    fine = _cl(tmp_path, tools, _square())
+    _, report = post_program(fine, tools, load_machine("linuxcnc-3axis"))
+    xs = fine.tip[:, 0]
+    assert report["origin_range"]["X"] == pytest.approx([0.0 - xs.min(), 600.0 - xs.max()])
+    with pytest.raises(InputError, match=r"X -90\.0000 \(machine coordinates, origin -100, 0, -50\)"):
+        post_program(fine, tools, load_machine("linuxcnc-3axis"), origin=(-100.0, 0.0, -50.0))
+
+
+def test_tilted_axis_on_a_3_axis_machine_is_refused(tmp_path, tools):
+    tp = _square()
+    tp.axis[8] = [0.0, np.sin(0.2), np.cos(0.2)]
+    tp = _cl(tmp_path, tools, tp)
+    with pytest.raises(InputError) as err:
+        post_program(tp, tools, load_machine("generic-3axis"))
+    text = str(err.value)
+    assert text.startswith(f"move 9 (CL line {tp.line[8]}): the tool axis") and "11.459 deg" in text
+    assert "3-axis machine" in text and "1 tilted move" in text
+    with pytest.raises(InputError, match="TCP needs a 5-axis machine"):
+        post_program(_square(), tools, load_machine("generic-3axis"), tcp=True)
+
+
+def test_feeds_per_move(tools):
+    tp = _square()
+    feed = np.full(len(tp), np.nan)
+    feed[3:] = 20.0  # mm/s: 1200 mm/min from move 4 on
+    lines, _ = post_program(tp, tools, load_machine("generic-3axis"), feed=feed)
+    assert "G1 Z-20.0000 F4000.0" in lines and "Y60.0000 F1200.0" in lines and "G1 Z-10.0000 F1200.0" in lines
+    with pytest.raises(InputError, match="feed"):
+        post_program(tp, tools, load_machine("generic-3axis"), feed=-1.0)
+
+
+def test_format_number_has_no_negative_zero():
+    assert format_number(-0.00004, 4) == "0.0000" and format_number(-0.0, 3) == "0.000"
+    assert format_number(-0.4, 0) == "0" and format_number(-0.00006, 4) == "-0.0001"
+    assert format_number(12.5, 1) == "12.5"
+
+
+# --- 5-axis -------------------------------------------------------------------------------------
+
+def _five_axis_path():
+    """Around a 30 mm circle, the tool tilted outwards from 10 to 40 deg while its azimuth turns
+    from -60 to 420 deg (through C's 0/360 wrap), going down; tool 2 (B10) for the first part,
+    tool 3 (B6) for the rest; rapids in and out of each."""
+    def arc(start, stop, tilt0, tilt1, z0, z1, count):
+        phi = np.radians(np.linspace(start, stop, count))
+        tilt = np.radians(np.linspace(tilt0, tilt1, count))
+        tip = np.c_[30 * np.cos(phi), 30 * np.sin(phi), np.linspace(z0, z1, count)]
+        axis = np.c_[np.sin(tilt) * np.cos(phi), np.sin(tilt) * np.sin(phi), np.cos(tilt)]
+        return np.r_[tip[:1] + [0, 0, 30], tip, tip[-1:] + [0, 0, 30]], np.r_[axis[:1], axis, axis[-1:]]
+
+    tip1, axis1 = arc(-60, 200, 10, 30, -5, -10, 27)
+    tip2, axis2 = arc(200, 420, 30, 40, -10, -15, 23)
+    tip, axis = np.r_[tip1, tip2], np.r_[axis1, axis2]
+    rapid = np.zeros(len(tip), bool)
+    rapid[[0, 28, 29, len(tip) - 1]] = True
+    tool = np.array([1] * len(tip1) + [2] * len(tip2))
+    return Toolpath(tip, axis, rapid, tool)
+
+
+def _segment_distance(points, p0, p1):
+    """Distance (m, s) from ``points (m, 3)`` to each segment ``p0 (s, 3)`` -> ``p1 (s, 3)``."""
+    d = p1 - p0
+    rel = points[:, None, :] - p0[None]
+    t = np.clip(np.einsum("msj,sj->ms", rel, d) / np.maximum(np.einsum("sj,sj->s", d, d), 1e-300), 0, 1)
+    return np.linalg.norm(rel - t[..., None] * d[None], axis=2)
+
+
+@pytest.mark.parametrize("name", ["table-table-ac", "head-table-bc"])
+def test_five_axis_blocks_stay_on_the_cl_path(tmp_path, tools, name):
+    machine = load_machine(name)
+    tp = _cl(tmp_path, tools, _five_axis_path())
+    tolerance = 0.005
+    lines, report = post_program(tp, tools, machine, feed=50.0, tolerance=tolerance)
+    letters = machine.axes
+    blocks = _blocks(lines, machine)
+    numbers = {t.number: t for t in tools}
+    clearance = tp.tip[:, 2].max()
+
+    def length(number):
+        return head_table_tool_length(numbers[number]) if machine.chain.type == "head-table" else 0.0
+
+    cut = ~tp.rapid
+    cut[[0, 29]] = False  # the first move of each tool is a positioning G0
+    seg0, seg1 = tp.tip[np.flatnonzero(cut) - 1], tp.tip[np.flatnonzero(cut)]
+
+    def distance_to_path(point):
+        return _segment_distance(point[None], seg0, seg1).min()
+
+    s = np.linspace(0.0, 1.0, 201)
+    worst, off_path, unwinds = 0.0, [], []
+    for b in range(1, len(blocks)):
+        (motion, inverse_time), joints, f, number = blocks[b]
+        before = blocks[b - 1][1]
+        if motion == 0:
+            if np.abs(joints[:3] - before[:3]).max() == 0 and blocks[b - 1][0][0] == 1:
+                unwinds.append(b)  # rotaries only, between two feed blocks: the unwind
+            continue
+        dense = before + s[:, None] * (joints - before)
+        tip, axis = forward(machine, dense, length(number))
+        distance = _segment_distance(tip, seg0, seg1).min(axis=1)
+        if distance[0] > tolerance or distance[-1] > tolerance:
+            off_path.append((b, tip, axis))
+            continue
+        worst = max(worst, distance.max())
+        assert inverse_time == machine.gcode.inverse_time
+    assert worst <= tolerance
+    assert report["linearisation"]["max_deviation_mm"] <= tolerance
+    assert report["linearisation"]["blocks_added"] > 0 and report["linearisation"]["blocks_over_tolerance"] == 0
+    # every CL pose is a block's end
+    ends = np.array([forward(machine, b[1][None], length(b[3]))[0][0] for b in blocks])
+    for i in np.flatnonzero(cut):
+        assert np.nanmin(np.linalg.norm(ends - tp.tip[i], axis=1)) < 1e-3
+    # C turns through its 0/360 wrap: a continuous C just goes on, C in [-360, 360] unwinds once by two turns
+    # (retract, turn, return) and never in the cut
+    c = np.array([b[1][letters.index("C")] for b in blocks])
+    assert np.floor(c.min() / 360.0) < np.floor(c.max() / 360.0)  # a whole turn lies between
+    if "C" in machine.limits:
+        assert report["rewinds"] == len(unwinds) == 1 and c.min() == pytest.approx(-360.0, abs=1.0)
+    else:
+        assert report["rewinds"] == len(unwinds) == 0 and np.ptp(c) > 360.0
+    assert sorted(b for b, _, _ in off_path) == sorted(b for u in unwinds for b in (u - 1, u + 1))
+    for u in unwinds:
+        turn = blocks[u][1] - blocks[u - 1][1]
+        # to the far end of C's travel: two turns, so that the next unwind is two turns away
+        assert np.abs(turn[:-1]).max() == 0 and abs(turn[-1]) == pytest.approx(720.0, abs=1e-3)
+    for b, tip, axis in off_path:  # up and down the tool axis, between the path and the clearance height
+        assert np.abs(np.cross(tip[-1] - tip[0], axis[0])).max() < 1e-3 and np.ptp(axis, axis=0).max() < 1e-9
+        assert max(tip[0, 2], tip[-1, 2]) == pytest.approx(clearance, abs=1e-3)
+        assert min(distance_to_path(tip[0]), distance_to_path(tip[-1])) < tolerance
+    assert report["axis_ranges"]["C"] == pytest.approx([c.min(), c.max()])
+
+
+@pytest.mark.parametrize("name", ["table-table-ac", "head-table-bc"])
+def test_inverse_time_feeds(tools, name):
+    machine = load_machine(name)
+    tp = _five_axis_path()
+    lines, report = post_program(tp, tools, machine, feed=50.0)
+    assert report["feed_mode"] == "G93 inverse time"
+    blocks = _blocks(lines, machine)
+    numbers = {t.number: t for t in tools}
+    checked = 0
+    for b in range(1, len(blocks)):
+        (motion, inverse_time), joints, f, number = blocks[b]
+        if motion != 1:
+            continue
+        assert inverse_time and f is not None  # G93 wants F on every feed block
+        before = blocks[b - 1][1]
+        length = head_table_tool_length(numbers[number]) if machine.chain.type == "head-table" else 0.0
+        tips = forward(machine, np.stack([before, joints]), length)[0]
+        minutes = max(np.linalg.norm(tips[1] - tips[0]) / 3000.0,
+                      np.abs(joints[3:] - before[3:]).max() / (machine.rotary_rapid * 60.0),
+                      np.abs(joints[:3] - before[:3]).max() / (machine.kinematics.rapid * 60.0))
+        assert f == pytest.approx(1.0 / minutes, rel=2e-3, abs=1e-4)
+        checked += 1
+    assert checked > 100
+    assert lines.count("G94") == 2  # back to G94 before the tool change and before the end
+
+
+def test_linearisation_only_where_the_rotaries_turn(tools):
+    """A straight cut with a fixed tilted axis: joint-linear motion is straight, nothing added."""
+    tip = np.array([[0, 0, 20], [0, 0, 0], [40, 10, -5], [40, 10, 20]], float)
+    axis = np.tile([0.3, -0.2, 0.9], (4, 1)) / np.linalg.norm([0.3, -0.2, 0.9])
+    tp = Toolpath(tip, axis, np.array([True, False, False, True]), np.ones(4, int))
+    for name in ("table-table-ac", "head-table-bc"):
+        lines, report = post_program(tp, tools, load_machine(name))
+        assert report["linearisation"]["blocks_added"] == 0 and report["blocks"] == 5
+        assert report["linearisation"]["max_deviation_mm"] < 1e-3
+
+
+def test_tcp_writes_the_tool_tip(tmp_path, tools):
+    machine = _machine_file(tmp_path, "table-table-ac", 'tcp = "G43.4 H{number}"')
+    tp = _five_axis_path()
+    lines, report = post_program(tp, tools, machine, feed=50.0)
+    assert report["mode"] == "5-axis TCP" and report["feed_mode"] == "G94 mm/min"
+    assert report["linearisation"]["max_deviation_mm"] is None and report["linearisation"]["blocks_added"] == 0
+    assert "G43.4 H2" in lines and "G43.4 H3" in lines and not any(line.startswith("G43 H") for line in lines)
+    assert not any("G93" in line for line in lines)
+    assert lines[lines.index("T3 M6") - 4:lines.index("T3 M6") - 1] == ["M5", "M9", "G49"]
+    assert lines[-7:] == ["G49", "M5", "M9", "G91 G28 Z0", "G90", "M30", "%"]
+    blocks = _blocks(lines, machine)
+    assert all(b[2] in (None, 3000.0) for b in blocks)
+    ends = np.array([b[1] for b in blocks])
+    for i in range(len(tp)):
+        hit = np.flatnonzero(np.abs(ends[:, :3] - tp.tip[i]).max(axis=1) < 1e-4)
+        assert len(hit), f"pose {i} not written"
+        _, axis = forward(machine, ends[hit[:1]], tcp=True)
+        assert np.abs(axis[0] - tp.axis[i] / np.linalg.norm(tp.axis[i])).max() < 1e-5
+    assert report["blocks"] == len(tp) + 2  # one block a move, the first of each tool in two
+    # the shipped machine has no TCP text: asking for TCP there is refused
+    with pytest.raises(InputError, match="no \\[gcode\\] 'tcp' text"):
+        post_program(tp, tools, load_machine("table-table-ac"), tcp=True)
+
+
+# --- command line -------------------------------------------------------------------------------
+
+def test_post_command(tmp_path, tools, capsys):
+    _cl(tmp_path, tools, _five_axis_path())
+    cl = tmp_path / "job.cl"
+    rc = main(["post", str(cl), "--machine", "head-table-bc"])
+    out = capsys.readouterr().out
+    assert rc == 0 and (tmp_path / "program.nc").exists()
+    assert out.startswith(f"wrote {tmp_path / 'program.nc'}: ") and "linearisation within 0.005 mm added" in out
+    assert "C -" in out and "1 rewind(s)" in out and "no feed programmed: the machine's 5000 mm/min" in out
+    assert (tmp_path / "program.nc").read_text().startswith("%\nO1000\n")
+
+    # FEDRAT is honoured; --feed fills the moves before it
+    text = cl.read_text().splitlines()
+    text.insert(text.index(next(t for t in text if t.startswith("GOTO"))) + 2, "FEDRAT/1200, MMPM")
+    cl.write_text("\n".join(text) + "\n")
+    rc = main(["post", str(cl), "--machine", "table-table-ac", "--json", "--out", str(tmp_path / "nc" / "p.nc"),
+               "--tolerance", "0.01", "--feed", "900"])
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)
+    assert rc == 0 and not captured.err and (tmp_path / "nc" / "p.nc").exists()
+    assert report["feeds"].startswith("1 of ") and "--feed 900 mm/min" in report["feeds"]
+    assert report["linearisation"]["tolerance_mm"] == 0.01 and report["machine"].startswith("5-axis trunnion")
+    assert set(report["axis_ranges"]) == {"X", "Y", "Z", "A", "C"} and report["rewinds"] == 0
+
+    square = tmp_path / "sq"
+    square.mkdir()
+    _cl(square, tools, _square())
+    lines = (square / "job.cl").read_text().splitlines()
+    lines.insert(5, "FEDRAT/600")
+    (square / "job.cl").write_text("\n".join(lines) + "\n")
+    assert main(["post", str(square / "job.cl"), "--machine", "grbl-3axis"]) == 0
+    assert "feeds as programmed" in capsys.readouterr().out
+    assert "G1 Z-20.000 F600.0" in (square / "program.nc").read_text()
+
+
+def test_post_command_bad_input(tmp_path, tools, capsys):
+    _cl(tmp_path, tools, _square())
+    cl = str(tmp_path / "job.cl")
+    assert "no such CL file" in one_line_error(capsys, ["post", str(tmp_path / "x.cl"), "--machine", "grbl-3axis"])
+    assert "no such machine file" in one_line_error(capsys, ["post", cl, "--machine", "nope"])
+    assert "--tolerance" in one_line_error(capsys, ["post", cl, "--machine", "grbl-3axis", "--tolerance", "0"])
+    assert "--feed" in one_line_error(capsys, ["post", cl, "--machine", "grbl-3axis", "--feed", "-3"])
+    far = _square()
+    far.tip[2, 0] = 400.0
+    _cl(tmp_path, tools, far, "far.cl")
+    line = one_line_error(capsys, ["post", str(tmp_path / "far.cl"), "--machine", "grbl-3axis"])
+    assert "spans 390.000 mm in X" in line and "travels 300 mm" in line
+    line = one_line_error(capsys, ["post", str(tmp_path / "far.cl"), "--machine", "grbl-3axis", "--origin", "0,0,0"])
+    assert "move 3 (CL line" in line and "X 400.000 (machine coordinates, origin 0, 0, 0) is beyond its travel [0, 300]" in line
+    assert "--origin" in one_line_error(capsys, ["post", cl, "--machine", "grbl-3axis", "--origin", "1,2"])
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    (alone / "job.cl").write_text((tmp_path / "job.cl").read_text())
+    assert "no --tools given" in one_line_error(capsys, ["post", str(alone / "job.cl"), "--machine", "grbl-3axis"])
+    one_line_error(capsys, ["post", cl])  # no --machine
