@@ -20,10 +20,12 @@ demo: venv
 	$(BIN)/meshmill waterline $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool B4 --step-down 2 --out demo-out/waterline
 	$(BIN)/meshmill raster $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool R6 --scallop 0.01 --angle 45 --out demo-out/raster
 	$(BIN)/meshmill simulate --design $(DATA)/vase.stl --allowance 0.5 --toolpath demo-out/toolpath.cl --tools $(DATA)/tools.toml --step 0.2 --out demo-out/simulate
+	$(BIN)/meshmill post demo-out/toolpath.cl --machine table-table-ac --tools $(DATA)/tools.toml --out demo-out/program-ac.nc
+	$(BIN)/meshmill verify $(DATA)/vase.stl demo-out/program-ac.nc --machine table-table-ac --tools $(DATA)/tools.toml --tolerance 0.015 --out demo-out/verify-program.json
 	$(BIN)/meshmill choose rubio --tool-pair 10,2 --scallop 0.01 --zones 3 --axes 3+2 --machine seed-002 --out demo-out/choose
 	$(BIN)/meshmill time demo-out/choose/toolpath.cl --machine seed-002 --tools demo-out/choose/tools.toml
 	$(BIN)/meshmill report demo-out demo-out/waterline demo-out/raster demo-out/simulate demo-out/choose --out demo-out/report.html
-	@echo "demo results in demo-out/: 5-axis finishing (toolpath.cl, summary.json, verify.json), 3-axis waterline/ and raster/, simulate/ (what the 5-axis path cuts: deviation.json, machined.stl), choose/ (seed 002's Rubio surface: cutter, zones and 3+2 axes by machining time)"
+	@echo "demo results in demo-out/: 5-axis finishing (toolpath.cl, summary.json, verify.json), 3-axis waterline/ and raster/, simulate/ (what the 5-axis path cuts: deviation.json, machined.stl), choose/ (seed 002's Rubio surface: cutter, zones and 3+2 axes by machining time), program-ac.nc (the 5-axis path posted for an A/C trunnion, read back and verified within the path's 0.01 mm plus the post's 0.005 mm)"
 	@echo "report: $(CURDIR)/demo-out/report.html (open it in any browser)"
 
 test: venv

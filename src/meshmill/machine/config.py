@@ -35,22 +35,26 @@ MOTION_OPTIONAL = {"rotary_rapid_deg_min": 3600.0}
 
 LINEAR = ("X", "Y", "Z")
 ROTARY = ("A", "B", "C")  # about X, Y, Z
-CHAINS = ("3-axis", "table-table", "head-table")
+CHAINS = ("3-axis", "table-table", "head-table", "head-head")
 DIALECTS = ("fanuc", "linuxcnc", "grbl")
 
 
 @dataclass(frozen=True)
 class Chain:
     """The kinematic chain (``[kinematics]``). ``type``: "3-axis", "table-table" (both rotaries
-    carry the part: ``rotary[0]`` tilts the table, ``rotary[1]`` turns the part on it) or
-    "head-table" (``rotary[0]`` tilts the spindle head, ``rotary[1]`` turns the table). A rotary
+    carry the part: ``rotary[0]`` tilts the table, ``rotary[1]`` turns the part on it),
+    "head-table" (``rotary[0]`` tilts the spindle head, ``rotary[1]`` turns the table) or
+    "head-head" (both rotaries move the spindle head, the part stays on the fixed table: C, nearer
+    the machine frame, turns the head about Z and carries ``rotary[0]``, which tilts the spindle).
+    ``rotary`` is always (tilt, "C"); a head-head file lists the rotaries from the frame, ["C", "A"]
+    or ["C", "B"] (["A", "C"] is taken as well). A rotary
     named A, B or C turns about X, Y or Z (right hand, positive angle turns the table or the head
     by that angle; ``reversed`` names the axes whose controller counts the other way).
     ``pivot`` (3,) mm: a point of the first rotary's axis in work coordinates at zero angles
     (table-table); ``offset`` (3,) mm: from there to a point of the second rotary's axis
     (table-table, zero when the axes meet); ``head_length`` mm: from the head's pivot to the
-    spindle's gauge line along the tool (head-table). ``singular`` rad: within this of the pole
-    (tool axis on the table's turning axis) the turning angle is held."""
+    spindle's gauge line along the tool (head-table, head-head). ``singular`` rad: within this of
+    the pole (tool axis on C's axis, +Z or -Z) the turning angle is held."""
 
     type: str = "3-axis"
     rotary: tuple = ()
@@ -198,15 +202,18 @@ def _kinematics(table, where) -> dict:
         if rotary:
             raise InputError(f"{where} a 3-axis machine has no 'rotary' axes")
         return {"chain": Chain()}
+    if kind == "head-head" and isinstance(rotary, list) and len(rotary) == 2 and rotary[0] == "C":
+        rotary = rotary[::-1]  # listed from the frame: C carries the tilt; kept as (tilt, C) like the others
     if (not isinstance(rotary, list) or len(rotary) != 2 or not all(r in ROTARY for r in rotary)
             or rotary[0] == rotary[1] or "C" not in rotary or rotary[0] == "C"):
-        raise InputError(f"{where} 'rotary' must name the tilting axis (A or B) and then C, e.g. ['A', 'C'], "
-                         f"got {rotary!r}")
+        order = "C and then the tilting axis (A or B), e.g. ['C', 'A']" if kind == "head-head" else \
+            "the tilting axis (A or B) and then C, e.g. ['A', 'C']"
+        raise InputError(f"{where} 'rotary' must name {order}, got {table.get('rotary')!r}")
     rev = table.get("reversed", [])
     if not isinstance(rev, list) or not all(r in rotary for r in rev):
         raise InputError(f"{where} 'reversed' must list some of {rotary}, got {rev!r}")
     head = table.get("head_length_mm", 0.0)
-    if kind == "head-table" and (isinstance(head, bool) or not isinstance(head, (int, float))
+    if kind in ("head-table", "head-head") and (isinstance(head, bool) or not isinstance(head, (int, float))
                                  or not math.isfinite(head) or head < 0):
         raise InputError(f"{where} 'head_length_mm' must be a length >= 0 mm, got {head!r}")
     return {"chain": Chain(type=kind, rotary=tuple(rotary), reversed=tuple(rev), pivot=_vector(table, "pivot_mm", where),

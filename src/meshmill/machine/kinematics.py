@@ -22,17 +22,25 @@ Conventions
   machine coordinates and X Y Z is the head's pivot M(tip) + (head_length + tool_length) d, where
   ``tool_length`` is the tool's tip to the spindle's gauge line. The tool axis in work coordinates
   is Rot2(r2)^T d.
+* head-head (``chain.rotary = (R1, C)``, listed ["C", R1] in the machine file, from the frame: C,
+  nearer the machine frame, turns the head about +Z and carries R1, which tilts the spindle; the
+  part stays on the fixed table, so machine and work coordinates are the same): the tool points
+  along d = Rot2(r2) Rot1(r1) (0, 0, 1) and X Y Z is the head's pivot tip + (head_length +
+  tool_length) d, ``tool_length`` as for head-table; ``chain.pivot`` is not used. The tool axis
+  in work coordinates is d.
 * TCP (``tcp=True``: the control does the kinematics, e.g. G43.4 or TRAORI): X Y Z = the tip in
   work coordinates; the rotary angles are the same as without TCP.
 
-Both 5-axis chains put the tool axis at polar angle abs(r1) from +Z. With r1 > 0 its azimuth
-(atan2(y, x)) is ``psi - r2``, where psi is 90 deg (table-table A), 180 (table-table B), -90
-(head-table A) or 0 (head-table B); with r1 < 0 it is ``psi - r2 + 180``.
+Every 5-axis chain puts the tool axis at polar angle abs(r1) from +Z. With r1 > 0 its azimuth
+(atan2(y, x)) is ``psi + w r2``, where psi is 90 deg (table-table A), 180 (table-table B), -90
+(head-table and head-head A) or 0 (head-table and head-head B), and w is -1 where C turns the
+part (table-table, head-table: the tool turns the other way in work coordinates) and +1 where it
+turns the head (head-head); with r1 < 0 it is ``psi + w r2 + 180``.
 
 Inverse
 -------
-A tool axis at polar angle theta and azimuth phi has two solutions, (r1, r2) = (theta, psi - phi)
-and (-theta, psi - phi + 180), each repeated every 360 deg of any rotary (all of them for a rotary
+A tool axis at polar angle theta and azimuth phi has two solutions, (r1, r2) = (theta, w (phi - psi))
+and (-theta, w (phi - psi) + 180), each repeated every 360 deg of any rotary (all of them for a rotary
 without travel limits; those within its travel otherwise). The poses are solved in order; each
 takes the solution nearest the previous pose's angles: the smallest abs(tilt change) + abs(turn
 change) (program degrees, equal weights), ties to the smaller abs(tilt) and then to the positive
@@ -42,7 +50,7 @@ that consecutive poses never differ by a turn taken modulo 360.
 
 * Travel: where the nearest solution is beyond a rotary's travel, the same tilt with the turn's
   equivalent within travel farthest from the end it passed is taken (a path that keeps turning
-  one way unwinds once every two turns on a [-360, 360] table); where the tilt itself is beyond travel, the other
+  one way unwinds once every two turns on a [-360, 360] table or head); where the tilt itself is beyond travel, the other
   solution (tilt of the other sign, turn 180 deg on). Either way the pose is marked ``rewound``:
   the rotaries jump there (a finite C unwinds by a full turn, or the tool swings over to the
   other side) and the post-processor must retract the tool before that move. (The first pose is
@@ -50,7 +58,8 @@ that consecutive poses never differ by a turn taken modulo 360.
   within travel an :class:`AxisLimitError` names the first such move. Large rotary moves that the
   geometry asks for (the azimuth swinging fast next to the pole) are not marked; see
   :func:`angle_step`.
-* The pole: within ``chain.singular`` of C's axis (+Z or -Z) the turn angle is undefined. It is
+* The pole: within ``chain.singular`` of C's axis (+Z or -Z; the table's or, head-head, the
+  head's) the turn angle is undefined. It is
   held at the previous pose's value and the tilt solved for it (signed: the tilt in the plane of
   the held turn nearest the axis, which it reproduces to within ``chain.singular``), so a path
   through the pole flips the tilt's sign instead of spinning C by 180 deg. A path that starts at
@@ -76,7 +85,10 @@ AXIS_ZERO = 1e-9  # a tool axis shorter than this has no direction
 
 # deg: azimuth of the tool axis in work coordinates at r1 > 0, r2 = 0, by (chain type, tilt letter)
 TILT_AZIMUTH = {("table-table", "A"): 90.0, ("table-table", "B"): 180.0,
-                ("head-table", "A"): -90.0, ("head-table", "B"): 0.0}
+                ("head-table", "A"): -90.0, ("head-table", "B"): 0.0,
+                ("head-head", "A"): -90.0, ("head-head", "B"): 0.0}
+# w: deg the tool axis's azimuth (work coordinates) turns per physical degree of C, by chain type
+TURN_AZIMUTH = {"table-table": -1.0, "head-table": -1.0, "head-head": 1.0}
 _ROTATION_PLANE = {"A": (1, 2), "B": (2, 0), "C": (0, 1)}  # (i, j): the turn takes e_i towards e_j
 _UP = np.array([0.0, 0.0, 1.0])
 
@@ -103,7 +115,7 @@ class JointPath(NamedTuple):
 def forward(machine, joints, tool_length=0.0, tcp=False):
     """Tool tip ``(k, 3)`` mm and unit tool axis ``(k, 3)``, work coordinates, at ``joints (k, n)``
     (mm, deg; columns ``machine.axes``). ``tool_length`` mm (tip to gauge line) matters only to a
-    head-table chain without TCP; ``tcp``: X Y Z are the tip (the control does the kinematics)."""
+    head-table or head-head chain without TCP; ``tcp``: X Y Z are the tip (the control does the kinematics)."""
     chain = machine.chain
     joints = np.asarray(joints, np.float64)
     if joints.ndim != 2 or joints.shape[1] != len(machine.axes):
@@ -120,6 +132,11 @@ def forward(machine, joints, tool_length=0.0, tcp=False):
         axis = _turn_back(rot2, _turn_back(rot1, _UP))
         if not tcp:
             xyz = _turn_back(rot2, _turn_back(rot1, xyz - pivot) + pivot - turn_point) + turn_point
+        return xyz, axis
+    if chain.type == "head-head":
+        axis = _turn(rot2, rot1[:, :, 2])  # Rot2 Rot1 (0, 0, 1): machine = work coordinates
+        if not tcp:
+            xyz = xyz - (chain.head_length + tool_length) * axis
         return xyz, axis
     spindle = rot1[:, :, 2]  # Rot1 (0, 0, 1): the tool's direction in machine coordinates
     axis = _turn_back(rot2, spindle)
@@ -233,6 +250,8 @@ def _machine_xyz(machine, tip, tilt, turn, tool_length):
     if chain.type == "table-table":
         turn_point = pivot + np.asarray(chain.offset, np.float64)
         return _turn(rot1, _turn(rot2, tip - turn_point) + turn_point - pivot) + pivot
+    if chain.type == "head-head":
+        return tip + (chain.head_length + tool_length) * _turn(rot2, rot1[:, :, 2])
     return _turn(rot2, tip - pivot) + pivot + (chain.head_length + tool_length) * rot1[:, :, 2]
 
 
@@ -247,7 +266,8 @@ class _NoSolution(Exception):
 class _Rotaries:
     """The two rotaries of a 5-axis chain as :func:`inverse` chooses them (program degrees):
     the ``tilt`` letter (A or B), each one's sign (program = sign * physical) and travel ((low,
-    high) or None: turns freely), ``azimuth`` (see :data:`TILT_AZIMUTH`) and ``pole`` (deg)."""
+    high) or None: turns freely), ``azimuth`` (psi, see :data:`TILT_AZIMUTH`), ``per_turn`` (w,
+    see :data:`TURN_AZIMUTH`) and ``pole`` (deg)."""
 
     tilt: str
     tilt_sign: float
@@ -255,6 +275,7 @@ class _Rotaries:
     turn_sign: float
     turn_travel: tuple | None
     azimuth: float
+    per_turn: float
     pole: float
 
     @staticmethod
@@ -263,7 +284,8 @@ class _Rotaries:
         tilt = chain.rotary[0]
         return _Rotaries(tilt=tilt, tilt_sign=_sign(machine, tilt), tilt_travel=machine.limits.get(tilt),
                          turn_sign=_sign(machine, "C"), turn_travel=machine.limits.get("C"),
-                         azimuth=TILT_AZIMUTH[chain.type, tilt], pole=math.degrees(chain.singular))
+                         azimuth=TILT_AZIMUTH[chain.type, tilt], per_turn=TURN_AZIMUTH[chain.type],
+                         pole=math.degrees(chain.singular))
 
     def solve_path(self, axis, reference, lines):
         """Angles pose by pose for unit ``axis (k, 3)`` from ``reference`` ((tilt, turn) program
@@ -306,12 +328,12 @@ class _Rotaries:
         violation when no solution is within travel."""
         tilt_before, turn_before = previous
         if pole_axis is not None:
-            held = math.radians(self.azimuth - self.turn_sign * turn_before)
+            held = math.radians(self.azimuth + self.per_turn * self.turn_sign * turn_before)
             x, y, z = pole_axis
             tilt = math.degrees(math.atan2(x * math.cos(held) + y * math.sin(held), z))
             branches = [(self.tilt_sign * tilt, turn_before)]
         else:
-            turn = self.azimuth - azimuth
+            turn = self.per_turn * (azimuth - self.azimuth)
             branches = [(self.tilt_sign * polar, self.turn_sign * turn),
                         (-self.tilt_sign * polar, self.turn_sign * (turn + 180.0))]
         nearest = [(_nearest_turn(tilt, tilt_before), _nearest_turn(turn, turn_before)) for tilt, turn in branches]

@@ -57,6 +57,7 @@ from .kinematics import VERTICAL_TOLERANCE, AxisLimitError, angle_step, forward,
 
 SAMPLES = 16  # points inside a block where the joint-linear tip is compared with the CL segment
 MAX_DEPTH = 10  # one CL move is halved at most this deep (1024 blocks); beyond, the deviation is reported
+MIN_BLOCK_S = 0.006  # s: the shortest G93 block time written (F <= 10000 / min; one interpolation cycle or so)
 DEVIATION_CHUNK = 8192  # blocks checked per call of forward (memory: chunk x (SAMPLES + 2) poses)
 SPINDLE_STOP = "M5"  # RS-274, the same in every dialect: before a tool change
 OPERATOR_STOP = "M0"  # a machine without a tool changer pauses for the operator to change the tool
@@ -422,12 +423,13 @@ def _check_limits(runs, tp, machine, origin):
 def _feed_values(run, machine, inverse_time):
     """F (b,) of a run's blocks, NaN for G0: the tip's feed in mm/min (G94), or 1 / the block's
     minutes (G93): the longest of the tip at its feed along the CL path, the rotaries at
-    ``machine.rotary_rapid`` and the linear axes at the rapid rate, each axis on its own."""
+    ``machine.rotary_rapid``, the linear axes at the rapid rate, each axis on its own, and
+    ``MIN_BLOCK_S`` (so F stays within what controls accept for tiny blocks)."""
     if not inverse_time:
         return np.where(run.rapid, np.nan, run.feed * 60.0)
     linear = np.abs(np.diff(run.joints[:, :3], axis=0, prepend=run.joints[:1, :3])).max(axis=1)
     seconds = np.maximum.reduce([run.tip_length / run.feed, angle_step(run.joints) / machine.rotary_rapid,
-                                 linear / machine.kinematics.rapid])
+                                 linear / machine.kinematics.rapid, np.full(len(linear), MIN_BLOCK_S)])
     with np.errstate(divide="ignore"):
         return np.where(run.rapid, np.nan, 60.0 / seconds)
 
