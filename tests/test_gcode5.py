@@ -20,7 +20,7 @@ from meshmill.toolpath.model import Toolpath
 
 CHORD = 0.001  # mm, the reader's chord_tol
 POST_TOL = 0.005  # mm, the post-processor's linearisation tolerance
-FIVE_AXIS = ("table-table-ac", "head-table-bc")
+FIVE_AXIS = ("table-table-ac", "head-table-bc", "head-head-ca")
 
 
 def read(tmp_path, tools, body, machine=None, **kw):
@@ -31,7 +31,7 @@ def read(tmp_path, tools, body, machine=None, **kw):
 
 def tool_length(machine, tool):
     """The head-table program's tool length (tip to gauge line), mm; 0 where forward ignores it."""
-    return head_table_tool_length(tool) if machine.chain.type == "head-table" else 0.0
+    return head_table_tool_length(tool) if machine.chain.head_pivot else 0.0
 
 
 def with_tcp(machine, text="G43.4 H{number}"):

@@ -1,7 +1,8 @@
 """Machine kinematics (meshmill.machine.kinematics): forward and inverse transforms of the 3-axis,
-table-table and head-table chains, the choice of solution along a path, travel limits."""
+table-table, head-table and head-head chains, the choice of solution along a path, travel limits."""
 import dataclasses
 import math
+import pathlib
 
 import numpy as np
 import pytest
@@ -9,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshmill.errors import InputError
-from meshmill.machine.config import load_machine
+from meshmill.machine.config import load_machine, shipped_machines
 from meshmill.machine.kinematics import AxisLimitError, angle_step, forward, inverse
 
-FIVE_AXIS = ["table-table-ac", "head-table-bc"]
+FIVE_AXIS = ["table-table-ac", "head-table-bc", "head-head-ca"]
 THREE_AXIS = ["generic-3axis", "linuxcnc-3axis", "grbl-3axis"]
 TOOL_LENGTH = 50.0
 
@@ -46,12 +47,18 @@ def reachable_poses(machine, k, rng):
     """k random poses: tips in a ball that every orientation keeps within travel, axes within the
     tilt's travel (both signs) and off the pole."""
     tilt_low, tilt_high = machine.limits[machine.chain.rotary[0]]
-    reach = min(-tilt_low, tilt_high) if machine.chain.type == "head-table" else max(-tilt_low, tilt_high)
+    reach = min(-tilt_low, tilt_high) if machine.chain.type != "table-table" else max(-tilt_low, tilt_high)
     cos_polar = rng.uniform(math.cos(math.radians(reach)), math.cos(math.radians(0.2)), k)
     axis = unit(np.degrees(np.arccos(cos_polar)), rng.uniform(-180.0, 180.0, k))
     direction = rng.normal(size=(k, 3))
     tip = direction / np.linalg.norm(direction, axis=1)[:, None] * rng.uniform(0.0, 100.0, k)[:, None]
     return tip, axis
+
+
+def test_every_shipped_five_axis_machine_is_tested():
+    shipped = {name for name in shipped_machines() if load_machine(name).chain.type != "3-axis"}
+    assert shipped == set(FIVE_AXIS)
+    assert {load_machine(name).chain.type for name in FIVE_AXIS} == {"table-table", "head-table", "head-head"}
 
 
 # --- round trips ------------------------------------------------------------------------------------
@@ -98,7 +105,7 @@ def test_inverse_of_forward_gives_the_joints_or_the_other_solution(name):
         np.testing.assert_allclose(alone.joints[0], joints[i], rtol=0, atol=1e-9)
 
 
-chains = st.tuples(st.sampled_from(["table-table", "head-table"]), st.sampled_from(["A", "B"]))
+chains = st.tuples(st.sampled_from(["table-table", "head-table", "head-head"]), st.sampled_from(["A", "B"]))
 vectors = st.tuples(*[st.floats(-300.0, 300.0)] * 3)
 
 
@@ -157,6 +164,60 @@ def test_head_table_with_pivot_against_a_hand_computation():
     np.testing.assert_allclose(longer.joints[0, :3], [227.0, -6.0, 3.0], atol=1e-12)
 
 
+def test_head_head_against_a_hand_computation():
+    # A = 90 turns the spindle (+Z) towards -Y: (0, -1, 0); C = 90 turns that about +Z to (1, 0, 0).
+    # The head's pivot (200, 5, 7) lies 200 + 50 mm up the tool from the tip: tip (-50, 5, 7).
+    machine = load_machine("head-head-ca")
+    assert machine.chain.head_length == 200.0
+    tip, axis = forward(machine, [[200.0, 5.0, 7.0, 90.0, 90.0]], tool_length=50.0)
+    np.testing.assert_allclose(tip, [[-50.0, 5.0, 7.0]], atol=1e-12)
+    np.testing.assert_allclose(axis, [[1.0, 0.0, 0.0]], atol=1e-15)
+    path = inverse(machine, [[-50.0, 5.0, 7.0]], [[1.0, 0.0, 0.0]], tool_length=50.0, start=[0.0, 0.0, 0.0, 80.0, 80.0])
+    np.testing.assert_allclose(path.joints, [[200.0, 5.0, 7.0, 90.0, 90.0]], atol=1e-12)
+    # A 30, C -45: Rz(-45) (0, -1/2, sqrt(3)/2) = (-sqrt(2)/4, -sqrt(2)/4, sqrt(3)/2); the pivot 250 mm up it
+    d = np.array([-math.sqrt(2.0) / 4.0, -math.sqrt(2.0) / 4.0, math.sqrt(3.0) / 2.0])
+    tip, axis = forward(machine, [[10.0, 20.0, 300.0, 30.0, -45.0]], tool_length=50.0)
+    np.testing.assert_allclose(axis, [d], atol=1e-15)
+    np.testing.assert_allclose(tip, [[10.0, 20.0, 300.0] - 250.0 * d], atol=1e-12)
+    # B head: B 90 turns the spindle towards +X, C 90 that towards +Y; the pivot is not used
+    b_head = variant("head-head-ca", rotary=("B", "C"), pivot=(3.0, -4.0, 9.0), head_length=100.0, limits={})
+    assert b_head.axes == ("X", "Y", "Z", "B", "C")
+    tip, axis = forward(b_head, [[0.0, 0.0, 0.0, 90.0, 90.0]], tool_length=20.0)
+    np.testing.assert_allclose(axis, [[0.0, 1.0, 0.0]], atol=1e-15)
+    np.testing.assert_allclose(tip, [[0.0, -120.0, 0.0]], atol=1e-12)
+    # TCP: X Y Z are the tip
+    tip, _ = forward(machine, [[10.0, 20.0, 300.0, 30.0, -45.0]], tool_length=50.0, tcp=True)
+    np.testing.assert_allclose(tip, [[10.0, 20.0, 300.0]], atol=0)
+
+
+def test_head_head_part_stays_put_and_c_turns_the_tool_with_it():
+    machine = load_machine("head-head-ca")
+    rng = np.random.default_rng(4)
+    joints = np.column_stack([rng.uniform(-500.0, 500.0, (50, 3)), rng.uniform(-110.0, 110.0, 50),
+                              rng.uniform(-360.0, 360.0, 50)])
+    tip, axis = forward(machine, joints, tool_length=TOOL_LENGTH)
+    # X Y Z move the head and nothing else: the tip moves with them, the tool axis does not change
+    moved = joints + np.array([7.0, -3.0, 11.0, 0.0, 0.0])
+    moved_tip, moved_axis = forward(machine, moved, tool_length=TOOL_LENGTH)
+    np.testing.assert_allclose(moved_tip - tip, np.tile([7.0, -3.0, 11.0], (50, 1)), atol=1e-9)
+    np.testing.assert_allclose(moved_axis, axis, atol=0)
+    # C turns the tool axis's azimuth the same way (head-table: the table, so the other way)
+    turned = joints + np.array([0.0, 0.0, 0.0, 0.0, 25.0])
+    _, turned_axis = forward(machine, turned, tool_length=TOOL_LENGTH)
+    np.testing.assert_allclose(turned_axis, unit_turn(axis, 25.0), atol=1e-12)
+    table = load_machine("head-table-bc")
+    table_joints = np.column_stack([np.zeros((50, 3)), np.clip(joints[:, 3], -110, 110), joints[:, 4]])
+    _, before = forward(table, table_joints)
+    _, after = forward(table, table_joints + np.array([0.0, 0.0, 0.0, 0.0, 25.0]))
+    np.testing.assert_allclose(after, unit_turn(before, -25.0), atol=1e-12)
+
+
+def unit_turn(vectors, degrees):
+    """``vectors (k, 3)`` turned right-handed about +Z by ``degrees``."""
+    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+    return vectors @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def test_right_handed_turns_and_zero_angles():
     table = load_machine("table-table-ac")
     # A = +90 turns the table's +Y face up: the tool, vertical in the machine, comes along work +Y
@@ -167,6 +228,12 @@ def test_right_handed_turns_and_zero_angles():
     tip, axis = forward(head, [[0.0, 0.0, 200.0, 0.0, 0.0], [0.0, 0.0, 0.0, 90.0, 0.0]], tool_length=50.0)
     np.testing.assert_allclose(tip, [[0.0, 0.0, 0.0], [-200.0, 0.0, 0.0]], atol=1e-12)
     np.testing.assert_allclose(axis, [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]], atol=1e-15)
+    fork = load_machine("head-head-ca")
+    # A = +90 turns the spindle (+Z) towards -Y; C = +90 turns the head, -Y towards +X
+    tip, axis = forward(fork, [[0.0, 0.0, 250.0, 0.0, 0.0], [0.0, 0.0, 0.0, 90.0, 0.0], [0.0, 0.0, 0.0, 90.0, 90.0]],
+                        tool_length=50.0)
+    np.testing.assert_allclose(tip, [[0.0, 0.0, 0.0], [0.0, 250.0, 0.0], [-250.0, 0.0, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(axis, [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]], atol=1e-15)
 
 
 @pytest.mark.parametrize("name", FIVE_AXIS)
@@ -232,8 +299,10 @@ def test_continuous_turn_stays_continuous(direction):
 
 
 @pytest.mark.parametrize("direction", [1.0, -1.0])
-def test_finite_turn_rewinds_within_travel_and_marks_it(direction):
-    machine = load_machine("head-table-bc")
+@pytest.mark.parametrize("name, tilt", [("head-table-bc", 40.0), ("head-head-ca", -40.0)])
+def test_finite_turn_rewinds_within_travel_and_marks_it(direction, name, tilt):
+    # head-head-ca from zero angles, azimuth 10 at 40 deg: (A 40, C 100) costs 140, (A -40, C -80) 120
+    machine = load_machine(name)
     assert machine.limits["C"] == (-360.0, 360.0)
     tip, axis = spiral(direction=direction)
     path = inverse(machine, tip, axis, tool_length=TOOL_LENGTH)
@@ -244,7 +313,11 @@ def test_finite_turn_rewinds_within_travel_and_marks_it(direction):
     assert np.array_equal(np.flatnonzero(path.rewound), jumps)
     # the equivalent farthest from the end it passed: a jump of two turns less 5 deg, every two turns
     np.testing.assert_allclose(turn_step[jumps - 1], 715.0, atol=1e-9)
-    np.testing.assert_allclose(path.joints[:, 3], 40.0, atol=1e-9)  # the tilt keeps its side
+    np.testing.assert_allclose(path.joints[:, 3], tilt, atol=1e-9)  # the tilt keeps its side
+    # head-head: C follows the azimuth, head-table: it turns against it
+    sense = 1.0 if machine.chain.type == "head-head" else -1.0
+    steady = np.setdiff1d(np.arange(len(turn_step)), jumps - 1)
+    assert (np.diff(path.joints[:, 4])[steady] * sense * direction > 0).all()
     back_tip, back_axis = forward(machine, path.joints, tool_length=TOOL_LENGTH)
     np.testing.assert_allclose(back_tip, tip, atol=1e-9)
     np.testing.assert_allclose(back_axis, axis, atol=1e-12)
@@ -262,10 +335,33 @@ def test_a_start_near_the_end_of_the_travel_rewinds_the_first_move():
     assert inverse(machine, tip, axis, tool_length=TOOL_LENGTH).rewound.tolist() == [False]
 
 
+def test_head_head_start_near_the_end_of_the_travel_rewinds_the_first_move():
+    machine = load_machine("head-head-ca")
+    tip, axis = np.zeros((1, 3)), unit([30.0], [-85.0])  # A 30 at C = -85 + 90 = 5 (+ 360 m)
+    from_start = inverse(machine, tip, axis, tool_length=TOOL_LENGTH, start=[0.0, 0.0, 0.0, 30.0, 359.0])
+    np.testing.assert_allclose(from_start.joints[0, 3:], [30.0, -355.0], atol=1e-9)  # 365 unwound to the far end
+    assert from_start.rewound.tolist() == [True]
+    other_end = inverse(machine, tip, axis, tool_length=TOOL_LENGTH, start=[0.0, 0.0, 0.0, 30.0, -350.0])
+    np.testing.assert_allclose(other_end.joints[0, 3:], [30.0, -355.0], atol=1e-9)
+    assert other_end.rewound.tolist() == [False]
+    alone = inverse(machine, tip, axis, tool_length=TOOL_LENGTH)
+    np.testing.assert_allclose(alone.joints[0, 3:], [30.0, 5.0], atol=1e-9)
+    assert alone.rewound.tolist() == [False]
+    back_tip, back_axis = forward(machine, from_start.joints, tool_length=TOOL_LENGTH)
+    np.testing.assert_allclose(back_tip, tip, atol=1e-9)
+    np.testing.assert_allclose(back_axis, axis, atol=1e-12)
+
+
 def test_tilt_beyond_the_travel_takes_the_other_side_and_marks_it():
     machine = load_machine("table-table-ac")  # A in [-120, 30]
     polar = np.array([20.0, 25.0, 30.0, 35.0, 40.0])
     path = inverse(machine, np.zeros((5, 3)), unit(polar, np.full(5, 90.0)))
+    np.testing.assert_allclose(path.joints[:, 3], [20.0, 25.0, 30.0, -35.0, -40.0], atol=1e-9)
+    np.testing.assert_allclose(path.joints[:, 4] % 360.0, [0.0, 0.0, 0.0, 180.0, 180.0], atol=1e-9)
+    assert path.rewound.tolist() == [False, False, False, True, False]
+    # head-head with A in [-110, 30]: A > 0 points the tool at azimuth C - 90, so azimuth -90 is C 0
+    fork = variant("head-head-ca", limits={"A": (-110.0, 30.0), "C": (-360.0, 360.0)})
+    path = inverse(fork, np.zeros((5, 3)), unit(polar, np.full(5, -90.0)), tool_length=TOOL_LENGTH)
     np.testing.assert_allclose(path.joints[:, 3], [20.0, 25.0, 30.0, -35.0, -40.0], atol=1e-9)
     np.testing.assert_allclose(path.joints[:, 4] % 360.0, [0.0, 0.0, 0.0, 180.0, 180.0], atol=1e-9)
     assert path.rewound.tolist() == [False, False, False, True, False]
@@ -390,6 +486,57 @@ def test_a_turn_with_short_travel_is_named():
     np.testing.assert_allclose(path.joints[0, 3:], [30.0, 30.0], atol=1e-9)
     with pytest.raises(AxisLimitError, match=r"^move 1: C 90\.000 is beyond its travel \[-60, 60\]$"):
         inverse(machine, np.zeros((2, 3)), axis, tool_length=TOOL_LENGTH)
+
+
+def test_a_head_head_turn_with_short_travel_is_named():
+    machine = variant("head-head-ca", limits={"A": (-110.0, 110.0), "C": (-60.0, 60.0)})
+    # azimuth 0: C = 90 (A 30) or -90 (A -30), both beyond C's travel
+    axis = unit([30.0, 30.0], [-60.0, 0.0])
+    path = inverse(machine, np.zeros((1, 3)), axis[:1], tool_length=TOOL_LENGTH)
+    np.testing.assert_allclose(path.joints[0, 3:], [30.0, 30.0], atol=1e-9)
+    with pytest.raises(AxisLimitError, match=r"^move 1: C 90\.000 is beyond its travel \[-60, 60\]$"):
+        inverse(machine, np.zeros((2, 3)), axis, tool_length=TOOL_LENGTH)
+
+
+def test_head_head_linear_travel_is_the_head_pivots():
+    machine = load_machine("head-head-ca")  # Z in [-250, 750], head 200 mm
+    tip, axis = np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]])
+    inverse(machine, tip, axis, tool_length=500.0, origin=(0.0, 0.0, 0.0))  # pivot at Z 700
+    with pytest.raises(AxisLimitError, match=r"^move 0: Z 800\.000 is beyond its travel \[-250, 750\]$"):
+        inverse(machine, tip, axis, tool_length=600.0, origin=(0.0, 0.0, 0.0))
+    # tilted 90 deg to +X (A -90 at C 90, or A 90 at C -90): the pivot 250 mm along X, Z at the tip's
+    path = inverse(machine, [[0.0, 0.0, -200.0]], [[1.0, 0.0, 0.0]], tool_length=TOOL_LENGTH, origin=(0.0, 0.0, 0.0))
+    np.testing.assert_allclose(path.joints[0, :3], [250.0, 0.0, -200.0], atol=1e-9)
+
+
+# --- machine files ----------------------------------------------------------------------------------------
+
+
+def machine_file(tmp_path, kinematics, axes=""):
+    """A machine file with the [motion] of seed-002 and the given [kinematics] (and [axes]) lines."""
+    path = tmp_path / "m.toml"
+    motion = (pathlib.Path(load_machine("seed-002").path)).read_text()
+    path.write_text(motion + "[kinematics]\n" + kinematics + ("\n[axes]\n" + axes if axes else "") + "\n")
+    return path
+
+
+def test_head_head_lists_its_rotaries_from_the_frame(tmp_path):
+    shipped = load_machine("head-head-ca")
+    assert shipped.chain.type == "head-head" and shipped.chain.rotary == ("A", "C")
+    assert shipped.axes == ("X", "Y", "Z", "A", "C")
+    assert shipped.limits["C"] == (-360.0, 360.0) and shipped.limits["A"] == (-110.0, 110.0)
+    for rotary in ('["C", "B"]', '["B", "C"]'):
+        machine = load_machine(machine_file(tmp_path, f'type = "head-head"\nrotary = {rotary}\nreversed = ["C"]\n'
+                                                      'head_length_mm = 120', 'B = [-90, 90]\nC = "continuous"'))
+        assert machine.chain.rotary == ("B", "C") and machine.chain.reversed == ("C",)
+        assert machine.axes == ("X", "Y", "Z", "B", "C") and machine.chain.head_length == 120.0
+    for bad in ('["C", "C"]', '["A", "B"]', '["C"]', '"CA"'):
+        with pytest.raises(InputError, match=r"'rotary' must name C and then the tilting axis"):
+            load_machine(machine_file(tmp_path, f'type = "head-head"\nrotary = {bad}'))
+    with pytest.raises(InputError, match=r"'rotary' must name the tilting axis \(A or B\) and then C"):
+        load_machine(machine_file(tmp_path, 'type = "head-table"\nrotary = ["C", "A"]'))
+    with pytest.raises(InputError, match=r"'head_length_mm' must be a length >= 0 mm"):
+        load_machine(machine_file(tmp_path, 'type = "head-head"\nrotary = ["C", "A"]\nhead_length_mm = -1'))
 
 
 # --- 3-axis machines ------------------------------------------------------------------------------------

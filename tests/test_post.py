@@ -275,7 +275,7 @@ def _segment_distance(points, p0, p1):
     return np.linalg.norm(rel - t[..., None] * d[None], axis=2)
 
 
-@pytest.mark.parametrize("name", ["table-table-ac", "head-table-bc"])
+@pytest.mark.parametrize("name", ["table-table-ac", "head-table-bc", "head-head-ca"])
 def test_five_axis_blocks_stay_on_the_cl_path(tmp_path, tools, name):
     machine = load_machine(name)
     tp = _cl(tmp_path, tools, _five_axis_path())
@@ -287,7 +287,7 @@ def test_five_axis_blocks_stay_on_the_cl_path(tmp_path, tools, name):
     clearance = tp.tip[:, 2].max()
 
     def length(number):
-        return head_table_tool_length(numbers[number]) if machine.chain.type == "head-table" else 0.0
+        return head_table_tool_length(numbers[number]) if machine.chain.head_pivot else 0.0
 
     cut = ~tp.rapid
     cut[[0, 29]] = False  # the first move of each tool is a positioning G0
@@ -340,7 +340,7 @@ def test_five_axis_blocks_stay_on_the_cl_path(tmp_path, tools, name):
     assert report["axis_ranges"]["C"] == pytest.approx([c.min(), c.max()])
 
 
-@pytest.mark.parametrize("name", ["table-table-ac", "head-table-bc"])
+@pytest.mark.parametrize("name", ["table-table-ac", "head-table-bc", "head-head-ca"])
 def test_inverse_time_feeds(tools, name):
     machine = load_machine(name)
     tp = _five_axis_path()
@@ -355,7 +355,7 @@ def test_inverse_time_feeds(tools, name):
             continue
         assert inverse_time and f is not None  # G93 wants F on every feed block
         before = blocks[b - 1][1]
-        length = head_table_tool_length(numbers[number]) if machine.chain.type == "head-table" else 0.0
+        length = head_table_tool_length(numbers[number]) if machine.chain.head_pivot else 0.0
         tips = forward(machine, np.stack([before, joints]), length)[0]
         minutes = max(np.linalg.norm(tips[1] - tips[0]) / 3000.0,
                       np.abs(joints[3:] - before[3:]).max() / (machine.rotary_rapid * 60.0),

@@ -789,7 +789,7 @@ def build_parser():
     po.add_argument("toolpath", help="APT CL file")
     po.add_argument("--machine", required=True,
                     help="TOML machine file, or a shipped one: generic-3axis, linuxcnc-3axis, grbl-3axis, "
-                         "table-table-ac, head-table-bc")
+                         "table-table-ac, head-table-bc, head-head-ca")
     po.add_argument("--tools", default=None,
                     help="TOML tool table (default: tools.toml beside the tool path, as choose writes it)")
     po.add_argument("--out", default=None, help="program file to write (program.nc beside the tool path)")

@@ -64,6 +64,12 @@ class Chain:
     head_length: float = 0.0
     singular: float = math.radians(0.05)
 
+    @property
+    def head_pivot(self) -> bool:
+        """The head tilts the tool (head-table, head-head): the control programs the head's pivot,
+        so the tool's length (tip to gauge line) enters the joints."""
+        return self.type in ("head-table", "head-head")
+
 
 @dataclass(frozen=True)
 class GcodeFormat:

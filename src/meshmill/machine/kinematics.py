@@ -50,20 +50,21 @@ that consecutive poses never differ by a turn taken modulo 360.
 
 * Travel: where the nearest solution is beyond a rotary's travel, the same tilt with the turn's
   equivalent within travel farthest from the end it passed is taken (a path that keeps turning
-  one way unwinds once every two turns on a [-360, 360] table or head); where the tilt itself is beyond travel, the other
-  solution (tilt of the other sign, turn 180 deg on). Either way the pose is marked ``rewound``:
-  the rotaries jump there (a finite C unwinds by a full turn, or the tool swings over to the
-  other side) and the post-processor must retract the tool before that move. (The first pose is
-  marked only when ``start`` is given: without it there is no motion to it.) Without any solution
+  one way unwinds once every two turns on a [-360, 360] table or head); where the tilt itself is
+  beyond travel, the other solution (tilt of the other sign, turn 180 deg on). Either way the
+  pose is marked ``rewound``: the rotaries jump there (a finite C unwinds by a full turn, or the
+  tool swings over to the other side) and the post-processor must retract the tool before that
+  move. (The first pose is marked only when ``start`` is given: without it there is no motion to
+  it.) Without any solution
   within travel an :class:`AxisLimitError` names the first such move. Large rotary moves that the
   geometry asks for (the azimuth swinging fast next to the pole) are not marked; see
   :func:`angle_step`.
 * The pole: within ``chain.singular`` of C's axis (+Z or -Z; the table's or, head-head, the
-  head's) the turn angle is undefined. It is
-  held at the previous pose's value and the tilt solved for it (signed: the tilt in the plane of
-  the held turn nearest the axis, which it reproduces to within ``chain.singular``), so a path
-  through the pole flips the tilt's sign instead of spinning C by 180 deg. A path that starts at
-  the pole without ``start`` holds the turn of its first pose off the pole.
+  head's) the turn angle is undefined. It is held at the previous pose's value and the tilt
+  solved for it (signed: the tilt in the plane of the held turn nearest the axis, which it
+  reproduces to within ``chain.singular``), so a path through the pole flips the tilt's sign
+  instead of spinning C by 180 deg. A path that starts at the pole without ``start`` holds the
+  turn of its first pose off the pole.
 * The linear axes X Y Z (of the machine, M(tip) or the head's pivot, with or without TCP) are
   checked against ``machine.limits`` after the rotaries are chosen, when the program's zero is
   known in machine coordinates (``origin``): the choice of solution does not depend on them.

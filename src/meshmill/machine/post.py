@@ -58,6 +58,7 @@ from .kinematics import VERTICAL_TOLERANCE, AxisLimitError, angle_step, forward,
 SAMPLES = 16  # points inside a block where the joint-linear tip is compared with the CL segment
 MAX_DEPTH = 10  # one CL move is halved at most this deep (1024 blocks); beyond, the deviation is reported
 MIN_BLOCK_S = 0.006  # s: the shortest G93 block time written (F <= 10000 / min; one interpolation cycle or so)
+CURVE_PIECES = 8  # the path of the flutes' top in a CL move (a curve) is checked as this many segments
 DEVIATION_CHUNK = 8192  # blocks checked per call of forward (memory: chunk x (SAMPLES + 2) poses)
 SPINDLE_STOP = "M5"  # RS-274, the same in every dialect: before a tool change
 OPERATOR_STOP = "M0"  # a machine without a tool changer pauses for the operator to change the tool
@@ -201,32 +202,38 @@ def _solve(machine, tp, first, tip, axis, tool_length, tcp, start):
 
 
 class _Linearisation:
-    """Splits the feed moves of one tool until the joint-linear tip stays within ``tolerance`` mm
-    of the CL segment. Joints are compared as written (rounded), so the measured deviation is the
-    program's."""
+    """Splits the feed moves of one tool until the joint-linear motion stays within ``tolerance``
+    mm of the CL move at the tip and ``flutes`` mm up the tool axis (the top of the cutting part:
+    where the axis strays, the flutes sweep wider than the CL move's), the CL move being the tip
+    and that point each on a straight line. Joints are compared as written (rounded), so the
+    measured deviation is the program's."""
 
-    def __init__(self, machine, tp, tool_length, tcp, tolerance):
+    def __init__(self, machine, tp, tool_length, tcp, tolerance, flutes):
         self.machine, self.tp = machine, tp
-        self.tool_length, self.tcp, self.tolerance = tool_length, tcp, tolerance
+        self.tool_length, self.tcp, self.tolerance, self.flutes = tool_length, tcp, tolerance, flutes
         self.largest = 0.0  # mm, over every accepted block
         self.over = 0  # blocks left beyond the tolerance at MAX_DEPTH
 
-    def deviation(self, ja, jb, p0, p1):
-        """Largest distance (m,) mm from the tip of the joint-linear motion ``ja (m, n)`` ->
-        ``jb (m, n)`` (at its ends and SAMPLES points between) to the CL segments ``p0 (m, 3)`` ->
-        ``p1 (m, 3)``."""
+    def deviation(self, ja, jb, p0, p1, a0, a1):
+        """Largest distance (m,) mm of the joint-linear motion ``ja (m, n)`` -> ``jb (m, n)`` (at
+        its ends and SAMPLES points between) from the CL move: of its tip from the segments ``p0
+        (m, 3)`` -> ``p1 (m, 3)``, and of its point ``flutes`` up the axis from that point's path
+        in the CL move (the tip on the segment, the axis on the great circle from ``a0`` to ``a1``
+        (m, 3): a curve, taken as a polyline of ``CURVE_PIECES``)."""
         s = np.linspace(0.0, 1.0, SAMPLES + 2)
         out = np.empty(len(ja))
         for c in range(0, len(ja), DEVIATION_CHUNK):
             a, b = ja[c:c + DEVIATION_CHUNK], jb[c:c + DEVIATION_CHUNK]
-            q0, q1 = p0[c:c + DEVIATION_CHUNK], p1[c:c + DEVIATION_CHUNK]
             joints = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]
-            tip, _ = forward(self.machine, joints.reshape(-1, a.shape[1]), self.tool_length, self.tcp)
-            rel = tip.reshape(len(a), len(s), 3) - q0[:, None, :]
-            d = q1 - q0
-            dd = np.einsum("ij,ij->i", d, d)
-            t = np.clip(np.einsum("iqj,ij->iq", rel, d) / np.where(dd > 0.0, dd, 1.0)[:, None], 0.0, 1.0)
-            out[c:c + DEVIATION_CHUNK] = _peak(np.linalg.norm(rel - t[..., None] * d[:, None, :], axis=2))
+            tip, axis = forward(self.machine, joints.reshape(-1, a.shape[1]), self.tool_length, self.tcp)
+            tip, axis = tip.reshape(len(a), len(s), 3), axis.reshape(len(a), len(s), 3)
+            q0, q1 = p0[c:c + DEVIATION_CHUNK], p1[c:c + DEVIATION_CHUNK]
+            g = np.linspace(0.0, 1.0, CURVE_PIECES + 1)
+            curve = (q0[:, None, :] + g[None, :, None] * (q1 - q0)[:, None, :]
+                     + self.flutes * _great_circle_path(a0[c:c + DEVIATION_CHUNK], a1[c:c + DEVIATION_CHUNK], g))
+            upper = tip + self.flutes * axis
+            off = np.min([_off_segment(upper, curve[:, k], curve[:, k + 1]) for k in range(CURVE_PIECES)], axis=0)
+            out[c:c + DEVIATION_CHUNK] = np.maximum(_peak(_off_segment(tip, q0, q1)), _peak(off))
         return out
 
     def accept(self, deviation):
@@ -239,7 +246,7 @@ class _Linearisation:
         tolerance: ``(s (r,), joints (r, n))`` in order, ``s`` the fractions of the move (tip on the
         segment, axis on the great circle), each half split again while it strays, MAX_DEPTH deep."""
         p0, p1 = self.tp.tip[move - 1], self.tp.tip[move]
-        ends = np.stack([p0, p0]), np.stack([p1, p1])
+        ends = np.stack([p0, p0]), np.stack([p1, p1]), np.stack([a0, a0]), np.stack([a1, a1])
         inserted = []
 
         def halve(s0, s1, ja, jb, depth):
@@ -303,6 +310,28 @@ class _Blocks:
                     np.array(move), np.array(added), np.array(rewind))
 
 
+def _great_circle_path(a0, a1, g):
+    """Unit axes ``(m, len(g), 3)`` at fractions ``g`` of the great circles from ``a0`` to ``a1``
+    ``(m, 3)`` (slerp; the straight mix, normalised, where they nearly agree)."""
+    cos = np.clip(np.einsum("ij,ij->i", a0, a1), -1.0, 1.0)
+    angle = np.arccos(cos)[:, None]
+    sin = np.sin(angle)
+    safe = sin > 1e-9
+    w0 = np.where(safe, np.sin((1.0 - g)[None, :] * angle) / np.where(safe, sin, 1.0), 1.0 - g[None, :])
+    w1 = np.where(safe, np.sin(g[None, :] * angle) / np.where(safe, sin, 1.0), g[None, :])
+    out = w0[..., None] * a0[:, None, :] + w1[..., None] * a1[:, None, :]
+    return out / np.linalg.norm(out, axis=2, keepdims=True)
+
+
+def _off_segment(points, q0, q1):
+    """Distance ``(m, s)`` of ``points (m, s, 3)`` from the segments ``q0 (m, 3)`` -> ``q1 (m, 3)``."""
+    rel = points - q0[:, None, :]
+    d = q1 - q0
+    dd = np.einsum("ij,ij->i", d, d)
+    t = np.clip(np.einsum("iqj,ij->iq", rel, d) / np.where(dd > 0.0, dd, 1.0)[:, None], 0.0, 1.0)
+    return np.linalg.norm(rel - t[..., None] * d[:, None, :], axis=2)
+
+
 def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp):
     """``(runs, stats, clearance_z)``: one :class:`_Run` per tool from the inverse kinematics,
     feed moves linearised (joints mode), and a retract-unwind-return where the rotaries jump (see
@@ -313,18 +342,19 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp):
     runs, start = [], None
     tilt = machine.axes.index(machine.chain.rotary[0])
     for tool, a, b in _tool_runs(tp.tool):
-        length = head_table_tool_length(tools[tool]) if machine.chain.type == "head-table" else 0.0
+        length = head_table_tool_length(tools[tool]) if machine.chain.head_pivot else 0.0
         tip, axis = tp.tip[a:b], tp.axis[a:b]
         joints, rewound = _solve(machine, tp, a, tip, axis, length, tcp, start)
         rewound[0] = False  # the first pose of a tool is reached from the tool change
-        lin = _Linearisation(machine, tp, length, tcp, tolerance)
+        lin = _Linearisation(machine, tp, length, tcp, tolerance, tools[tool].flute_length)
         # the joints each move i starts from: where the rotaries jump, pose i-1 solved next to pose i
         before = joints[:-1].copy()
         for i in np.flatnonzero(rewound):
             before[i - 1] = _solve(machine, tp, a + i - 1, tip[i - 1:i], axis[i - 1:i], length, tcp, joints[i])[0][0]
         cut = np.flatnonzero(~tp.rapid[a + 1:b]) + 1 if not tcp else np.zeros(0, np.int64)
         deviation = np.zeros(b - a)
-        deviation[cut] = lin.deviation(before[cut - 1], joints[cut], tip[cut - 1], tip[cut])
+        unit = axis / np.linalg.norm(axis, axis=1, keepdims=True)
+        deviation[cut] = lin.deviation(before[cut - 1], joints[cut], tip[cut - 1], tip[cut], unit[cut - 1], unit[cut])
         step = np.r_[0.0, np.linalg.norm(np.diff(tip, axis=0), axis=1)]  # mm, the tip's travel of each move
         blocks = _Blocks(tool)
         blocks.add(joints[0], True, np.nan, 0.0, a)
@@ -455,7 +485,7 @@ def _write(runs, tools, machine, mode, inverse_time):
         lines.append(_fill(g.tool_change, tool, g.rpm))
         if mode == "5-axis TCP":
             lines.append(_fill(g.tcp, tool, g.rpm))
-        elif mode == "5-axis joints" and machine.chain.type == "head-table":
+        elif mode == "5-axis joints" and machine.chain.head_pivot:
             lines.append(_comment(g, f"posted for a tool length of {head_table_tool_length(tool):g} mm from the tip "
                                      "to the gauge line: no tool length compensation"))
         else:

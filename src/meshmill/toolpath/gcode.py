@@ -522,7 +522,7 @@ def read_gcode(path, tools, tool_name=None, chord_tol=0.001, machine=None) -> tu
             tool, t_given = _tool_index(words["T"], tools, where), True
         if modes.tcp != was_tcp:
             length = 0.0
-            if machine.chain.type == "head-table" and not any(math.isnan(v) for v in pos):
+            if machine.chain.head_pivot and not any(math.isnan(v) for v in pos):
                 length = head_table_tool_length(tools[tool if tool >= 0 else _default_tool(tools, tool_name, path)])
             pos = _switched_words(machine, pos, modes.tcp, length)
         if machine_code:
@@ -570,7 +570,7 @@ def read_gcode(path, tools, tool_name=None, chord_tol=0.001, machine=None) -> tu
             raise InputError(f"{name}:{lines[np.argmax(tool_idx < 0)]}: move before the first T word")
     else:
         tool_idx[:] = _default_tool(tools, tool_name, path)
-    head_table = machine is not None and machine.chain.type == "head-table"
+    head_table = machine is not None and machine.chain.head_pivot
     tool_length = np.array([head_table_tool_length(t) if head_table else 0.0 for t in tools])[tool_idx]
     reach = np.array([t.reach for t in tools])[tool_idx]
     tip, axis, source = _tool_poses(axes, np.array(ends, np.float64), np.array(starts, np.float64),
