@@ -425,3 +425,34 @@ def test_time_of_a_posted_5axis_program_matches_its_cl(tmp_path, capsys):
         times[name] = json.loads(capsys.readouterr().out)["total"]
     assert times["job.nc"]["cutting_mm"] == pytest.approx(times["job.cl"]["cutting_mm"], rel=1e-3)
     assert times["job.nc"]["cutting_s"] == pytest.approx(times["job.cl"]["cutting_s"], rel=0.05)
+
+
+def test_g93_does_not_inherit_the_feed_per_minute(tmp_path):
+    """After G93 a block with no F has no feed (NaN: the machine's), not the G94 feed before it;
+    a G93 F is 1 / the block's minutes."""
+    from meshmill.machine.timing import programmed_feeds
+
+    nc = tmp_path / "p.nc"
+    nc.write_text("G94 G1 X10 F600\nG93 G1 X20 F30\nX30\nG94 X40 F1200\n")
+    tip = np.array([[0, 0, 0], [10, 0, 0], [20, 0, 0], [30, 0, 0], [40, 0, 0]], float)
+    feed, _ = programmed_feeds(nc, [0, 1, 2, 3, 4], True, tip)
+    assert feed[1] == pytest.approx(10.0)  # 600 mm/min
+    assert feed[2] == pytest.approx(10.0 * 30 / 60.0)  # 10 mm in 1/30 min
+    assert np.isnan(feed[3]) and feed[4] == pytest.approx(20.0)
+
+
+def test_time_on_a_head_table_machine(tmp_path, capsys):
+    """Tool lengths per move (head-table) reach the kinematics without a crash."""
+    from meshmill.tools.table import Tool, write_tools
+
+    tools = [Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1), Tool("B4", "ball", 4.0, 2.0, 10.0, 30.0, 4.0, number=2)]
+    k = 20
+    t = np.linspace(0, 1, k)
+    axis = np.column_stack([np.sin(0.5 * t), np.zeros(k), np.cos(0.5 * t)])
+    tip = np.column_stack([20 * t, np.zeros(k), np.zeros(k)])
+    tp = Toolpath(tip=tip, axis=axis, rapid=np.zeros(k, bool), tool=(t > 0.5).astype(np.int64))
+    write_apt(tmp_path / "job.cl", tp, tools)
+    write_tools(tmp_path / "tools.toml", tools)
+    assert main(["time", str(tmp_path / "job.cl"), "--machine", "head-table-bc", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["total"]["tool_changes"] == 1 and out["total"]["total_s"] > 0

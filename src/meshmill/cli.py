@@ -744,7 +744,8 @@ def build_parser():
     g = s.add_mutually_exclusive_group()
     g.add_argument("--stock", default=None, help="'box' (the design's box, default) or a closed stock mesh")
     g.add_argument("--allowance", type=float, default=None, help="stock = design dexels lengthened by MM at both ends")
-    s.add_argument("--toolpath", required=True, help="APT CL file (.cl) or 3-axis G-code (.nc, .ngc, .gcode, .tap)")
+    s.add_argument("--toolpath", required=True,
+                   help="APT CL file (.cl) or G-code (.nc, .ngc, .gcode, .tap; 5-axis with --machine)")
     s.add_argument("--tools", required=True, help="TOML tool table")
     s.add_argument("--tool", default=None, help="tool name for G-code without T words")
     s.add_argument("--machine", default=None,
@@ -775,7 +776,7 @@ def build_parser():
     rp.set_defaults(func=cmd_report)
 
     tm = sub.add_parser("time", help="machining time of a tool path on a jerk-limited machine")
-    tm.add_argument("toolpath", help="APT CL file (.cl) or 3-axis G-code (.nc, .ngc, .gcode, .tap)")
+    tm.add_argument("toolpath", help="APT CL file (.cl) or G-code (.nc, .ngc, .gcode, .tap; 5-axis on a 5-axis --machine)")
     tm.add_argument("--machine", required=True,
                     help="TOML machine file, or a shipped one: generic-3axis, seed-002")
     tm.add_argument("--tools", default=None,

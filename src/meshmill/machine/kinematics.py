@@ -137,12 +137,12 @@ def forward(machine, joints, tool_length=0.0, tcp=False):
     if chain.type == "head-head":
         axis = _turn(rot2, rot1[:, :, 2])  # Rot2 Rot1 (0, 0, 1): machine = work coordinates
         if not tcp:
-            xyz = xyz - (chain.head_length + tool_length) * axis
+            xyz = xyz - (chain.head_length + _per_pose(tool_length)) * axis
         return xyz, axis
     spindle = rot1[:, :, 2]  # Rot1 (0, 0, 1): the tool's direction in machine coordinates
     axis = _turn_back(rot2, spindle)
     if not tcp:
-        xyz = _turn_back(rot2, xyz - (chain.head_length + tool_length) * spindle - pivot) + pivot
+        xyz = _turn_back(rot2, xyz - (chain.head_length + _per_pose(tool_length)) * spindle - pivot) + pivot
     return xyz, axis
 
 
@@ -252,8 +252,14 @@ def _machine_xyz(machine, tip, tilt, turn, tool_length):
         turn_point = pivot + np.asarray(chain.offset, np.float64)
         return _turn(rot1, _turn(rot2, tip - turn_point) + turn_point - pivot) + pivot
     if chain.type == "head-head":
-        return tip + (chain.head_length + tool_length) * _turn(rot2, rot1[:, :, 2])
-    return _turn(rot2, tip - pivot) + pivot + (chain.head_length + tool_length) * rot1[:, :, 2]
+        return tip + (chain.head_length + _per_pose(tool_length)) * _turn(rot2, rot1[:, :, 2])
+    return _turn(rot2, tip - pivot) + pivot + (chain.head_length + _per_pose(tool_length)) * rot1[:, :, 2]
+
+
+def _per_pose(tool_length):
+    """A tool length (mm) that is one number or one per pose ``(k,)``, shaped to scale ``(k, 3)``."""
+    length = np.asarray(tool_length, np.float64)
+    return length[..., None] if length.ndim else length
 
 
 # --- choosing the rotary angles ---------------------------------------------------------------------

@@ -228,11 +228,11 @@ def _gcode_feeds(text):
                 inverse = float(value) == 93.0
             elif letter == "F":
                 feed = float(value)
+        if switched:  # no feed per minute in force from here (G93), or until the next F (G94)
+            out.append((number, None, "reset"))
         if feed is not None:
             value = (feed if inverse else feed * scale) if feed > 0 else None
             out.append((number, value, "inverse" if inverse else "feed"))
-        elif switched:
-            out.append((number, None, "reset"))
     return out
 
 
