@@ -192,7 +192,7 @@ def test_tcp_tips_as_given(tmp_path, tools, name, switch):
     np.testing.assert_allclose(tp.axis, axes, atol=1e-15)
     np.testing.assert_array_equal(tp.tip, joints[:, :3])
     assert list(tp.line) == [3, 4, 5, 6]
-    assert warnings == ["p.nc:8: G28 Z0 (the final retract, in machine coordinates) is not in the tool path"]
+    assert warnings == ["p.nc:8: G28 Z0 (a retract in machine coordinates) is not in the tool path"]
 
 
 def test_the_machines_own_tcp_code(tmp_path, tools):
@@ -243,11 +243,9 @@ def test_final_retract_in_machine_coordinates(tmp_path, tools, end, name):
      "p.nc:3: an arc cannot turn a rotary axis \\(C\\)"),
     ("table-table-ac", "G0 X10 Y0 Z0 A-10 C0\nG1 A10000000\n", "p.nc:3: A 1e\\+07 is out of range .*degrees"),
     ("table-table-ac", "G0 X0 Y0 Z0 A0 C0\nG28 X0 Y0\n", "p.nc:3: G28: .*machine coordinates.*Z alone"),
-    ("table-table-ac", "G0 X0 Y0 Z0 A0 C0\nG53 G0 Z0 C0\n", "p.nc:3: G53: .*final retract"),
-    (None, "G0 X0 Y0 Z0\nG90 G28 Z5\n", "p.nc:3: G28: .*final retract"),
-    (None, "G53 G0 Z0\nG0 X0 Y0 Z0\n", "p.nc:2: G53: .*final retract"),
-    (None, "G0 X0 Y0 Z0\nG91 G28 Z0\nG90 G0 X5\n", "p.nc:3: G28: .*line 4 moves after it"),
-    ("table-table-ac", "G0 X0 Y0 Z0 A0 C0\nG53 G0 Z0\nG1 C5\n", "p.nc:3: G53: .*line 4 moves after it"),
+    ("table-table-ac", "G0 X0 Y0 Z0 A0 C0\nG53 G0 Z0 C0\n", "p.nc:3: G53: .*retract of Z alone"),
+    (None, "G0 X0 Y0 Z0\nG90 G28 Z5\n", "p.nc:3: G28: .*retract of Z alone"),
+    (None, "G53 G0 Z0\nG0 X0 Y0 Z0\n", "p.nc:2: G53: .*retract of Z alone"),
 ])
 def test_bad_5axis_gcode(tmp_path, tools, name, body, message):
     with pytest.raises(InputError, match=message):
@@ -294,7 +292,7 @@ def test_round_trip_5axis(tmp_path, tools, name, tcp, seed):
     assert c_low < -200 and 20 < c_high < 40 or c_high > 200 and -40 < c_low < -20
     (tmp_path / "p.nc").write_text("\n".join(lines) + "\n")
     tp, warnings = read_gcode(tmp_path / "p.nc", tools, machine=machine, chord_tol=CHORD)
-    assert len(warnings) == 1 and "final retract" in warnings[0]
+    assert len(warnings) == 1 and "retract in machine coordinates" in warnings[0]
     assert (tp.tool == 1).all() and tp.rapid[0] and not tp.rapid[1:].any()
     # every CL tip is on the read path, every read point within the tolerances of the CL path
     assert segment_distances(cl.tip, tp.tip)[0].max() <= POST_TOL + CHORD
@@ -327,7 +325,7 @@ def test_round_trip_3axis(tmp_path, tools, name):
         assert (tp.axis == [0, 0, 1]).all() and list(tp.rapid) == list(cl.rapid)
         assert (tp.tool == 2).all()  # T3 (B6), or grbl's program without T words and the tool named
         assert any("'B6' is not used" in w for w in warnings) == bool(machine.gcode.tool_change)
-        retracts = [w for w in warnings if "final retract" in w]
+        retracts = [w for w in warnings if "retract in machine coordinates" in w]
         assert len(retracts) == (name != "grbl-3axis")
 
 
@@ -399,3 +397,18 @@ def test_cli_bad_input(tmp_path, tools_file, capsys):
     assert "3-axis machine" in one_line_error(
         capsys, ["simulate", "--design", str(part), "--toolpath", str(tmp_path / "p.nc"), "--tools", t, "--step", "1",
                  "--machine", "generic-3axis", "--out", str(tmp_path / "sim")])
+
+
+def test_a_retract_before_a_tool_change_leaves_z_unknown_until_given(tmp_path):
+    """G91 G28 Z0 before a tool change: the moves after it join the path once Z is given again."""
+    from meshmill.toolpath.gcode import read_gcode
+    from meshmill.tools.table import Tool
+
+    tools = [Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1), Tool("B4", "ball", 4.0, 2.0, 10.0, 30.0, 4.0, number=2)]
+    p = tmp_path / "p.nc"
+    p.write_text("T1 M6\nG0 X0 Y0 Z5\nG1 Z-1 F500\nX10\nG91 G28 Z0\nG90\nT2 M6\nG0 X20 Y0\nZ5\nG1 Z-1\n")
+    tp, warnings = read_gcode(str(p), tools)
+    assert len(warnings) == 1 and "retract in machine coordinates" in warnings[0]
+    after = tp.tip[tp.tool == 1]
+    assert np.allclose(after[0], [20, 0, 5]) and np.allclose(after[-1], [20, 0, -1])
+    assert not np.any(np.isnan(tp.tip))

@@ -44,7 +44,7 @@ def _blocks(lines, machine):
     state = dict.fromkeys(letters, np.nan)
     motion, inverse_time, tool, out = None, False, None, []
     for line in lines:
-        if line in machine.gcode.start + machine.gcode.end:
+        if line in machine.gcode.start + machine.gcode.end + machine.gcode.retract:
             continue
         line = re.sub(r"\(.*?\)|;.*$", "", line).strip()
         words = WORD.findall(line)
@@ -96,6 +96,8 @@ Y60.0000
 X10.0000
 Y10.0000
 G0 Z-5.0000
+G91 G28 Z0
+G90
 M5
 M9
 (T3 B6: ball D6)
@@ -133,7 +135,7 @@ def test_linuxcnc_and_grbl_key_lines(tmp_path, tools):
                           "(meshmill post for LinuxCNC 3-axis mill: 3-axis)", "(T2 B10: ball D10)", "T2 M6", "G43 H2",
                           "S10000 M3", "M8", "G0 X10.0000 Y10.0000", "Z-5.0000", "G1 Z-20.0000 F3000.0"]
     change = lines.index("(T3 B6: ball D6)")
-    assert lines[change - 2:change + 6] == ["M5", "M9", "(T3 B6: ball D6)", "T3 M6", "G43 H3", "S10000 M3", "M8",
+    assert lines[change - 3:change + 6] == ["G53 G0 Z0", "M5", "M9", "(T3 B6: ball D6)", "T3 M6", "G43 H3", "S10000 M3", "M8",
                                             "G0 X20.0000 Y20.0000"]
     assert lines[-6:] == ["G0 Z-5.0000", "M5", "M9", "G53 G0 Z0", "M2", "%"]
 
@@ -142,11 +144,25 @@ def test_linuxcnc_and_grbl_key_lines(tmp_path, tools):
                          "S10000 M3", "M8", "G0 X10.000 Y10.000", "Z-5.000", "G1 Z-20.000 F1500.0"]
     change = lines.index("; T3 B6: ball D6")
     # no tool changer: spindle and coolant off, the tool named, then a pause for the operator
-    assert lines[change - 2:change + 5] == ["M5", "M9", "; T3 B6: ball D6", "M0", "S10000 M3", "M8",
+    assert lines[change - 3:change + 5] == ["G53 G0 Z0", "M5", "M9", "; T3 B6: ball D6", "M0", "S10000 M3", "M8",
                                             "G0 X20.000 Y20.000"]
     assert lines[-4:] == ["G0 Z-5.000", "M5", "M9", "M2"]
     assert not any("M6" in line or "G43" in line for line in lines)
     assert "no tool changer" in report["warnings"][0]
+
+
+@pytest.mark.parametrize("name, retract", [("generic-3axis", ["G91 G28 Z0", "G90"]),
+                                           ("linuxcnc-3axis", ["G53 G0 Z0"]), ("grbl-3axis", ["G53 G0 Z0"])])
+def test_tool_change_retracts_before_the_spindle_stop(tmp_path, tools, name, retract):
+    machine = load_machine(name)
+    assert list(machine.gcode.retract) == retract
+    lines, _ = post_program(_cl(tmp_path, tools, _square()), tools, machine)
+    stops = [n for n, line in enumerate(lines) if line == "M5"]
+    change, end = stops[0], stops[-1]
+    assert len(stops) == 2 and lines[change - len(retract):change] == retract
+    # the new tool comes down only after X Y at the retracted height
+    first = next(n for n in range(change, end) if lines[n].startswith("G0"))
+    assert lines[first].startswith("G0 X") and "Z" not in lines[first] and lines[first + 1].startswith("Z")
 
 
 @pytest.mark.parametrize("name", ["generic-3axis", "linuxcnc-3axis", "grbl-3axis"])
@@ -164,7 +180,7 @@ def test_modal_words_decimals_and_the_path_read_back(tmp_path, tools, name):
     for line in lines:
         if line.startswith(("T", "M5")):
             modal.clear()  # a tool change writes every word again
-        if line.startswith(("(", ";")) or line in machine.gcode.start + machine.gcode.end:
+        if line.startswith(("(", ";")) or line in machine.gcode.start + machine.gcode.end + machine.gcode.retract:
             continue
         for letter, value in WORD.findall(line):
             if letter in "XYZ":
@@ -357,10 +373,12 @@ def test_inverse_time_feeds(tools, name):
         before = blocks[b - 1][1]
         length = head_table_tool_length(numbers[number]) if machine.chain.head_pivot else 0.0
         tips = forward(machine, np.stack([before, joints]), length)[0]
-        minutes = max(np.linalg.norm(tips[1] - tips[0]) / 3000.0,
-                      np.abs(joints[3:] - before[3:]).max() / (machine.rotary_rapid * 60.0),
-                      np.abs(joints[:3] - before[:3]).max() / (machine.kinematics.rapid * 60.0))
-        assert f == pytest.approx(1.0 / minutes, rel=2e-3, abs=1e-4)
+        # the cut at 3000 mm/min; the rapids that turn the rotaries are G1 at the rapid rate
+        minutes = [max(np.linalg.norm(tips[1] - tips[0]) / tip_feed,
+                       np.abs(joints[3:] - before[3:]).max() / (machine.rotary_rapid * 60.0),
+                       np.abs(joints[:3] - before[:3]).max() / (machine.kinematics.rapid * 60.0))
+                   for tip_feed in (3000.0, machine.kinematics.rapid * 60.0)]
+        assert any(f == pytest.approx(1.0 / m, rel=2e-3, abs=1e-4) for m in minutes)
         checked += 1
     assert checked > 100
     assert lines.count("G94") == 2  # back to G94 before the tool change and before the end
@@ -457,3 +475,30 @@ def test_post_command_bad_input(tmp_path, tools, capsys):
     (alone / "job.cl").write_text((tmp_path / "job.cl").read_text())
     assert "no --tools given" in one_line_error(capsys, ["post", str(alone / "job.cl"), "--machine", "grbl-3axis"])
     one_line_error(capsys, ["post", cl])  # no --machine
+
+
+def test_a_rapid_that_turns_the_rotaries_is_linearised(tools):
+    """A CL rapid turning B from 30 to -50 deg (through the other solution of the rotaries): G1 at the
+    rapid rate, its joint-linear tips within the tolerance of the CL segment."""
+    def ax(tilt, az):
+        t, a = np.radians(tilt), np.radians(az)
+        return [np.sin(t) * np.cos(a), np.sin(t) * np.sin(a), np.cos(t)]
+    tip = np.array([[35, 0, 40], [35, 0, 20], [30, 0, 20], [-30, 10, 20], [-35, 10, 20], [-35, 10, 40]], float)
+    axis = np.array([ax(30, 0)] * 3 + [ax(50, 200)] * 3)
+    tp = Toolpath(tip, axis, np.array([1, 0, 0, 1, 0, 1], bool), np.ones(6, int))
+    machine = load_machine("head-table-bc")
+    tolerance = 0.005
+    lines, report = post_program(tp, tools, machine, tolerance=tolerance)
+    assert report["linearisation"]["blocks_over_tolerance"] == 0
+    blocks = _blocks(lines, machine)
+    length = head_table_tool_length(tools[1])
+    tips = forward(machine, np.array([b[1] for b in blocks]), length)[0]
+    start = int(np.flatnonzero(np.linalg.norm(tips - tip[2], axis=1) < 1e-3)[0])
+    stop = int(np.flatnonzero(np.linalg.norm(tips - tip[3], axis=1) < 1e-3)[0])
+    assert stop - start > 2 and all(blocks[b][0][0] == 1 for b in range(start + 1, stop + 1))
+    s = np.linspace(0.0, 1.0, 33)[:, None]
+    for b in range(start, stop):
+        j0, j1 = blocks[b][1], blocks[b + 1][1]
+        path = forward(machine, j0 + s * (j1 - j0), length)[0]
+        assert _segment_distance(path, tip[2:3], tip[3:4]).max() <= tolerance + 1e-4
+    assert blocks[-1][0][0] == 0  # the last rapid turns nothing: G0

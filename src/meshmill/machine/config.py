@@ -76,13 +76,16 @@ class GcodeFormat:
     """How programs are written (``[gcode]``); every text may use ``{number}`` (tool number),
     ``{name}``, ``{text}`` (comments), ``{rpm}``. ``inverse_time``: 5-axis feed moves in G93 (F =
     1 / minutes), else G94 mm/min; ``tcp``: the control does the kinematics (tool tip in work
-    coordinates and the rotary angles are written), its switch-on text (e.g. "G43.4 H{number}")."""
+    coordinates and the rotary angles are written), its switch-on text (e.g. "G43.4 H{number}");
+    ``retract``: the lines that raise the tool to the machine's Z home before each tool change's
+    spindle stop (after the first tool)."""
 
     dialect: str = "fanuc"
     decimals: int = 4
     angle_decimals: int = 4
     start: tuple = ("%", "O1000", "G21 G90 G17 G40 G49 G80 G94")
     end: tuple = ("M5", "M9", "G91 G28 Z0", "G90", "M30", "%")
+    retract: tuple = ("G91 G28 Z0", "G90")
     tool_change: str = "T{number} M6"
     tool_length: str = "G43 H{number}"
     spindle: str = "S{rpm} M3"
@@ -230,9 +233,10 @@ def _kinematics(table, where) -> dict:
 DIALECT_DEFAULTS = {
     "fanuc": {},
     "linuxcnc": {"start": ("%", "G21 G90 G17 G40 G49 G80 G94 G64 P0.005"), "end": ("M5", "M9", "G53 G0 Z0", "M2", "%"),
-                 "comment": "({text})", "tcp": ""},
+                 "comment": "({text})", "tcp": "", "retract": ("G53 G0 Z0",)},
     "grbl": {"start": ("G21 G90 G17 G94",), "end": ("M5", "M9", "M2"), "tool_change": "", "tool_length": "",
-             "comment": "; {text}", "inverse_time": False, "decimals": 3},
+             "comment": "; {text}", "inverse_time": False, "decimals": 3,
+             "retract": ("G53 G0 Z0",)},
 }
 
 

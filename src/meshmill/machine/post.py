@@ -13,7 +13,8 @@ Three modes, by the machine's chain and ``tcp``:
   :func:`meshmill.machine.kinematics.inverse`. The control moves the joints linearly from block to
   block, so where the rotaries turn the tip leaves the straight CL move; feed moves are split
   (:class:`_Linearisation`) until the tip of the joint-linear motion stays within the tolerance of
-  the CL segment. Feeds in G93 inverse time where ``gcode.inverse_time`` (F = 1 / the block's
+  the CL segment. A rapid that turns a rotary is linearised too and written as G1 at the rapid
+  rate (pure linear rapids stay G0). Feeds in G93 inverse time where ``gcode.inverse_time`` (F = 1 / the block's
   minutes), else G94 with the tip's feed. table-table: the tool stays vertical, so the tool length
   is the control's (``tool_length``); head-table: the program is computed for the tool length (tip to
   the spindle's gauge line: the tool's ``gauge_length + holder_length``), said in a comment, and no
@@ -24,7 +25,7 @@ Three modes, by the machine's chain and ``tcp``:
   before the next one and at the end. Feeds G94 (the tip's feed); nothing is linearised.
 
 Program layout: the ``start`` lines; a comment naming the machine; per tool: (after the first tool:
-``M5``, ``coolant_off``, ``tcp_off`` in TCP mode, and ``M0`` where the machine has no
+the ``retract`` lines (the tool up to the machine's Z home), ``M5``, ``coolant_off``, ``tcp_off`` in TCP mode, and ``M0`` where the machine has no
 ``tool_change`` text, so that the operator changes the tool), a comment with the tool, ``tool_change``,
 ``tool_length`` (or the TCP text, or the head-table comment), ``spindle`` (S ``gcode.rpm``),
 ``coolant_on``; the first pose of each tool is reached by ``G0`` in two blocks, every axis but Z
@@ -208,8 +209,8 @@ class _Linearisation:
     and that point each on a straight line. Joints are compared as written (rounded), so the
     measured deviation is the program's."""
 
-    def __init__(self, machine, tp, tool_length, tcp, tolerance, flutes):
-        self.machine, self.tp = machine, tp
+    def __init__(self, machine, tp, tool_length, tcp, tolerance, flutes, rapid=False):
+        self.machine, self.tp, self.rapid = machine, tp, rapid
         self.tool_length, self.tcp, self.tolerance, self.flutes = tool_length, tcp, tolerance, flutes
         self.largest = 0.0  # mm, over every accepted block
         self.over = 0  # blocks left beyond the tolerance at MAX_DEPTH
@@ -251,8 +252,13 @@ class _Linearisation:
 
         def halve(s0, s1, ja, jb, depth):
             sm = 0.5 * (s0 + s1)
-            jm = _solve(self.machine, self.tp, move, (p0 + sm * (p1 - p0))[None], _great_circle(a0, a1, [sm]),
-                        self.tool_length, self.tcp, ja)[0][0]
+            if self.rapid:  # a rapid: the rotaries turn joint-linearly, X Y Z keep the tip on the CL segment
+                jm = j0 + sm * (j1 - j0)
+                tip, _ = forward(self.machine, jm[None], self.tool_length, self.tcp)
+                jm = _retract_joints(self.machine, jm, p0 + sm * (p1 - p0) - tip[0], self.tool_length, self.tcp)
+            else:
+                jm = _solve(self.machine, self.tp, move, (p0 + sm * (p1 - p0))[None], _great_circle(a0, a1, [sm]),
+                            self.tool_length, self.tcp, ja)[0][0]
             left, right = self.deviation(np.stack([ja, jm]), np.stack([jm, jb]), *ends)
             if left > self.tolerance and depth < MAX_DEPTH:
                 halve(s0, sm, ja, jm, depth + 1)
@@ -351,15 +357,34 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp):
         before = joints[:-1].copy()
         for i in np.flatnonzero(rewound):
             before[i - 1] = _solve(machine, tp, a + i - 1, tip[i - 1:i], axis[i - 1:i], length, tcp, joints[i])[0][0]
-        cut = np.flatnonzero(~tp.rapid[a + 1:b]) + 1 if not tcp else np.zeros(0, np.int64)
+        # joints mode: rapids that turn a rotary are interpolated joint-linearly too, so they are
+        # linearised like feed moves and written as G1 at the rapid rate; pure linear rapids stay G0
+        turns = np.r_[False, np.abs(joints[1:, 3:] - before[:, 3:]).max(axis=1) > 0.0] if not tcp else np.zeros(b - a, bool)
+        rapid = tp.rapid[a:b] & ~turns
+        f_move = np.where(turns, machine.kinematics.rapid, feed[a:b])
+        cut = np.flatnonzero(~rapid[1:]) + 1 if not tcp else np.zeros(0, np.int64)
         deviation = np.zeros(b - a)
         unit = axis / np.linalg.norm(axis, axis=1, keepdims=True)
         deviation[cut] = lin.deviation(before[cut - 1], joints[cut], tip[cut - 1], tip[cut], unit[cut - 1], unit[cut])
+        # a rapid prescribes no axis between its ends: only its tip is kept on the CL segment
+        # (as a feed move, where the axis's great circle lies between its ends' joints; where it
+        # needs the other solution of the rotaries, the rotaries turn joint-linearly instead)
+        lin_rapid = _Linearisation(machine, tp, length, tcp, tolerance, 0.0, rapid=True)
+        linear_turn = np.zeros(b - a, bool)
+        for i in np.flatnonzero(turns):
+            ja = before[i - 1]
+            for g in np.linspace(0.0, 1.0, 33)[1:]:  # follow the great circle's solutions from the start
+                ja = _solve(machine, tp, a + i, tip[i - 1:i] + g * (tip[i:i + 1] - tip[i - 1:i]),
+                            _great_circle(unit[i - 1], unit[i], [g]), length, tcp, ja)[0][0]
+            linear_turn[i] = np.abs(ja[3:] - joints[i, 3:]).max() > 1e-3
+        fast = np.flatnonzero(linear_turn)
+        deviation[fast] = lin_rapid.deviation(before[fast - 1], joints[fast], tip[fast - 1], tip[fast],
+                                              unit[fast - 1], unit[fast])
         step = np.r_[0.0, np.linalg.norm(np.diff(tip, axis=0), axis=1)]  # mm, the tip's travel of each move
         blocks = _Blocks(tool)
         blocks.add(joints[0], True, np.nan, 0.0, a)
         for i in range(1, b - a):
-            move, f = a + i, feed[a + i]
+            move, f = a + i, f_move[i]
             if rewound[i]:
                 stats["rewinds"] += 1
                 _rewind(blocks, tp, machine, move, joints[i - 1], before[i - 1], f, clearance, length, tcp)
@@ -368,22 +393,23 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp):
                         f"{_where(tp, move)}: the tool swings over to the other side ({machine.axes[tilt]} "
                         f"{format_number(joints[i - 1, tilt], 3)} -> {format_number(before[i - 1, tilt], 3)}) in one G0 "
                         f"at Z {clearance:g} (the path's clearance height): check that the part clears it")
-            if tp.rapid[move]:
+            if rapid[i]:
                 blocks.add(joints[i], True, np.nan, 0.0, move)
                 continue
             done = 0.0
+            how = lin_rapid if linear_turn[i] else lin
             if deviation[i] > tolerance:
-                s, inserted = lin.split(move, axis[i - 1], axis[i], before[i - 1], joints[i])
+                s, inserted = how.split(move, unit[i - 1], unit[i], before[i - 1], joints[i])
                 for sj, j in zip(s, inserted):
                     blocks.add(j, False, f, (sj - done) * step[i], move, added=True)
                     done = sj
             else:
-                lin.accept(deviation[i])
+                how.accept(deviation[i])
             blocks.add(joints[i], False, f, (1.0 - done) * step[i], move)
         runs.append(blocks.run())
         stats["blocks_added"] += int(runs[-1].added.sum())
-        stats["largest"] = max(stats["largest"], lin.largest)
-        stats["over"] += lin.over
+        stats["largest"] = max(stats["largest"], lin.largest, lin_rapid.largest)
+        stats["over"] += lin.over + lin_rapid.over
         start = joints[-1]
     return runs, stats, clearance
 
@@ -476,7 +502,7 @@ def _write(runs, tools, machine, mode, inverse_time):
     for r, run in enumerate(runs):
         tool = tools[run.tool]
         if r:
-            lines += ["G94"] * g93 + [SPINDLE_STOP, g.coolant_off] + [g.tcp_off] * (mode == "5-axis TCP")
+            lines += ["G94"] * g93 + list(g.retract) + [SPINDLE_STOP, g.coolant_off] + [g.tcp_off] * (mode == "5-axis TCP")
             g93 = False
         text = f"T{tool.number} {tool.name}: {tool.type} D{tool.diameter:g}"
         text += f" R{tool.corner_radius:g}" if tool.type == "bull" else ""

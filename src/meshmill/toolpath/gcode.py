@@ -19,8 +19,9 @@ Read:
   (dwell; its line does not move), ``G17 G40 G43 G49 G61 G64 G80 G93 G94`` (``G93`` inverse-time
   and ``G94`` feeds: F words are skipped anyway); ``G54``-``G59`` with a warning that work offsets
   are not applied.
-- The program's final retract in machine coordinates, ``G91 G28 Z0`` (``G28`` with Z alone, its
-  intermediate point where the tool is) or ``G53 G0 Z..`` (Z alone): read when the path has begun
+- A retract in machine coordinates (the final one, or before a tool change), ``G91 G28 Z0``
+  (``G28`` with Z alone, its intermediate point where the tool is) or ``G53 G0 Z..`` (Z alone):
+  Z becomes unknown and the path goes on from where X Y Z are all given again; read when the path has begun
   and no move follows, and left out of the tool path with a warning (the machine's Z is unknown);
   elsewhere refused.
 
@@ -80,7 +81,7 @@ REFUSED_G = {
     "G30": "it moves in machine coordinates, which are unknown",
     "G53": "it moves in machine coordinates, which are unknown",
 } | {f"G{n}": "canned cycles are not supported" for n in range(81, 90)}
-END_RETRACT = ("G28", "G53")  # read as the program's final retract (Z alone, nothing moving after)
+END_RETRACT = ("G28", "G53")  # read as a retract of Z alone in machine coordinates
 TCP_ON = {"G43.4", "G43.5"}  # tool centre point control on (Fanuc-like controls)
 TCP_OFF = {"G49", "G43"}  # off: cancel, or plain tool length compensation (the same modal group)
 LENGTH_LETTERS = "XYZIJKR"
@@ -237,7 +238,7 @@ def _check_end_retract(code, words, modes, pos, started, where):
     moved = [k for k in words if k in LENGTH_LETTERS + ROTARY_LETTERS]
     here = 0.0 if not modes.absolute else pos[2]
     if not started or moved != ["Z"] or (code == "G28" and not abs(words["Z"] - here) <= 1e-9):
-        raise InputError(f"{where}: {code}: {REFUSED_G[code]} (read only as the program's final retract, Z alone: "
+        raise InputError(f"{where}: {code}: {REFUSED_G[code]} (read only as a retract of Z alone: "
                          "G91 G28 Z0 or G53 G0 Z0)")
 
 
@@ -508,7 +509,7 @@ def read_gcode(path, tools, tool_name=None, chord_tol=0.001, machine=None) -> tu
     pos = [math.nan] * len(axes.letters)
     tool, t_given = -1, False
     ends, starts, tcp, rapid, tool_idx, lines = [], [], [], [], [], []
-    warnings, retract = [], None
+    warnings = []
     for number, raw in enumerate(text.splitlines(), start=1):
         where = f"{name}:{number}"
         parsed = _parse_line(raw, where, axes)
@@ -526,17 +527,17 @@ def read_gcode(path, tools, tool_name=None, chord_tol=0.001, machine=None) -> tu
                 length = head_table_tool_length(tools[tool if tool >= 0 else _default_tool(tools, tool_name, path)])
             pos = _switched_words(machine, pos, modes.tcp, length)
         if machine_code:
+            # a Z-only retract in machine coordinates (at the end, or before a tool change): the
+            # tool goes up to where we cannot say; the path goes on where X Y Z are all given again
             _check_end_retract(machine_code, words, modes, pos, bool(ends), where)
-            retract = retract or (where, machine_code)
-            warnings.append(f"{where}: {machine_code} Z{words['Z']:g} (the final retract, in machine coordinates) "
+            warnings.append(f"{where}: {machine_code} Z{words['Z']:g} (a retract in machine coordinates) "
                             "is not in the tool path")
+            pos = list(pos)
+            pos[2] = math.nan
             continue
         arc_words = modes.motion in ("G2", "G3") and any(k in words for k in "IJR")
         if "G4" in gcodes or not (arc_words or any(k in words for k in axes.letters)):
             continue
-        if retract:
-            raise InputError(f"{retract[0]}: {retract[1]}: {REFUSED_G[retract[1]]} (read only as the program's final "
-                             f"retract, and line {number} moves after it)")
         if modes.motion is None:
             raise InputError(f"{where}: coordinates without G0, G1, G2 or G3")
         before = pos
