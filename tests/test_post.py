@@ -1,6 +1,7 @@
 """meshmill post: G-code for 3-axis (Fanuc, LinuxCNC, grbl) and 5-axis (table-table, head-table,
 TCP) machines, checked by reading the program back."""
 import json
+from dataclasses import replace
 import re
 
 import numpy as np
@@ -12,7 +13,7 @@ from meshmill.errors import InputError
 from meshmill.machine.config import SHIPPED, load_machine
 from meshmill.machine.kinematics import forward
 from meshmill.machine.post import format_number, head_table_tool_length, post_program
-from meshmill.tools.table import write_tools
+from meshmill.tools.table import Tool, write_tools
 from meshmill.toolpath.cldata import read_apt, write_apt
 from meshmill.toolpath.model import Toolpath
 
@@ -502,3 +503,17 @@ def test_a_rapid_that_turns_the_rotaries_is_linearised(tools):
         path = forward(machine, j0 + s * (j1 - j0), length)[0]
         assert _segment_distance(path, tip[2:3], tip[3:4]).max() <= tolerance + 1e-4
     assert blocks[-1][0][0] == 0  # the last rapid turns nothing: G0
+
+
+def test_tcp_travel_is_checked_where_the_axes_stand(tmp_path):
+    """With TCP the program's X Y Z are the tip, but the head's pivot is what travels: a tip at
+    Z 450 puts head-table-bc's pivot at 450 + 150 + the tool's length, beyond Z's 500."""
+    machine = load_machine("head-table-bc")
+    tcp_machine = replace(machine, gcode=replace(machine.gcode, tcp="G43.4 H{number}"))
+    tools = [Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1)]
+    tip = np.array([[0.0, 0.0, 450.0], [10.0, 0.0, 450.0]])
+    axis = np.tile([0.0, 0.0, 1.0], (2, 1))
+    tp = Toolpath(tip=tip, axis=axis, rapid=np.array([True, False]), tool=np.zeros(2, np.int64))
+    for m in (machine, tcp_machine):
+        with pytest.raises(InputError, match=r"Z 640\.0+ \(machine coordinates, origin 0, 0, 0\) is beyond its travel"):
+            post_program(tp, tools, m, origin=(0.0, 0.0, 0.0))

@@ -229,6 +229,15 @@ def _turn_back(rotation, vectors):
     return np.einsum("kji,kj->ki", rotation, np.broadcast_to(vectors, (len(rotation), 3)))
 
 
+def machine_xyz(machine, joints, tool_length=0.0):
+    """Machine X Y Z ``(k, 3)`` mm of TCP ``joints (k, n)`` (X Y Z the tool tip in work
+    coordinates): where the axes stand, as the program's X Y Z would be without TCP."""
+    joints = np.asarray(joints, np.float64)
+    if machine.chain.type == "3-axis":
+        return joints[:, :3].copy()
+    return _machine_xyz(machine, joints[:, :3], *_physical_angles(machine, joints), tool_length)
+
+
 def _physical_angles(machine, joints):
     """``(tilt (k,), turn (k,))`` physical degrees of the rotaries in ``joints (k, n)``."""
     tilt_letter = machine.chain.rotary[0]

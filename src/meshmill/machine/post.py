@@ -49,12 +49,12 @@ coordinates (the work zero at the machine's zero): the first block out of range 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import InputError
-from .kinematics import VERTICAL_TOLERANCE, AxisLimitError, angle_step, forward, inverse
+from .kinematics import VERTICAL_TOLERANCE, AxisLimitError, angle_step, forward, inverse, machine_xyz
 
 SAMPLES = 16  # points inside a block where the joint-linear tip is compared with the CL segment
 MAX_DEPTH = 10  # one CL move is halved at most this deep (1024 blocks); beyond, the deviation is reported
@@ -434,13 +434,17 @@ def _rewind(blocks, tp, machine, move, joints, unwound, feed, clearance, tool_le
 
 # --- checks, feeds and text ------------------------------------------------------------------------
 
-def _check_limits(runs, tp, machine, origin):
+def _check_limits(runs, tp, machine, origin, tcp=False, tools=None):
     """InputError for the first written block beyond the machine's travel (by more than half the
     last written digit, as the kinematics' values are rounded). X Y Z are machine coordinates
     less ``origin`` (3,) (the program's zero in machine coordinates); without an origin they are
     only checked to fit: each axis's span within its travel. Returns ``{letter: [low, high]}``:
     where the program's zero may lie in machine coordinates for X Y Z to stay within travel."""
     letters = machine.axes
+    if tcp:  # X Y Z are the tip: check where the axes stand
+        runs = [replace(run, joints=np.column_stack([
+            machine_xyz(machine, run.joints, head_table_tool_length(tools[run.tool]) if machine.chain.head_pivot else 0.0),
+            run.joints[:, 3:]])) for run in runs]
     joints = np.concatenate([run.joints for run in runs])
     fits = {}
     for n, letter in enumerate(letters[:3]):
@@ -607,7 +611,7 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
         mode = "3-axis"
         runs = _three_axis_runs(toolpath, feeds, machine)
         stats, clearance = {"blocks_added": 0, "largest": 0.0, "over": 0, "rewinds": 0, "warnings": []}, None
-    origin_range = _check_limits(runs, toolpath, machine, origin)
+    origin_range = _check_limits(runs, toolpath, machine, origin, tcp, tools)
     inverse_time = mode == "5-axis joints" and g.inverse_time
     lines, blocks = _write(runs, tools, machine, mode, inverse_time)
     warnings = stats["warnings"]
