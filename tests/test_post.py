@@ -517,3 +517,17 @@ def test_tcp_travel_is_checked_where_the_axes_stand(tmp_path):
     for m in (machine, tcp_machine):
         with pytest.raises(InputError, match=r"Z 640\.0+ \(machine coordinates, origin 0, 0, 0\) is beyond its travel"):
             post_program(tp, tools, m, origin=(0.0, 0.0, 0.0))
+
+
+def test_g94_joint_programs_warn_that_f_is_not_the_tips():
+    machine = load_machine("table-table-ac")
+    g94 = replace(machine, gcode=replace(machine.gcode, inverse_time=False))
+    tools = [Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1)]
+    tilt = np.radians([10.0, 20.0, 30.0])
+    axis = np.column_stack([np.sin(tilt), np.zeros(3), np.cos(tilt)])
+    tp = Toolpath(tip=np.array([[0.0, 0, 5], [5.0, 0, 0], [10.0, 0, 0]]), axis=axis,
+                  rapid=np.array([True, False, False]), tool=np.zeros(3, np.int64))
+    _, report = post_program(tp, tools, g94)
+    assert report["feed_mode"].startswith("G94") and any("inverse_time = true or TCP" in w for w in report["warnings"])
+    _, report = post_program(tp, tools, machine)
+    assert not any("G94" in w for w in report["warnings"])

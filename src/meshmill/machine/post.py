@@ -615,6 +615,10 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
     inverse_time = mode == "5-axis joints" and g.inverse_time
     lines, blocks = _write(runs, tools, machine, mode, inverse_time)
     warnings = stats["warnings"]
+    if mode == "5-axis joints" and not inverse_time:
+        warnings.append(f"{machine.name} writes 5-axis joint moves in G94: F is the tip's feed, but the control applies "
+                        "it to the axes' motion, so blocks that turn the rotaries run at another speed; use "
+                        "inverse_time = true or TCP")
     if stats["over"]:
         warnings.append(f"{stats['over']} block(s) still stray up to {stats['largest']:.4f} mm from the CL path after "
                         f"{MAX_DEPTH} halvings (more than the {tolerance:g} mm tolerance): a pose near the pole of "
