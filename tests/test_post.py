@@ -531,3 +531,34 @@ def test_g94_joint_programs_warn_that_f_is_not_the_tips():
     assert report["feed_mode"].startswith("G94") and any("inverse_time = true or TCP" in w for w in report["warnings"])
     _, report = post_program(tp, tools, machine)
     assert not any("G94" in w for w in report["warnings"])
+
+
+def test_a_tilt_swing_keeps_the_tip_above_the_clearance():
+    """A path that needs A beyond +30 on the trunnion swings to the other solution; the G0 of the
+    swing passes the tilt through 0 with the axes moving linearly: every pose of it keeps the tip
+    at or above the path's clearance height."""
+    machine = load_machine("table-table-ac")
+    tools = [Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1)]
+    # tilts in the plane where A must be positive, then beyond its +30 travel
+    tilt = np.radians([20.0, 25.0, 35.0, 40.0])
+    axis = np.column_stack([np.zeros(4), np.sin(tilt), np.cos(tilt)])  # A +20, +25, then -35 at C 180
+    # off the A axis: retracted only to the clearance, the swing's G0 would carry the tip 22.8 mm below it
+    x0, y0, z0 = -45.086, -56.602, 10.237
+    tip = np.array([[x0, y0, z0 + 20], [x0, y0, z0], [x0 + 5, y0, z0], [x0 + 10, y0, z0]])
+    tp = Toolpath(tip=tip, axis=axis, rapid=np.array([True, False, False, False]), tool=np.zeros(4, np.int64))
+    lines, report = post_program(tp, tools, machine)
+    assert report["rewinds"] >= 1 and any("swings over" in w for w in report["warnings"])
+    words = [dict(re.findall(r"([XYZAC])(-?[\d.]+)", line)) for line in lines]
+    state, poses = {}, []
+    for w in words:
+        if w:
+            state.update({k: float(v) for k, v in w.items()})
+            if len(state) == 5:
+                poses.append([state[k] for k in "XYZAC"])
+    poses = np.array(poses)
+    jumps = [k for k in range(1, len(poses)) if abs(poses[k, 3] - poses[k - 1, 3]) > 30]
+    assert jumps
+    for k in jumps:
+        s = np.linspace(0, 1, 201)[:, None]
+        tips, _ = forward(machine, poses[k - 1] + s * (poses[k] - poses[k - 1]))
+        assert tips[:, 2].min() >= report["clearance_z_mm"] - 1e-3

@@ -54,12 +54,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import InputError
+from ..tolerances import GOUGE_TOL
 from .kinematics import VERTICAL_TOLERANCE, AxisLimitError, angle_step, forward, inverse, machine_xyz
 
 SAMPLES = 16  # points inside a block where the joint-linear tip is compared with the CL segment
 MAX_DEPTH = 10  # one CL move is halved at most this deep (1024 blocks); beyond, the deviation is reported
 MIN_BLOCK_S = 0.006  # s: the shortest G93 block time written (F <= 10000 / min; one interpolation cycle or so)
 CURVE_PIECES = 8  # the path of the flutes' top in a CL move (a curve) is checked as this many segments
+SWING_SAMPLES = 65  # poses of a rotary jump checked for its lowest tip
+SWING_ROUNDS = 8  # retracts raised at most this many times until the jump clears
 DEVIATION_CHUNK = 8192  # blocks checked per call of forward (memory: chunk x (SAMPLES + 2) poses)
 SPINDLE_STOP = "M5"  # RS-274, the same in every dialect: before a tool change
 OPERATOR_STOP = "M0"  # a machine without a tool changer pauses for the operator to change the tool
@@ -391,8 +394,9 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp):
                 if abs(before[i - 1, tilt] - joints[i - 1, tilt]) > 1e-6:
                     stats["warnings"].append(
                         f"{_where(tp, move)}: the tool swings over to the other side ({machine.axes[tilt]} "
-                        f"{format_number(joints[i - 1, tilt], 3)} -> {format_number(before[i - 1, tilt], 3)}) in one G0 "
-                        f"at Z {clearance:g} (the path's clearance height): check that the part clears it")
+                        f"{format_number(joints[i - 1, tilt], 3)} -> {format_number(before[i - 1, tilt], 3)}) in one G0, "
+                        f"the tip kept at or above Z {clearance:g} (the path's clearance height): check that the "
+                        "tool's body and holder clear the part")
             if rapid[i]:
                 blocks.add(joints[i], True, np.nan, 0.0, move)
                 continue
@@ -417,14 +421,27 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp):
 def _rewind(blocks, tp, machine, move, joints, unwound, feed, clearance, tool_length, tcp):
     """The blocks before CL move ``move`` whose rotaries jump from ``joints (n,)`` (pose move-1)
     to ``unwound (n,)`` (the same pose next to pose ``move``): up the tool axis to the tip at Z
-    ``clearance`` (G1 at ``feed`` mm/s), the jump (G0), down again (G1)."""
+    ``clearance`` (G1 at ``feed`` mm/s), or higher until the joint-linear jump keeps the tip at or
+    above it all the way (a tilt swinging through 0 carries the tip in an arc), the jump (G0),
+    down again (G1)."""
     axis = tp.axis[move - 1]
     if axis[2] <= 0.0:
         raise InputError(f"{_where(tp, move)}: the rotaries must unwind here and the tool axis points "
                          f"{'down' if axis[2] < 0 else 'sideways'}: the tool cannot retract up to Z {clearance:g}")
     rise = max(0.0, (clearance - tp.tip[move - 1, 2]) / axis[2])
-    up = _retract_joints(machine, joints, rise * axis, tool_length, tcp)
-    up_unwound = _retract_joints(machine, unwound, rise * axis, tool_length, tcp)
+    for _ in range(SWING_ROUNDS):
+        up = _retract_joints(machine, joints, rise * axis, tool_length, tcp)
+        up_unwound = _retract_joints(machine, unwound, rise * axis, tool_length, tcp)
+        if tcp:  # the control keeps the tip on the straight line between: at the clearance
+            break
+        # without TCP the axes move linearly: a tilt swinging through 0 carries the tip in an arc
+        # that may dip; go up further until the whole jump stays at or above the clearance
+        s = np.linspace(0.0, 1.0, SWING_SAMPLES)
+        tips, _ = forward(machine, up[None] + s[:, None] * (up_unwound - up)[None], tool_length, tcp)
+        dip = clearance - float(tips[:, 2].min())
+        if dip <= GOUGE_TOL:  # rounding of the written joints; the clearance is the path's top anyway
+            break
+        rise += dip / axis[2] + 0.1
     if rise > 0.0:
         blocks.add(up, False, feed, rise, move, rewind=True)
     blocks.add(up_unwound, True, np.nan, 0.0, move, rewind=True)
