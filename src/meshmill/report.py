@@ -95,20 +95,11 @@ def read_run(folder: str, meshes: dict | None = None) -> Run:
             run.toolpath, _ = read_apt(cl, run.tools)
         else:
             run.notes.append("the summary names no tool table that still exists: the tool path is not shown")
-    zf = os.path.join(folder, "zones.npz")
-    if os.path.exists(zf):
-        with np.load(zf) as z:
-            run.zones = {k: z[k] for k in z.files}
-    c = os.path.join(folder, "contours.npz")
-    if os.path.exists(c):
-        with np.load(c) as z:
-            run.contours = {k: z[k] for k in z.files}
+    run.zones = _npz(os.path.join(folder, "zones.npz"))
+    run.contours = _npz(os.path.join(folder, "contours.npz"))
     if kind == "simulate":
         run.deviation = _json(os.path.join(folder, "deviation.json"))
-        d = os.path.join(folder, "deviation.npz")
-        if os.path.exists(d):
-            with np.load(d) as z:
-                run.samples = {k: z[k] for k in z.files}
+        run.samples = _npz(os.path.join(folder, "deviation.npz"))
         m = os.path.join(folder, "machined.stl")
         if os.path.exists(m):
             import trimesh
@@ -116,6 +107,14 @@ def read_run(folder: str, meshes: dict | None = None) -> Run:
             t = trimesh.load(m, force="mesh")  # processed: the STL's repeated corners merged
             run.machined = (np.asarray(t.vertices, float), np.asarray(t.faces, np.int64))
     return run
+
+
+def _npz(path):
+    """The arrays of the .npz file at ``path`` by name, or None when there is none."""
+    if not os.path.exists(path):
+        return None
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
 
 
 def _thin_mesh(vertices, faces, limit, what, notes):

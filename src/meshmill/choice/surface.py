@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from dataclasses import dataclass
 
 import numba
@@ -29,6 +28,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..geometry.mesh import Mesh, mesh_from_arrays
+from ..tomlfile import read_toml
 
 DATA = os.path.join(os.path.dirname(os.path.dirname(__file__)), "data", "surfaces")
 BUILTIN = ("rubio", "choi")
@@ -147,11 +147,7 @@ def load_patch(path_or_name: str) -> Patch:
         else path_or_name
     if not os.path.isfile(path):
         raise InputError(f"{path}: no such file (a surface is an STL mesh, a patch .toml, or one of {', '.join(BUILTIN)})")
-    try:
-        with open(path, "rb") as f:
-            doc = tomllib.load(f)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise InputError(f"{path}: not a TOML patch file ({e})") from None
+    doc = read_toml(path, "a TOML patch file", "patch file")
     unknown = set(doc) - KEYS
     if unknown:
         raise InputError(f"{path}: unknown key(s) {', '.join(sorted(unknown))} (allowed: {', '.join(sorted(KEYS))})")

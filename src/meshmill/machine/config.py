@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from ..tomlfile import read_toml
 from .timing import Kinematics
 
 SHIPPED = os.path.join(os.path.dirname(os.path.dirname(__file__)), "data", "machines")
@@ -292,13 +292,7 @@ def load_machine(path) -> Machine:
         path = os.path.join(SHIPPED, path + ".toml")
     if not os.path.exists(path):
         raise InputError(f"{path}: no such machine file (shipped: {', '.join(shipped_machines())})")
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: not a valid TOML machine file ({exc})") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read the machine file ({exc.strerror})") from None
+    data = read_toml(path, "a valid TOML machine file", "machine file")
     name = data.pop("name", os.path.splitext(os.path.basename(path))[0])
     if not isinstance(name, str) or not name.strip():
         raise InputError(f"{path}: 'name' must be a non-empty string, got {name!r}")

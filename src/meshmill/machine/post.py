@@ -95,7 +95,7 @@ def format_number(value, decimals) -> str:
 def head_table_tool_length(tool) -> float:
     """The length a head-table program is computed for, mm: tip to the spindle's gauge line, taken
     as the tool's ``gauge_length`` (tip to holder face) plus its ``holder_length``."""
-    return tool.gauge_length + tool.holder_length
+    return tool.spindle_length
 
 
 def _fill(template, tool, rpm, text=""):

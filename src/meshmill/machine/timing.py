@@ -176,7 +176,7 @@ def rotary_seconds(machine, tip, axis, tools=None, tool=None):
 
     length = 0.0
     if tools is not None and tool is not None:
-        lengths = np.array([t.gauge_length + t.holder_length for t in tools])
+        lengths = np.array([t.spindle_length for t in tools])
         length = lengths[np.asarray(tool)]
     joints, _ = inverse(machine, tip, axis, tool_length=length)
     return angle_step(joints) / machine.rotary_rapid

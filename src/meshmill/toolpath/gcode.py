@@ -329,7 +329,7 @@ def _arc_points(start, end, centre, ccw, chord_tol, where):
 def head_table_tool_length(tool) -> float:
     """The tool length mm a head-table program is computed for (tip to the spindle's gauge line):
     ``gauge_length + holder_length``, the convention of :mod:`meshmill.machine.post`."""
-    return tool.gauge_length + tool.holder_length
+    return tool.spindle_length
 
 
 def _listed(letters):

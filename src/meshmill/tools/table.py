@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import InputError
+from ..tomlfile import read_toml
 
 TYPES = ("ball", "flat", "bull")
 RING_POINTS = 36  # spheres along the torus of a bull-nose cutter in verification
@@ -66,6 +66,12 @@ class Tool:
         if self.type == "flat":
             return 0.0, 0.0, 0.0, 0
         return rc, R - rc, rc, RING_POINTS
+
+    @property
+    def spindle_length(self) -> float:
+        """Tip to the spindle's gauge line, mm: ``gauge_length`` (tip to holder face) plus
+        ``holder_length``; what a head that tilts the tool is programmed for."""
+        return self.gauge_length + self.holder_length
 
     @property
     def reach(self) -> float:
@@ -163,13 +169,7 @@ def load_tools(path) -> list[Tool]:
     path = os.fspath(path)
     if not os.path.exists(path):
         raise InputError(f"{path}: no such tool table")
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: not a valid TOML tool table ({exc})") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read the tool table ({exc.strerror})") from None
+    data = read_toml(path, "a valid TOML tool table", "tool table")
     entries = data.get("tools")
     if not isinstance(entries, list) or not entries:
         raise InputError(f"{path}: no [[tools]] entries")
