@@ -41,6 +41,17 @@ def test_verify_finds_a_gouge(tmp_path, part, tools_file, capsys):
     assert rc == 1 and "PROBLEMS" in out and "gouge" in out and "line 2" in out
 
 
+def test_verify_of_a_program_counts_its_lines(tmp_path, part, tools_file, capsys):
+    """An arc is read as many moves; the problems are also counted on the program's lines."""
+    (tmp_path / "g.nc").write_text("T2\nG0 X0 Y0 Z40\nG1 Z34.5 F100\nG2 X0 Y0 I1 J0\nG0 Z40\n")
+    rc = main(["verify", str(part), str(tmp_path / "g.nc"), "--tools", str(tools_file), "--out", str(tmp_path / "v.json")])
+    out = capsys.readouterr().out
+    report = json.loads((tmp_path / "v.json").read_text())
+    assert rc == 1 and report["lines"] == 4 and report["moves"] > 10
+    assert report["gouging_moves"] > 2 and report["problem_lines"]["gouge"] == 2
+    assert f"{report['moves']} moves from 4 program lines" in out and f"{report['gouging_moves']} (on 2 lines) gouging" in out
+
+
 def test_bad_inputs_give_one_line_and_exit_2(tmp_path, part, tools_file, capsys):
     t = str(tools_file)
     assert "no such file" in one_line_error(capsys, ["finish", str(tmp_path / "missing.stl"), "--tools", t, "--step-down", "1"])

@@ -148,6 +148,8 @@ def test_tool_selection_errors(tmp_path, tools, body, kw, message):
     ("G0 G1 X0 Y0 Z0\n", "p.nc:2: two motion codes"),
     ("G0 X0 Y0 Z0 (open\n", "p.nc:2: unbalanced parenthesis"),
     ("G21 G90\nM30\n", "no moves"),
+    ("G0 X0 Y0 Z0\nG93 G1 X5 F100\nX10\n", "p.nc:4: G1 in inverse-time mode \\(G93\\) without F"),
+    ("G0 X0 Y0 Z0\nG93 G1 X5 F100\nG0 Z5\nG2 X15 Z5 I5\n", "p.nc:5: G2 in inverse-time mode"),
 ])
 def test_bad_gcode(tmp_path, tools, body, message):
     with pytest.raises(InputError, match=message):
@@ -184,6 +186,11 @@ def test_comments_line_numbers_and_ignored_codes(tmp_path, tools):
 def test_chord_tol_must_be_positive(tmp_path, tools):
     with pytest.raises(InputError, match="chord_tol"):
         read(tmp_path, tools, "T1\nG0 X0 Y0 Z0\n", chord_tol=0.0)
+
+
+def test_inverse_time_blocks_each_with_f(tmp_path, tools):
+    tp, _ = read(tmp_path, tools, "T1\nG0 X0 Y0 Z0\nG93 G1 X5 F100\nX10 F50\nG0 Z5\nG94 G1 X0\n")
+    assert len(tp) == 5 and tp.tip[-1].tolist() == [0.0, 0.0, 5.0]
 
 
 def test_dwell_does_not_move(tmp_path, tools):

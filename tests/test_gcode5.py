@@ -11,10 +11,9 @@ from meshmill.errors import InputError
 from meshmill.geometry.shapes import box
 from meshmill.machine.config import load_machine
 from meshmill.machine.kinematics import forward
-from meshmill.machine.post import head_table_tool_length, post_program
+from meshmill.machine.post import post_program
 from meshmill.ops.simulate import read_toolpath
 from meshmill.toolpath.cldata import write_apt
-from meshmill.toolpath import gcode
 from meshmill.toolpath.gcode import read_gcode
 from meshmill.toolpath.model import Toolpath
 
@@ -31,7 +30,7 @@ def read(tmp_path, tools, body, machine=None, **kw):
 
 def tool_length(machine, tool):
     """The head-table program's tool length (tip to gauge line), mm; 0 where forward ignores it."""
-    return head_table_tool_length(tool) if machine.chain.head_pivot else 0.0
+    return tool.spindle_length if machine.chain.head_pivot else 0.0
 
 
 def with_tcp(machine, text="G43.4 H{number}"):
@@ -140,12 +139,9 @@ def test_rapid_rotary_move_is_split_too(tmp_path, tools):
 
 def test_head_table_tip_depends_on_the_tool(tmp_path, tools):
     tp, _ = read(tmp_path, tools, "T1\nG0 X0 Y0 Z300 B0 C0\nT2\nZ300.0001\n", "head-table-bc")
-    lengths = [head_table_tool_length(t) for t in tools[:2]]
+    lengths = [t.spindle_length for t in tools[:2]]
     np.testing.assert_allclose(tp.tip[:, 2], [300 - 150 - lengths[0], 300.0001 - 150 - lengths[1]])
 
-
-def test_head_table_tool_length_is_the_posts(tools):
-    assert [gcode.head_table_tool_length(t) for t in tools] == [head_table_tool_length(t) for t in tools]
 
 
 def test_modal_and_incremental_rotary_words(tmp_path, tools):
@@ -322,7 +318,9 @@ def test_round_trip_3axis(tmp_path, tools, name):
     for reader_machine in (machine, None):
         tp, warnings = read_gcode(tmp_path / "p.nc", tools, tool_name="B6", machine=reader_machine)
         assert len(tp) == len(cl) and np.abs(tp.tip - cl.tip).max() <= half_digit
-        assert (tp.axis == [0, 0, 1]).all() and list(tp.rapid) == list(cl.rapid)
+        # a rapid moving Z with X or Y is G1 at the rapid rate where G0 is a dog-leg (Fanuc)
+        straight = cl.rapid[40] if machine.gcode.rapid == "linear" else False
+        assert (tp.axis == [0, 0, 1]).all() and list(tp.rapid) == [True] + [False] * 39 + [straight] + [False] * 39
         assert (tp.tool == 2).all()  # T3 (B6), or grbl's program without T words and the tool named
         assert any("'B6' is not used" in w for w in warnings) == bool(machine.gcode.tool_change)
         retracts = [w for w in warnings if "retract in machine coordinates" in w]
@@ -370,6 +368,36 @@ def test_verify_posted_program_as_the_cl_file(tmp_path, tools, tools_file, capsy
     assert main(["verify", str(part), str(tmp_path / "p.nc"), "--machine", name, *common]) == verdict
     from_nc = capsys.readouterr().out.splitlines()[-1]
     assert from_cl == from_nc == ("OK" if verdict == 0 else "PROBLEMS FOUND")
+
+
+def test_dogleg_rapids(tmp_path, tools):
+    """Fanuc's G0 moves each axis at its own rate (generic-3axis: X Y Z alike), so the path bends
+    where the shorter moves end; LinuxCNC's is straight; without a machine, straight."""
+    body = "T3\nG0 X0 Y0 Z5\nG0 X10 Y4 Z-2\nG1 X12\n"
+    tp, _ = read(tmp_path, tools, body, "generic-3axis")
+    np.testing.assert_allclose(tp.tip, [[0, 0, 5], [4, 4, 1], [7, 4, -2], [10, 4, -2], [12, 4, -2]])
+    assert tp.rapid.tolist() == [True] * 4 + [False] and tp.line.tolist() == [2, 3, 3, 3, 4]
+    for machine in ("linuxcnc-3axis", None):
+        tp, _ = read(tmp_path, tools, body, machine)
+        np.testing.assert_allclose(tp.tip, [[0, 0, 5], [10, 4, -2], [12, 4, -2]])
+    # five axes: the rotaries at rotary_rapid_deg_min (9000 deg/min = 150 deg/s), X Y Z at 30 m/min = 500 mm/s
+    tp, _ = read(tmp_path, tools, "T3\nG0 X0 Y0 Z50 A0 C0\nG0 X50 C300\n", "table-table-ac")
+    machine = load_machine("table-table-ac")
+    corner = forward(machine, np.array([[50.0, 0, 50, 0, 15.0]]))[0][0]  # X done after 0.1 s, C at 15 deg
+    assert tp.rapid.all() and np.linalg.norm(tp.tip - corner, axis=1).min() < 1e-9
+
+
+@pytest.mark.parametrize("name, verdict", [("generic-3axis", 1), ("linuxcnc-3axis", 0)])
+def test_verify_sees_the_dogleg_of_a_rapid(tmp_path, tools_file, capsys, name, verdict):
+    """A steep rapid up past a box's edge clears it on the straight line; moving X and Z at the
+    same rate, the ball first climbs at 45 deg and clips the edge."""
+    m = box((0, -10, -20), (20, 10, 0))
+    part = tmp_path / "part.stl"
+    trimesh.Trimesh(m.vertices, m.faces, process=False).export(part)
+    (tmp_path / "p.nc").write_text("T3\nG0 X-10 Y0 Z-10\nG0 X5 Z30\n")
+    rc = main(["verify", str(part), str(tmp_path / "p.nc"), "--machine", name, "--tools", str(tools_file), "--quiet"])
+    out = capsys.readouterr().out
+    assert rc == verdict and ("1 (on 1 line) rapid into the part" in out) == bool(verdict)
 
 
 def one_line_error(capsys, argv):

@@ -12,8 +12,8 @@ from conftest import one_line_error
 from meshmill.errors import InputError
 from meshmill.machine.config import SHIPPED, load_machine
 from meshmill.machine.kinematics import forward
-from meshmill.machine.post import format_number, head_table_tool_length, post_program
-from meshmill.tools.table import Tool, write_tools
+from meshmill.machine.post import format_number, post_program
+from meshmill.tools.table import Tool, load_tools, write_tools
 from meshmill.toolpath.cldata import read_apt, write_apt
 from meshmill.toolpath.model import Toolpath
 
@@ -304,11 +304,13 @@ def test_five_axis_blocks_stay_on_the_cl_path(tmp_path, tools, name):
     clearance = tp.tip[:, 2].max()
 
     def length(number):
-        return head_table_tool_length(numbers[number]) if machine.chain.head_pivot else 0.0
+        return numbers[number].spindle_length if machine.chain.head_pivot else 0.0
 
     cut = ~tp.rapid
     cut[[0, 29]] = False  # the first move of each tool is a positioning G0
     seg0, seg1 = tp.tip[np.flatnonzero(cut) - 1], tp.tip[np.flatnonzero(cut)]
+    moving = np.flatnonzero(tp.rapid[1:]) + 1
+    up0, up1 = tp.tip[moving - 1], tp.tip[moving]
 
     def distance_to_path(point):
         return _segment_distance(point[None], seg0, seg1).min()
@@ -319,12 +321,14 @@ def test_five_axis_blocks_stay_on_the_cl_path(tmp_path, tools, name):
         (motion, inverse_time), joints, f, number = blocks[b]
         before = blocks[b - 1][1]
         if motion == 0:
-            if np.abs(joints[:3] - before[:3]).max() == 0 and blocks[b - 1][0][0] == 1:
-                unwinds.append(b)  # rotaries only, between two feed blocks: the unwind
+            if np.abs(joints[:3] - before[:3]).max() == 0 and blocks[b - 1][0][0] == 1 and blocks[b - 1][3] == number:
+                unwinds.append(b)  # rotaries only, after a feed block of the same tool: the unwind
             continue
         dense = before + s[:, None] * (joints - before)
         tip, axis = forward(machine, dense, length(number))
         distance = _segment_distance(tip, seg0, seg1).min(axis=1)
+        if (distance[0] > tolerance or distance[-1] > tolerance) and _segment_distance(tip, up0, up1).min(axis=1).max() <= tolerance:
+            continue  # a CL rapid that G0 would not keep straight (Z with X or Y on a dog-leg control): G1 along it
         if distance[0] > tolerance or distance[-1] > tolerance:
             off_path.append((b, tip, axis))
             continue
@@ -350,9 +354,10 @@ def test_five_axis_blocks_stay_on_the_cl_path(tmp_path, tools, name):
         turn = blocks[u][1] - blocks[u - 1][1]
         # to the far end of C's travel: two turns, so that the next unwind is two turns away
         assert np.abs(turn[:-1]).max() == 0 and abs(turn[-1]) == pytest.approx(720.0, abs=1e-3)
-    for b, tip, axis in off_path:  # up and down the tool axis, between the path and the clearance height
+    for b, tip, axis in off_path:  # up and down the tool axis, until the whole tool is at the clearance height
         assert np.abs(np.cross(tip[-1] - tip[0], axis[0])).max() < 1e-3 and np.ptp(axis, axis=0).max() < 1e-9
-        assert max(tip[0, 2], tip[-1, 2]) == pytest.approx(clearance, abs=1e-3)
+        up = tip[0] if tip[0, 2] > tip[-1, 2] else tip[-1]
+        assert numbers[blocks[b][3]].lowest_z(up, axis[0])[0] == pytest.approx(clearance, abs=1e-3)
         assert min(distance_to_path(tip[0]), distance_to_path(tip[-1])) < tolerance
     assert report["axis_ranges"]["C"] == pytest.approx([c.min(), c.max()])
 
@@ -372,7 +377,7 @@ def test_inverse_time_feeds(tools, name):
             continue
         assert inverse_time and f is not None  # G93 wants F on every feed block
         before = blocks[b - 1][1]
-        length = head_table_tool_length(numbers[number]) if machine.chain.head_pivot else 0.0
+        length = numbers[number].spindle_length if machine.chain.head_pivot else 0.0
         tips = forward(machine, np.stack([before, joints]), length)[0]
         # the cut at 3000 mm/min; the rapids that turn the rotaries are G1 at the rapid rate
         minutes = [max(np.linalg.norm(tips[1] - tips[0]) / tip_feed,
@@ -431,6 +436,8 @@ def test_post_command(tmp_path, tools, capsys):
     assert out.startswith(f"wrote {tmp_path / 'program.nc'}: ") and "linearisation within 0.005 mm added" in out
     assert "C -" in out and "1 rewind(s)" in out and "no feed programmed: the machine's 5000 mm/min" in out
     assert (tmp_path / "program.nc").read_text().startswith("%\nO1000\n")
+    assert main(["post", str(cl), "--machine", "head-table-bc", "--clearance", "80"]) == 0
+    assert "1 rewind(s) of the rotaries, the whole tool above Z 80" in capsys.readouterr().out
 
     # FEDRAT is honoured; --feed fills the moves before it
     text = cl.read_text().splitlines()
@@ -463,6 +470,7 @@ def test_post_command_bad_input(tmp_path, tools, capsys):
     assert "no such machine file" in one_line_error(capsys, ["post", cl, "--machine", "nope"])
     assert "--tolerance" in one_line_error(capsys, ["post", cl, "--machine", "grbl-3axis", "--tolerance", "0"])
     assert "--feed" in one_line_error(capsys, ["post", cl, "--machine", "grbl-3axis", "--feed", "-3"])
+    assert "--clearance" in one_line_error(capsys, ["post", cl, "--machine", "grbl-3axis", "--clearance", "nan"])
     far = _square()
     far.tip[2, 0] = 400.0
     _cl(tmp_path, tools, far, "far.cl")
@@ -492,7 +500,7 @@ def test_a_rapid_that_turns_the_rotaries_is_linearised(tools):
     lines, report = post_program(tp, tools, machine, tolerance=tolerance)
     assert report["linearisation"]["blocks_over_tolerance"] == 0
     blocks = _blocks(lines, machine)
-    length = head_table_tool_length(tools[1])
+    length = tools[1].spindle_length
     tips = forward(machine, np.array([b[1] for b in blocks]), length)[0]
     start = int(np.flatnonzero(np.linalg.norm(tips - tip[2], axis=1) < 1e-3)[0])
     stop = int(np.flatnonzero(np.linalg.norm(tips - tip[3], axis=1) < 1e-3)[0])
@@ -533,12 +541,25 @@ def test_g94_joint_programs_warn_that_f_is_not_the_tips():
     assert not any("G94" in w for w in report["warnings"])
 
 
-def test_a_tilt_swing_keeps_the_tip_above_the_clearance():
+def _joint_poses(lines, letters="XYZAC"):
+    """Every pose (p, 5) a program's lines reach once all of ``letters`` were given."""
+    state, poses = {}, []
+    for line in lines:
+        w = dict(re.findall(f"([{letters}])(-?[\\d.]+)", line))
+        if w:
+            state.update({k: float(v) for k, v in w.items()})
+            if len(state) == len(letters):
+                poses.append([state[k] for k in letters])
+    return np.array(poses)
+
+
+@pytest.mark.parametrize("clearance", [None, 60.0])
+def test_a_tilt_swing_keeps_the_whole_tool_above_the_clearance(clearance):
     """A path that needs A beyond +30 on the trunnion swings to the other solution; the G0 of the
-    swing passes the tilt through 0 with the axes moving linearly: every pose of it keeps the tip
-    at or above the path's clearance height."""
+    swing passes the tilt through 0 with the axes moving linearly: every pose of it keeps the whole
+    tool, holder included, at or above the clearance (the path's highest tip, or --clearance)."""
     machine = load_machine("table-table-ac")
-    tools = [Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1)]
+    tool = Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, holder_diameter=30.0, holder_length=40.0, number=1)
     # tilts in the plane where A must be positive, then beyond its +30 travel
     tilt = np.radians([20.0, 25.0, 35.0, 40.0])
     axis = np.column_stack([np.zeros(4), np.sin(tilt), np.cos(tilt)])  # A +20, +25, then -35 at C 180
@@ -546,19 +567,58 @@ def test_a_tilt_swing_keeps_the_tip_above_the_clearance():
     x0, y0, z0 = -45.086, -56.602, 10.237
     tip = np.array([[x0, y0, z0 + 20], [x0, y0, z0], [x0 + 5, y0, z0], [x0 + 10, y0, z0]])
     tp = Toolpath(tip=tip, axis=axis, rapid=np.array([True, False, False, False]), tool=np.zeros(4, np.int64))
-    lines, report = post_program(tp, tools, machine)
-    assert report["rewinds"] >= 1 and any("swings over" in w for w in report["warnings"])
-    words = [dict(re.findall(r"([XYZAC])(-?[\d.]+)", line)) for line in lines]
-    state, poses = {}, []
-    for w in words:
-        if w:
-            state.update({k: float(v) for k, v in w.items()})
-            if len(state) == 5:
-                poses.append([state[k] for k in "XYZAC"])
-    poses = np.array(poses)
+    lines, report = post_program(tp, [tool], machine, clearance=clearance)
+    assert report["clearance_z_mm"] == (clearance or z0 + 20)
+    assert report["rewinds"] >= 1 and any("swings over" in w for w in report["warnings"]) == (clearance is None)
+    poses = _joint_poses(lines)
     jumps = [k for k in range(1, len(poses)) if abs(poses[k, 3] - poses[k - 1, 3]) > 30]
     assert jumps
+    s = np.linspace(0, 1, 201)[:, None]
     for k in jumps:
-        s = np.linspace(0, 1, 201)[:, None]
-        tips, _ = forward(machine, poses[k - 1] + s * (poses[k] - poses[k - 1]))
-        assert tips[:, 2].min() >= report["clearance_z_mm"] - 1e-3
+        tips, axes = forward(machine, poses[k - 1] + s * (poses[k] - poses[k - 1]))
+        low = tool.lowest_z(tips, axes)
+        assert low.min() >= report["clearance_z_mm"] - 1e-3
+        assert (tips[:, 2] - low).max() > 0.2  # tilted, the ball reaches lower than the tip
+    with pytest.raises(InputError, match="clearance must be a Z"):
+        post_program(tp, [tool], machine, clearance=float("nan"))
+
+
+def test_a_head_table_tool_without_holder_is_warned():
+    machine = load_machine("head-table-bc")
+    tp = Toolpath(np.array([[0.0, 0, 5], [5.0, 0, 0]]), np.tile(UP, (2, 1)), np.array([True, False]), np.zeros(2, int))
+    bare = Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1)
+    _, report = post_program(tp, [bare], machine)
+    assert any("no holder in the tool table" in w and "gauge_length = 40 mm" in w for w in report["warnings"])
+    held = replace(bare, holder_diameter=30.0, holder_length=50.0)
+    _, report = post_program(tp, [held], machine)
+    assert not any("no holder" in w for w in report["warnings"])
+    _, report = post_program(tp, [bare], load_machine("table-table-ac"))  # the table turns: the length does not enter
+    assert not any("no holder" in w for w in report["warnings"])
+
+
+def test_each_tool_its_own_spindle_speed(tmp_path, tools):
+    fast = [replace(tools[0], rpm=18000.0), *tools[1:]]
+    write_tools(tmp_path / "t.toml", fast)
+    assert [t.rpm for t in load_tools(tmp_path / "t.toml")] == [t.rpm for t in fast]
+    tp = _square()
+    tp.tool[:3] = 0
+    lines, _ = post_program(tp, fast, load_machine("generic-3axis"))
+    assert [line for line in lines if line.startswith("S")] == ["S18000 M3", "S10000 M3", "S10000 M3"]
+
+
+def test_rotaries_slowing_a_feed_near_the_pole_are_warned():
+    """Tilted 0.5 deg, the axis's azimuth turns 90 deg over 1 mm: C swings 90 deg in a block the
+    tip would cut in 12 ms at 5000 mm/min; the block lasts C's turn and a warning says so."""
+    machine = load_machine("table-table-ac")
+    tools = [Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1)]
+    t = np.radians(0.5)
+    axis = np.array([[np.sin(t), 0, np.cos(t)], [np.sin(t), 0, np.cos(t)], [0, np.sin(t), np.cos(t)]])
+    tp = Toolpath(np.array([[0.0, 0, 5], [0.0, 0, 0], [1.0, 0, 0]]), axis, np.array([True, False, False]), np.zeros(3, int))
+    _, report = post_program(tp, tools, machine)
+    slow = [w for w in report["warnings"] if "rotaries turn fast" in w]
+    assert len(slow) == 1 and "first at move 3" in slow[0] and "near the pole" in slow[0]
+    tilted = np.radians(40.0)
+    tp.axis[:] = [np.sin(tilted), 0, np.cos(tilted)]
+    tp.axis[2] = [np.sin(tilted) * np.cos(0.01), np.sin(tilted) * np.sin(0.01), np.cos(tilted)]
+    _, report = post_program(tp, tools, machine)
+    assert not any("rotaries turn fast" in w for w in report["warnings"])

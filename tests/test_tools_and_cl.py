@@ -5,7 +5,7 @@ import pytest
 from meshmill.errors import InputError
 from meshmill.toolpath.cldata import read_apt, write_apt
 from meshmill.toolpath.model import Toolpath
-from meshmill.tools.table import load_tools
+from meshmill.tools.table import Tool, load_tools
 
 
 def test_tool_table_defaults(tools):
@@ -14,6 +14,45 @@ def test_tool_table_defaults(tools):
     assert tools[3].shank_diameter == 6.0 and tools[3].holder_length == 40.0
     kinds = [c[3] for c in tools[0].cylinders()]
     assert kinds == [True, False, False]  # flutes, shank, holder
+
+
+def _surface_points(tool, n=120):
+    """Points (p, 3) on the tool's surface with its tip at 0 and its axis +Z: the rims of every
+    cylinder and the spheres of the rounded end, densely (brute-force reference)."""
+    phi = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    ring = np.column_stack([np.cos(phi), np.sin(phi), np.zeros(n)])
+    points = []
+    for t0, t1, radius, _ in tool.cylinders():
+        for t in (t0, t1):
+            points.append(radius * ring + [0.0, 0.0, t])
+    t, rho, r, _ = tool.ring()
+    if r > 0:
+        u, v = np.meshgrid(phi, np.linspace(0.0, np.pi, n // 2))
+        sphere = r * np.column_stack([(np.sin(v) * np.cos(u)).ravel(), (np.sin(v) * np.sin(u)).ravel(), np.cos(v).ravel()])
+        for centre in rho * ring[:: max(1, n // 24)] + [0.0, 0.0, t]:
+            points.append(sphere + centre)
+    return np.concatenate(points)
+
+
+@pytest.mark.parametrize("index", [0, 1, 2, 3, 4])
+def test_lowest_z_of_the_tool_is_its_lowest_surface_point(tools, index):
+    shapes = [*tools[:3], Tool("F8", "flat", 8.0, 0.0, 15.0, 40.0, 8.0, 30.0, 35.0),
+              Tool("R10", "bull", 10.0, 2.0, 15.0, 40.0, 8.0, 30.0, 35.0)]
+    tool = shapes[index]
+    body = _surface_points(tool)
+    rng = np.random.default_rng(index)
+    for _ in range(20):
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        tip = rng.uniform(-50, 50, 3)
+        # a rotation taking +Z to axis
+        z = np.array([0.0, 0.0, 1.0])
+        v, c = np.cross(z, axis), float(axis[2])
+        k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+        rot = np.eye(3) + k + k @ k / (1.0 + c)
+        brute = (body @ rot.T + tip)[:, 2].min()
+        low = tool.lowest_z(tip, axis)[0]
+        assert low <= brute + 1e-9 and brute - low < 0.02 * tool.reach
 
 
 @pytest.mark.parametrize("body, message", [
@@ -26,6 +65,7 @@ def test_tool_table_defaults(tools):
     ("[[tools]]\ntype='ball'\ndiameter=6\nflute_length=10\ngauge_length=5\n", "gauge_length"),
     ("[[tools]]\ntype='ball'\ndiameter='six'\nflute_length=10\ngauge_length=5\n", "number"),
     ("[[tools\n", "not a valid TOML"),
+    ("[[tools]]\ntype='ball'\ndiameter=6\nflute_length=10\ngauge_length=20\nrpm=-5\n", "rpm"),
 ])
 def test_bad_tool_tables(tmp_path, body, message):
     p = tmp_path / "t.toml"

@@ -270,9 +270,16 @@ def cmd_verify(args):
     report.pop("problem_moves")
     if args.out:
         _write_json(args.out, report)
-    print(f"{report['moves']} moves, {report['poses_checked']} poses checked: "
-          f"{report['gouging_moves']} gouging, {report['colliding_moves']} colliding, "
-          f"{report['rapid_moves_touching']} rapid into the part; max gouge {report['max_gouge']:.4f} mm, "
+    pieces = 0 < report["lines"] < report["moves"]  # G-code: arcs and rotary blocks are read as several moves
+
+    def count(n, kind):
+        lines = report["problem_lines"][kind]
+        return f"{n}" + (f" (on {lines} line{'s' * (lines != 1)})" if pieces and n else "")
+
+    print(f"{report['moves']} moves" + (f" from {report['lines']} program lines" if pieces else "")
+          + f", {report['poses_checked']} poses checked: "
+          f"{count(report['gouging_moves'], 'gouge')} gouging, {count(report['colliding_moves'], 'collision')} colliding, "
+          f"{count(report['rapid_moves_touching'], 'rapid')} rapid into the part; max gouge {report['max_gouge']:.4f} mm, "
           f"max collision {report['max_collision']:.4f} mm (tolerance {report['tolerance']} mm; device {device})")
     for line in report["worst"]:
         print("  " + line)
@@ -542,7 +549,10 @@ def cmd_post(args):
             origin = []
         if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
             raise InputError(f"--origin wants X,Y,Z in mm (the program's zero in machine coordinates), got '{args.origin}'")
-    lines, report = post_program(tp, tools, machine, feed=feed, tolerance=args.tolerance, origin=origin)
+    if args.clearance is not None and not math.isfinite(args.clearance):
+        raise InputError(f"--clearance must be a Z in mm, got {args.clearance}")
+    lines, report = post_program(tp, tools, machine, feed=feed, tolerance=args.tolerance, origin=origin,
+                                 clearance=args.clearance)
     out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "program.nc")
     _out_dir(os.path.dirname(os.path.abspath(out)))
     try:
@@ -567,7 +577,7 @@ def cmd_post(args):
         shape = (f"linearisation within {lin['tolerance_mm']:g} mm added {lin['blocks_added']} blocks (largest tip "
                  f"deviation {lin['max_deviation_mm']:.4f} mm)")
     ranges = ", ".join(f"{a} {lo:.3f}..{hi:.3f}" for a, (lo, hi) in report["axis_ranges"].items())
-    rewinds = (f"; {report['rewinds']} rewind(s) of the rotaries, retracted to Z {report['clearance_z_mm']:g}"
+    rewinds = (f"; {report['rewinds']} rewind(s) of the rotaries, the whole tool above Z {report['clearance_z_mm']:g}"
                if report["rewinds"] else "")
     print(f"wrote {out}: {report['blocks']} blocks for {report['moves']} CL moves on {machine.name} "
           f"({report['dialect']}, {report['mode']}, {report['feed_mode']}); {shape}; axes {ranges}{rewinds}; "
@@ -797,6 +807,9 @@ def build_parser():
     po.add_argument("--origin", default=None, metavar="X,Y,Z",
                     help="the program's zero in machine coordinates (work offset), for the travel of X Y Z "
                          "(default: each axis's span must fit its travel)")
+    po.add_argument("--clearance", type=float, default=None, metavar="Z",
+                    help="5-axis: Z (work coordinates, mm) above which the whole tool stays while the rotaries "
+                         "unwind or swing over; the part's top plus a margin (default: the path's highest tip)")
     po.add_argument("--tolerance", type=float, default=0.005,
                     help="5-axis: largest tip deviation from a CL move between blocks, mm (0.005)")
     po.add_argument("--feed", type=float, default=None,

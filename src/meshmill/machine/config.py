@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import os
+import string
 from dataclasses import dataclass, field
 
 from ..errors import InputError
@@ -37,6 +38,7 @@ LINEAR = ("X", "Y", "Z")
 ROTARY = ("A", "B", "C")  # about X, Y, Z
 CHAINS = ("3-axis", "table-table", "head-table", "head-head")
 DIALECTS = ("fanuc", "linuxcnc", "grbl")
+RAPIDS = ("linear", "dogleg")  # [gcode] rapid: how G0 moves
 
 
 @dataclass(frozen=True)
@@ -78,7 +80,9 @@ class GcodeFormat:
     1 / minutes), else G94 mm/min; ``tcp``: the control does the kinematics (tool tip in work
     coordinates and the rotary angles are written), its switch-on text (e.g. "G43.4 H{number}");
     ``retract``: the lines that raise the tool to the machine's Z home before each tool change's
-    spindle stop (after the first tool)."""
+    spindle stop (after the first tool); ``rapid``: how the control moves in G0, "linear" (all axes
+    on the straight line, as LinuxCNC and grbl) or "dogleg" (each axis at its own rapid rate, so
+    the path bends where the shorter moves end: Fanuc's default, parameter 1401 LRP = 0)."""
 
     dialect: str = "fanuc"
     decimals: int = 4
@@ -94,6 +98,7 @@ class GcodeFormat:
     coolant_off: str = "M9"
     comment: str = "({text})"
     inverse_time: bool = True
+    rapid: str = "dogleg"
     tcp: str = ""
     tcp_off: str = "G49"
     line_numbers: bool = False
@@ -233,10 +238,10 @@ def _kinematics(table, where) -> dict:
 DIALECT_DEFAULTS = {
     "fanuc": {},
     "linuxcnc": {"start": ("%", "G21 G90 G17 G40 G49 G80 G94 G64 P0.005"), "end": ("M5", "M9", "G53 G0 Z0", "M2", "%"),
-                 "comment": "({text})", "tcp": "", "retract": ("G53 G0 Z0",)},
+                 "comment": "({text})", "tcp": "", "retract": ("G53 G0 Z0",), "rapid": "linear"},
     "grbl": {"start": ("G21 G90 G17 G94",), "end": ("M5", "M9", "M2"), "tool_change": "", "tool_length": "",
              "comment": "; {text}", "inverse_time": False, "decimals": 3,
-             "retract": ("G53 G0 Z0",)},
+             "retract": ("G53 G0 Z0",), "rapid": "linear"},
 }
 
 
@@ -271,8 +276,37 @@ def _gcode(table, where) -> dict:
             value = float(value)
         elif not isinstance(value, str):
             raise InputError(f"{where} '{key}' must be a string, got {value!r}")
+        elif key == "rapid" and value not in RAPIDS:
+            raise InputError(f"{where} 'rapid' must be one of {', '.join(RAPIDS)}, got {value!r}")
         values[key] = value
-    return {"gcode": GcodeFormat(dialect=dialect, **values)}
+    gcode = GcodeFormat(dialect=dialect, **values)
+    for key in GcodeFormat.__dataclass_fields__:
+        if key in ("dialect", "rapid"):
+            continue
+        value = getattr(gcode, key)
+        for text in value if isinstance(value, tuple) else (value,) if isinstance(value, str) else ():
+            _check_template(text, key, where)
+    return {"gcode": gcode}
+
+
+TEMPLATE_FIELDS = ("number", "name", "rpm", "text")  # what a [gcode] text may fill in
+
+
+def _check_template(text, key, where):
+    """InputError naming the file and key when ``text`` is not a valid format string (a lone
+    brace, a format spec that does not apply) or has a field other than :data:`TEMPLATE_FIELDS`."""
+    known = ", ".join("{" + f + "}" for f in TEMPLATE_FIELDS)
+    try:
+        fields = [f for _, f, _, _ in string.Formatter().parse(text) if f is not None]
+    except ValueError as exc:
+        raise InputError(f"{where} '{key}' = {text!r}: {exc} (write a brace as {{{{ or }}}})") from None
+    bad = [f for f in fields if f not in TEMPLATE_FIELDS]
+    if bad:
+        raise InputError(f"{where} '{key}' = {text!r}: unknown field {{{bad[0]}}} (known: {known})")
+    try:
+        text.format(number=1, name="T1", rpm="10000", text="comment")
+    except (KeyError, IndexError, ValueError) as exc:
+        raise InputError(f"{where} '{key}' = {text!r}: {exc}") from None
 
 
 SECTIONS = {"motion": _motion, "axes": _axes, "kinematics": _kinematics, "gcode": _gcode}  # section -> reader

@@ -27,9 +27,12 @@ Three modes, by the machine's chain and ``tcp``:
 Program layout: the ``start`` lines; a comment naming the machine; per tool: (after the first tool:
 the ``retract`` lines (the tool up to the machine's Z home), ``M5``, ``coolant_off``, ``tcp_off`` in TCP mode, and ``M0`` where the machine has no
 ``tool_change`` text, so that the operator changes the tool), a comment with the tool, ``tool_change``,
-``tool_length`` (or the TCP text, or the head-table comment), ``spindle`` (S ``gcode.rpm``),
+``tool_length`` (or the TCP text, or the head-table comment), ``spindle`` (S: the tool's ``rpm``, else ``gcode.rpm``),
 ``coolant_on``; the first pose of each tool is reached by ``G0`` in two blocks, every axis but Z
 first, then Z (the tool comes from the tool change, which leaves it high); then one block a move.
+Where the control moves G0 axis by axis (``gcode.rapid = "dogleg"``), a rapid that moves Z with X
+or Y is written as G1 at the rapid rate, so that the tool follows the straight line the CL path
+was verified along (a dog-leg would cut the corner at the lower end's height).
 ``G94`` before a tool change and the ``end`` lines where G93 is on. Motion is modal: ``G0``/``G1``
 and each axis word are written when their text changes (fixed decimals: ``gcode.decimals`` for X Y
 Z, ``angle_decimals`` for A B C; never ``-0.000``), F when it changes (G94, one decimal) or on every
@@ -92,20 +95,11 @@ def format_number(value, decimals) -> str:
     return text[1:] if text.startswith("-") and not text.strip("-0.") else text
 
 
-def head_table_tool_length(tool) -> float:
-    """The length a head-table program is computed for, mm: tip to the spindle's gauge line, taken
-    as the tool's ``gauge_length`` (tip to holder face) plus its ``holder_length``."""
-    return tool.spindle_length
-
-
 def _fill(template, tool, rpm, text=""):
-    """A ``[gcode]`` text with ``{number}``, ``{name}``, ``{rpm}`` and ``{text}`` filled in."""
-    try:
-        return template.format(number=tool.number if tool else "", name=tool.name if tool else "",
-                               rpm=format_number(rpm, 0), text=text)
-    except (KeyError, IndexError, ValueError) as exc:
-        raise InputError(f"[gcode] text {template!r} cannot be filled in ({exc!r}; known: {{number}}, {{name}}, "
-                         "{rpm}, {text})") from None
+    """A ``[gcode]`` text (checked when the machine file was read) with ``{number}``, ``{name}``,
+    ``{rpm}`` and ``{text}`` filled in."""
+    return template.format(number=tool.number if tool else "", name=tool.name if tool else "",
+                           rpm=format_number(rpm, 0), text=text)
 
 
 def _comment(gcode, text):
@@ -184,9 +178,24 @@ def _three_axis_runs(tp, feed, machine):
         tip = tp.tip[a:b]
         length = np.r_[0.0, np.linalg.norm(np.diff(tip, axis=0), axis=1)]
         zeros = np.zeros(b - a, bool)
-        runs.append(_Run(tool, _round_joints(tip, machine.gcode), rapid, np.where(rapid, np.nan, feed[a:b]),
-                         length, np.arange(a, b), zeros, zeros.copy()))
+        joints = _round_joints(tip, machine.gcode)
+        straight = rapid & _dogleg_corner(joints, machine)
+        rapid &= ~straight
+        f = np.where(straight, machine.kinematics.rapid, feed[a:b])
+        runs.append(_Run(tool, joints, rapid, np.where(rapid, np.nan, f), length, np.arange(a, b), zeros, zeros.copy()))
     return runs
+
+
+def _dogleg_corner(joints, machine, before=None):
+    """``(m,)`` bool: the moves from ``before (m, n)`` (default: the previous row; the first row
+    False) to ``joints (m, n)`` that move Z with X or Y, where the machine's G0 is a dog-leg
+    (``gcode.rapid``): written as G0 they would leave the straight line."""
+    joints = np.asarray(joints)
+    if machine.gcode.rapid != "dogleg":
+        return np.zeros(len(joints), bool)
+    before = np.r_[joints[:1], joints[:-1]] if before is None else before
+    moved = np.abs(joints[:, :3] - before[:, :3]) > 0.0  # rounded as written: any change is in the text
+    return moved[:, 2] & (moved[:, 0] | moved[:, 1])
 
 
 # --- 5-axis ----------------------------------------------------------------------------------------
@@ -341,17 +350,19 @@ def _off_segment(points, q0, q1):
     return np.linalg.norm(rel - t[..., None] * d[:, None, :], axis=2)
 
 
-def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp):
+def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp, clearance=None):
     """``(runs, stats, clearance_z)``: one :class:`_Run` per tool from the inverse kinematics,
     feed moves linearised (joints mode), and a retract-unwind-return where the rotaries jump (see
     :func:`post_program`); ``stats``: blocks added, largest deviation, blocks over the tolerance,
-    rewinds, warnings."""
-    clearance = float(tp.tip[:, 2].max())
+    rewinds, warnings. ``clearance``: Z mm above which the rotaries jump (None: the path's
+    highest tip)."""
+    clearance_given = clearance is not None
+    clearance = float(clearance) if clearance_given else float(tp.tip[:, 2].max())
     stats = {"blocks_added": 0, "largest": 0.0, "over": 0, "rewinds": 0, "warnings": []}
     runs, start = [], None
     tilt = machine.axes.index(machine.chain.rotary[0])
     for tool, a, b in _tool_runs(tp.tool):
-        length = head_table_tool_length(tools[tool]) if machine.chain.head_pivot else 0.0
+        length = tools[tool].spindle_length if machine.chain.head_pivot else 0.0
         tip, axis = tp.tip[a:b], tp.axis[a:b]
         joints, rewound = _solve(machine, tp, a, tip, axis, length, tcp, start)
         rewound[0] = False  # the first pose of a tool is reached from the tool change
@@ -363,8 +374,9 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp):
         # joints mode: rapids that turn a rotary are interpolated joint-linearly too, so they are
         # linearised like feed moves and written as G1 at the rapid rate; pure linear rapids stay G0
         turns = np.r_[False, np.abs(joints[1:, 3:] - before[:, 3:]).max(axis=1) > 0.0] if not tcp else np.zeros(b - a, bool)
-        rapid = tp.rapid[a:b] & ~turns
-        f_move = np.where(turns, machine.kinematics.rapid, feed[a:b])
+        straight = np.r_[False, _dogleg_corner(joints[1:], machine, before)] & ~turns
+        rapid = tp.rapid[a:b] & ~turns & ~straight
+        f_move = np.where(turns | (tp.rapid[a:b] & straight), machine.kinematics.rapid, feed[a:b])
         cut = np.flatnonzero(~rapid[1:]) + 1 if not tcp else np.zeros(0, np.int64)
         deviation = np.zeros(b - a)
         unit = axis / np.linalg.norm(axis, axis=1, keepdims=True)
@@ -390,13 +402,13 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp):
             move, f = a + i, f_move[i]
             if rewound[i]:
                 stats["rewinds"] += 1
-                _rewind(blocks, tp, machine, move, joints[i - 1], before[i - 1], f, clearance, length, tcp)
-                if abs(before[i - 1, tilt] - joints[i - 1, tilt]) > 1e-6:
+                _rewind(blocks, tp, machine, move, joints[i - 1], before[i - 1], f, clearance, tools[tool], length, tcp)
+                if abs(before[i - 1, tilt] - joints[i - 1, tilt]) > 1e-6 and not clearance_given:
                     stats["warnings"].append(
                         f"{_where(tp, move)}: the tool swings over to the other side ({machine.axes[tilt]} "
-                        f"{format_number(joints[i - 1, tilt], 3)} -> {format_number(before[i - 1, tilt], 3)}) in one G0, "
-                        f"the tip kept at or above Z {clearance:g} (the path's clearance height): check that the "
-                        "tool's body and holder clear the part")
+                        f"{format_number(joints[i - 1, tilt], 3)} -> {format_number(before[i - 1, tilt], 3)}) in one block, "
+                        f"the whole tool kept above Z {clearance:g}, the path's highest tip: give --clearance (the "
+                        "part's top plus a margin) unless the path's top clears the part")
             if rapid[i]:
                 blocks.add(joints[i], True, np.nan, 0.0, move)
                 continue
@@ -418,33 +430,39 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp):
     return runs, stats, clearance
 
 
-def _rewind(blocks, tp, machine, move, joints, unwound, feed, clearance, tool_length, tcp):
+def _rewind(blocks, tp, machine, move, joints, unwound, feed, clearance, tool, tool_length, tcp):
     """The blocks before CL move ``move`` whose rotaries jump from ``joints (n,)`` (pose move-1)
-    to ``unwound (n,)`` (the same pose next to pose ``move``): up the tool axis to the tip at Z
-    ``clearance`` (G1 at ``feed`` mm/s), or higher until the joint-linear jump keeps the tip at or
-    above it all the way (a tilt swinging through 0 carries the tip in an arc), the jump (G0),
-    down again (G1)."""
-    axis = tp.axis[move - 1]
+    to ``unwound (n,)`` (the same pose next to pose ``move``): up the tool axis until the whole
+    ``tool`` (cutter, shank, holder) is at or above Z ``clearance`` (G1 at ``feed`` mm/s), higher
+    still until it stays so all through the joint-linear jump (a tilt swinging through 0 carries
+    the tool in an arc), the jump (G0), down again (G1)."""
+    axis = tp.axis[move - 1] / np.linalg.norm(tp.axis[move - 1])
     if axis[2] <= 0.0:
         raise InputError(f"{_where(tp, move)}: the rotaries must unwind here and the tool axis points "
                          f"{'down' if axis[2] < 0 else 'sideways'}: the tool cannot retract up to Z {clearance:g}")
-    rise = max(0.0, (clearance - tp.tip[move - 1, 2]) / axis[2])
+    rise = max(0.0, (clearance - float(tool.lowest_z(tp.tip[move - 1], axis)[0])) / axis[2])
     for _ in range(SWING_ROUNDS):
         up = _retract_joints(machine, joints, rise * axis, tool_length, tcp)
         up_unwound = _retract_joints(machine, unwound, rise * axis, tool_length, tcp)
-        if tcp:  # the control keeps the tip on the straight line between: at the clearance
+        if tcp:  # the control keeps the tip on the straight line between, the tool above the clearance
             break
-        # without TCP the axes move linearly: a tilt swinging through 0 carries the tip in an arc
+        # without TCP the axes move linearly: a tilt swinging through 0 carries the tool in an arc
         # that may dip; go up further until the whole jump stays at or above the clearance
         s = np.linspace(0.0, 1.0, SWING_SAMPLES)
-        tips, _ = forward(machine, up[None] + s[:, None] * (up_unwound - up)[None], tool_length, tcp)
-        dip = clearance - float(tips[:, 2].min())
-        if dip <= GOUGE_TOL:  # rounding of the written joints; the clearance is the path's top anyway
+        tips, axes = forward(machine, up[None] + s[:, None] * (up_unwound - up)[None], tool_length, tcp)
+        dip = clearance - float(tool.lowest_z(tips, axes).min())
+        if dip <= GOUGE_TOL:  # rounding of the written joints
             break
         rise += dip / axis[2] + 0.1
+    else:
+        raise InputError(f"{_where(tp, move)}: the rotaries must jump here, and no retract along the tool axis keeps "
+                         f"tool {tool.name} above Z {clearance:g} all through the jump (still {dip:.3f} mm below)")
     if rise > 0.0:
         blocks.add(up, False, feed, rise, move, rewind=True)
-    blocks.add(up_unwound, True, np.nan, 0.0, move, rewind=True)
+    if np.abs(up_unwound[:3] - up[:3]).max() > 0.0:  # a swing: joint-linear, as checked, at the rapid rate
+        blocks.add(up_unwound, False, machine.kinematics.rapid, 0.0, move, rewind=True)
+    else:  # C alone turns: a G0 moves one axis the same in every control
+        blocks.add(up_unwound, True, np.nan, 0.0, move, rewind=True)
     if rise > 0.0:
         blocks.add(unwound, False, feed, rise, move, rewind=True)
 
@@ -460,7 +478,7 @@ def _check_limits(runs, tp, machine, origin, tcp=False, tools=None):
     letters = machine.axes
     if tcp:  # X Y Z are the tip: check where the axes stand
         runs = [replace(run, joints=np.column_stack([
-            machine_xyz(machine, run.joints, head_table_tool_length(tools[run.tool]) if machine.chain.head_pivot else 0.0),
+            machine_xyz(machine, run.joints, tools[run.tool].spindle_length if machine.chain.head_pivot else 0.0),
             run.joints[:, 3:]])) for run in runs]
     joints = np.concatenate([run.joints for run in runs])
     fits = {}
@@ -497,6 +515,29 @@ def _check_limits(runs, tp, machine, origin, tcp=False, tools=None):
                      f"[{low:g}, {high:g}] on {machine.name}")
 
 
+def _rotary_limited(runs, tp, machine):
+    """A warning (or None) for the feed blocks that the rotaries slow below half their feed: where
+    a small tip motion needs a large turn (a small contour turned by C, or the tool axis near the
+    pole of the rotaries, where C swings), the block lasts at least its turn at
+    ``machine.rotary_rapid``."""
+    count, worst, first = 0, 1.0, None
+    for run in runs:
+        cut = ~run.rapid & ~run.rewind & (run.tip_length > 0)
+        tip_s = np.where(cut, run.tip_length / np.where(cut, run.feed, 1.0), 0.0)
+        turn_s = angle_step(run.joints) / machine.rotary_rapid
+        slow = cut & (turn_s > 2.0 * tip_s)
+        if slow.any():
+            count += int(slow.sum())
+            worst = min(worst, float((tip_s[slow] / turn_s[slow]).min()))
+            first = first if first is not None else int(run.move[np.argmax(slow)])
+    if not count:
+        return None
+    return (f"{count} feed block(s) run below half their feed because the rotaries turn faster than the tip moves "
+            f"(first at {_where(tp, first)}; down to {100 * worst:.2g} % of the feed, the rotaries at "
+            f"{machine.rotary_rapid * 60:g} deg/min): around small contours, or where the tool axis passes near "
+            "the pole of the rotaries")
+
+
 def _feed_values(run, machine, inverse_time):
     """F (b,) of a run's blocks, NaN for G0: the tip's feed in mm/min (G94), or 1 / the block's
     minutes (G93): the longest of the tip at its feed along the CL path, the rotaries at
@@ -522,6 +563,7 @@ def _write(runs, tools, machine, mode, inverse_time):
     g93 = False
     for r, run in enumerate(runs):
         tool = tools[run.tool]
+        rpm = tool.rpm or g.rpm
         if r:
             lines += ["G94"] * g93 + list(g.retract) + [SPINDLE_STOP, g.coolant_off] + [g.tcp_off] * (mode == "5-axis TCP")
             g93 = False
@@ -529,15 +571,15 @@ def _write(runs, tools, machine, mode, inverse_time):
         text += f" R{tool.corner_radius:g}" if tool.type == "bull" else ""
         lines.append(_comment(g, text))
         lines += [OPERATOR_STOP] if r and not g.tool_change else []
-        lines.append(_fill(g.tool_change, tool, g.rpm))
+        lines.append(_fill(g.tool_change, tool, rpm))
         if mode == "5-axis TCP":
-            lines.append(_fill(g.tcp, tool, g.rpm))
+            lines.append(_fill(g.tcp, tool, rpm))
         elif mode == "5-axis joints" and machine.chain.head_pivot:
-            lines.append(_comment(g, f"posted for a tool length of {head_table_tool_length(tool):g} mm from the tip "
+            lines.append(_comment(g, f"posted for a tool length of {tool.spindle_length:g} mm from the tip "
                                      "to the gauge line: no tool length compensation"))
         else:
-            lines.append(_fill(g.tool_length, tool, g.rpm))
-        lines += [_fill(g.spindle, tool, g.rpm), _fill(g.coolant_on, tool, g.rpm)]
+            lines.append(_fill(g.tool_length, tool, rpm))
+        lines += [_fill(g.spindle, tool, rpm), _fill(g.coolant_on, tool, rpm)]
         f_values = _feed_values(run, machine, inverse_time)
         modal = {}
         for b in range(len(run.joints)):
@@ -573,7 +615,8 @@ def _write(runs, tools, machine, mode, inverse_time):
     return lines, motion_blocks
 
 
-def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None, origin=None) -> tuple[list[str], dict]:
+def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None, origin=None,
+                 clearance=None) -> tuple[list[str], dict]:
     """The NC program of ``toolpath`` on ``machine`` (see the module's docstring for the layout).
 
     ``toolpath``: :class:`~meshmill.toolpath.model.Toolpath` (k moves; ``tool`` indexes
@@ -582,25 +625,28 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
     must fit its travel; the report's ``origin_range`` says where the zero may lie). ``feed``: None, a number or (k,)
     per move, mm/s, NaN where the machine's nominal feed applies. ``tolerance`` mm: how far the tip
     may stray from a CL feed move between blocks in 5-axis joints mode. ``tcp``: write TCP
-    programs (None: where the machine's ``gcode.tcp`` is not empty).
+    programs (None: where the machine's ``gcode.tcp`` is not empty). ``clearance`` mm: the Z in
+    work coordinates above which the whole tool stays while the rotaries jump (None: the path's
+    highest tip).
 
     Where the rotaries must jump (the kinematics' ``rewound`` at pose i: C unwinds, or the tilt
     swings over to its other solution), the tool never does so in the cut: at pose i-1 it retracts
-    along its axis (G1, at move i's feed) until the tip reaches the highest tip Z of the whole path
-    (the CL's clearance height, above the part; no retract when already there), the rotaries jump
-    in one G0 to pose i-1 solved next to pose i, the tool comes back down along its axis (G1) to
-    pose i-1, and move i goes on from there. When only C unwinds (whole turns), the physical pose is
-    the same and X Y Z stay: the part turns about its Z under a tool whose tip is above it and whose
-    axis points up, so nothing meets. A tilt swing also moves X Y Z, through poses the program does
-    not control: a warning names the move. A tool axis that does not point up there cannot retract
-    and is an InputError.
+    along its axis (G1, at move i's feed) until the whole tool (cutter, shank and holder as the
+    tool table models them) is above ``clearance`` (no retract when already there), the rotaries
+    jump in one G0 to pose i-1 solved next to pose i, the tool comes back down along its axis (G1)
+    to pose i-1, and move i goes on from there. When only C unwinds (whole turns), the physical
+    pose is the same and X Y Z stay: the part turns about its Z under a tool that is above it. A
+    tilt swing also moves X Y Z, joint-linearly: the retract goes higher until the tool stays above
+    the clearance all through the swing (checked at SWING_SAMPLES poses); where the clearance is
+    the path's highest tip, which need not clear the part, a warning names the move. A tool axis
+    that does not point up there cannot retract and is an InputError.
 
     Returns ``(lines, report)``: the program's lines (no line ends) and a dict: ``machine``,
     ``dialect``, ``kinematics``, ``mode``, ``feed_mode``, ``moves`` (in), ``blocks`` (motion
     blocks out), ``lines``, ``linearisation`` (``tolerance_mm``, ``blocks_added``,
     ``max_deviation_mm``: largest tip deviation measured, None in TCP mode where the control
     interpolates; ``blocks_over_tolerance``: left so at the depth limit), ``axis_ranges``
-    ({letter: [low, high]} as written), ``rewinds`` and ``clearance_z_mm`` (the retract height),
+    ({letter: [low, high]} as written), ``rewinds`` and ``clearance_z_mm`` (what the tool stays above where the rotaries jump),
     ``tools`` (names in order of use), ``tool_changes`` (after the first tool), ``warnings``.
     Raises :class:`~meshmill.errors.InputError` for a tilted axis on a 3-axis machine, a block
     beyond the travel, or a TCP program without a ``gcode.tcp`` text.
@@ -609,6 +655,8 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
         raise InputError(f"the linearisation tolerance must be a positive number of mm, got {tolerance}")
     if len(toolpath) == 0:
         raise InputError("the tool path has no moves")
+    if clearance is not None and not (isinstance(clearance, (int, float)) and math.isfinite(clearance)):
+        raise InputError(f"the clearance must be a Z in mm, got {clearance}")
     if origin is not None:
         origin = np.asarray(origin, np.float64)
         if origin.shape != (3,) or not np.isfinite(origin).all():
@@ -623,19 +671,23 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
     feeds = _move_feeds(feed, len(toolpath), machine)
     if five_axis:
         mode = "5-axis TCP" if tcp else "5-axis joints"
-        runs, stats, clearance = _five_axis_runs(toolpath, tools, feeds, machine, tolerance, tcp)
+        runs, stats, clearance = _five_axis_runs(toolpath, tools, feeds, machine, tolerance, tcp, clearance)
     else:
         mode = "3-axis"
         runs = _three_axis_runs(toolpath, feeds, machine)
-        stats, clearance = {"blocks_added": 0, "largest": 0.0, "over": 0, "rewinds": 0, "warnings": []}, None
+        stats = {"blocks_added": 0, "largest": 0.0, "over": 0, "rewinds": 0, "warnings": []}
     origin_range = _check_limits(runs, toolpath, machine, origin, tcp, tools)
     inverse_time = mode == "5-axis joints" and g.inverse_time
     lines, blocks = _write(runs, tools, machine, mode, inverse_time)
     warnings = stats["warnings"]
+    if mode == "5-axis joints" and machine.chain.head_pivot:
+        warnings += [w for w in (tools[i].spindle_length_warning() for i in sorted({r.tool for r in runs})) if w]
     if mode == "5-axis joints" and not inverse_time:
         warnings.append(f"{machine.name} writes 5-axis joint moves in G94: F is the tip's feed, but the control applies "
                         "it to the axes' motion, so blocks that turn the rotaries run at another speed; use "
                         "inverse_time = true or TCP")
+    slow = _rotary_limited(runs, toolpath, machine) if mode == "5-axis joints" else None
+    warnings += [slow] if slow else []
     if stats["over"]:
         warnings.append(f"{stats['over']} block(s) still stray up to {stats['largest']:.4f} mm from the CL path after "
                         f"{MAX_DEPTH} halvings (more than the {tolerance:g} mm tolerance): a pose near the pole of "
@@ -654,7 +706,7 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
                           "blocks_over_tolerance": stats["over"]},
         "axis_ranges": {letter: [float(joints[:, n].min()) + 0.0, float(joints[:, n].max()) + 0.0]
                         for n, letter in enumerate(machine.axes)},
-        "rewinds": stats["rewinds"], "clearance_z_mm": clearance,
+        "rewinds": stats["rewinds"], "clearance_z_mm": clearance if five_axis else None,
         "origin": None if origin is None else [float(v) for v in origin], "origin_range": origin_range,
         "tools": names, "tool_changes": len(runs) - 1, "warnings": warnings,
     }

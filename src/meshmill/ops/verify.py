@@ -82,7 +82,9 @@ def verify_toolpath(bvh, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: floa
                     worst: int = 10, device: str = "cpu") -> dict:
     """Check ``tp`` against the mesh of ``bvh`` (a BVH run on ``device``, or
     :class:`~meshmill.kernels.backend.MeshKernels`); returns a JSON-ready report with the counts of
-    moves that gouge, collide or rapid into the part, and the ``worst`` cases."""
+    moves that gouge, collide or rapid into the part, and the ``worst`` cases. Where the moves come
+    from a file, ``lines`` counts its lines with moves and ``problem_lines`` its lines with a
+    problem of each kind (a G-code arc or rotary block is read as several moves)."""
     tip, axis, tool, move, rapid = sample_moves(tp, tools, step)
     (t0, t1, r), cutting = pack_cylinders(tools)
     # a flat bottom resting exactly on a facet touches it: the slab of a cutting cylinder that
@@ -91,7 +93,8 @@ def verify_toolpath(bvh, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: floa
     if len(tip) == 0:
         return {"moves": 0, "poses_checked": 0, "step": float(step), "tolerance": float(tol), "gouging_moves": 0,
                 "colliding_moves": 0, "rapid_moves_touching": 0, "max_gouge": 0.0, "max_collision": 0.0,
-                "ok": True, "worst": [], "problem_moves": []}
+                "ok": True, "worst": [], "problem_moves": [], "lines": 0,
+                "problem_lines": {"gouge": 0, "collision": 0, "rapid": 0}}
     ring_depth, seg_depth = bind(bvh, device).pose_penetration(tip, axis, tool, pack_rings(tools), segs, base=t0)
     cut_mask = cutting[tool]
     seg_cut = np.where(cut_mask, seg_depth, 0.0)
@@ -130,6 +133,8 @@ def verify_toolpath(bvh, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: floa
     worst_any = np.maximum(end_depth, body_depth)
     n_rapid = collect("rapid", rapid & (worst_any > tol), worst_any, any_part)
     problems.sort(key=lambda p: -p.depth)
+    lines = {kind: len({p.line for p in problems if p.kind == kind and p.line > 0})
+             for kind in ("gouge", "collision", "rapid")}
     return {
         "moves": int(len(tp)),
         "poses_checked": int(len(tip)),
@@ -143,4 +148,6 @@ def verify_toolpath(bvh, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: floa
         "ok": n_gouge == 0 and n_coll == 0 and n_rapid == 0,
         "worst": [p.describe() for p in problems[:worst]],
         "problem_moves": sorted({p.move for p in problems}),
+        "lines": int(len(np.unique(tp.line[tp.line > 0]))),
+        "problem_lines": lines,
     }

@@ -215,7 +215,7 @@ def export_td(path, model: DexelModel) -> None:
     """Write the seed's ASCII layout (its notes §6.2): header, then one dexel a line,
     ``<X|Y|Z> <i> <j> <x0> <y0> <z0> <x1> <y1> <z1> material``."""
     hi = model.lo + model.n * model.step
-    head = [f"# TD v1", f"name {model.name}", f"step {model.step:.9g} {model.step:.9g} {model.step:.9g}",
+    head = ["# TD v1", f"name {model.name}", f"step {model.step:.9g} {model.step:.9g} {model.step:.9g}",
             "envelope_min " + " ".join(f"{x:.9g}" for x in model.lo),
             "envelope_max " + " ".join(f"{x:.9g}" for x in hi),
             "grid " + " ".join(str(int(x)) for x in model.n),

@@ -17,7 +17,8 @@ Read:
   ``tool_name``, else the table's only tool.
 - Skipped: ``F S M N O P H D Q`` words, ``%`` lines, ``( ... )`` and ``; ...`` comments, ``G4``
   (dwell; its line does not move), ``G17 G40 G43 G49 G61 G64 G80 G93 G94`` (``G93`` inverse-time
-  and ``G94`` feeds: F words are skipped anyway); ``G54``-``G59`` with a warning that work offsets
+  and ``G94`` feeds: F words are read by :mod:`meshmill.machine.timing`; a feed move under ``G93``
+  without F is refused, as a control would stop there); ``G54``-``G59`` with a warning that work offsets
   are not applied.
 - A retract in machine coordinates (the final one, or before a tool change), ``G91 G28 Z0``
   (``G28`` with Z alone, its intermediate point where the tool is) or ``G53 G0 Z..`` (Z alone):
@@ -110,6 +111,7 @@ class _Modes:
     arc_absolute: bool = False
     scale: float = 1.0
     tcp: bool = False
+    inverse_time: bool = False  # G93: every feed move carries its own F
     offsets: set = field(default_factory=set)
 
 
@@ -133,6 +135,14 @@ class _Axes:
     @property
     def five_axis(self) -> bool:
         return len(self.letters) > 3
+
+    def g0_rates(self):
+        """Each axis's rapid rate ``(n,)`` (mm/s, deg/s) where the machine moves G0 axis by axis
+        (``gcode.rapid = "dogleg"``), else None (G0 on the straight line)."""
+        if self.machine is None or self.machine.gcode.rapid != "dogleg":
+            return None
+        m = self.machine
+        return np.array([m.kinematics.rapid] * 3 + [m.rotary_rapid] * (len(self.letters) - 3))
 
     def refuse_rotary(self, word, where):
         """InputError for a rotary word that is not one of the machine's axes."""
@@ -212,6 +222,8 @@ def _apply_g_codes(modes, gcodes, where, axes):
             modes.scale = INCH if g == "G20" else 1.0
         elif g in ("G90", "G91"):
             modes.absolute = g == "G90"
+        elif g in ("G93", "G94"):
+            modes.inverse_time = g == "G93"
         elif g in ("G90.1", "G91.1"):
             modes.arc_absolute = g == "G90.1"
         elif g in WORK_OFFSETS:
@@ -326,12 +338,6 @@ def _arc_points(start, end, centre, ccw, chord_tol, where):
     return points
 
 
-def head_table_tool_length(tool) -> float:
-    """The tool length mm a head-table program is computed for (tip to the spindle's gauge line):
-    ``gauge_length + holder_length``, the convention of :mod:`meshmill.machine.post`."""
-    return tool.spindle_length
-
-
 def _listed(letters):
     """``"X, Y and Z"``."""
     return ", ".join(letters[:-1]) + " and " + letters[-1]
@@ -368,6 +374,20 @@ def _move(modes, start, words, letters, chord_tol, where):
     centre = _arc_centre(xyz_start, xyz_end, words, ccw, modes.arc_absolute, where)
     points = _arc_points(xyz_start, xyz_end, centre, ccw, chord_tol, where)
     return np.hstack([points, np.broadcast_to(end[3:], (len(points), len(end) - 3))]).tolist()
+
+
+def _dogleg(start, end, rates):
+    """The corners ``[[x, y, z, ...], ...]`` of a G0 from ``start`` to ``end`` with every axis at its
+    own rate ``rates (n,)`` from the same instant: an axis stops when it is done, so the path bends
+    where each shorter move ends (the last corner is ``end``)."""
+    start, end = np.asarray(start, np.float64), np.asarray(end, np.float64)
+    d = end - start
+    done = np.abs(d) / rates  # s, when each axis arrives
+    points = [start + np.sign(d) * np.minimum(np.abs(d), rates * t) for t in np.unique(done[done > 0])]
+    if not points:
+        return [end.tolist()]
+    points[-1] = end
+    return [p.tolist() for p in points]
 
 
 # --- 5-axis: joints to tool tips and axes --------------------------------------------------------
@@ -505,6 +525,7 @@ def read_gcode(path, tools, tool_name=None, chord_tol=0.001, machine=None) -> tu
     text = _read_text(path)
     name = os.path.basename(path)
     axes = _Axes.of(machine)
+    rates = axes.g0_rates()
     modes = _Modes()
     pos = [math.nan] * len(axes.letters)
     tool, t_given = -1, False
@@ -524,7 +545,7 @@ def read_gcode(path, tools, tool_name=None, chord_tol=0.001, machine=None) -> tu
         if modes.tcp != was_tcp:
             length = 0.0
             if machine.chain.head_pivot and not any(math.isnan(v) for v in pos):
-                length = head_table_tool_length(tools[tool if tool >= 0 else _default_tool(tools, tool_name, path)])
+                length = tools[tool if tool >= 0 else _default_tool(tools, tool_name, path)].spindle_length
             pos = _switched_words(machine, pos, modes.tcp, length)
         if machine_code:
             # a Z-only retract in machine coordinates (at the end, or before a tool change): the
@@ -540,6 +561,9 @@ def read_gcode(path, tools, tool_name=None, chord_tol=0.001, machine=None) -> tu
             continue
         if modes.motion is None:
             raise InputError(f"{where}: coordinates without G0, G1, G2 or G3")
+        if modes.inverse_time and modes.motion != "G0" and "F" not in words:
+            raise InputError(f"{where}: {modes.motion} in inverse-time mode (G93) without F: the control stops here "
+                             "(each G93 feed block needs its own F, 1 / minutes)")
         before = pos
         if any(math.isnan(v) for v in pos) and modes.motion in ("G0", "G1"):
             # the start is unknown until every axis has been given absolutely
@@ -549,6 +573,8 @@ def read_gcode(path, tools, tool_name=None, chord_tol=0.001, machine=None) -> tu
             points = [pos]
         else:
             points = _move(modes, pos, words, axes.letters, chord_tol, where)
+            if modes.motion == "G0" and rates is not None and not modes.tcp:
+                points = _dogleg(pos, points[-1], rates)
         ends += points
         starts += [before] + points[:-1]
         tcp += [modes.tcp] * len(points)
@@ -572,7 +598,9 @@ def read_gcode(path, tools, tool_name=None, chord_tol=0.001, machine=None) -> tu
     else:
         tool_idx[:] = _default_tool(tools, tool_name, path)
     head_table = machine is not None and machine.chain.head_pivot
-    tool_length = np.array([head_table_tool_length(t) if head_table else 0.0 for t in tools])[tool_idx]
+    tool_length = np.array([t.spindle_length if head_table else 0.0 for t in tools])[tool_idx]
+    if head_table and not np.array(tcp, bool).all():  # joint moves of a head-table program
+        warnings += [w for w in (tools[i].spindle_length_warning() for i in np.unique(tool_idx)) if w]
     reach = np.array([t.reach for t in tools])[tool_idx]
     tip, axis, source = _tool_poses(axes, np.array(ends, np.float64), np.array(starts, np.float64),
                                     np.array(tcp, bool), tool_length, reach, chord_tol, lambda i: f"{name}:{lines[i]}")

@@ -35,6 +35,7 @@ class Tool:
     holder_diameter: float = 0.0
     holder_length: float = 0.0
     number: int = 1
+    rpm: float = 0.0  # spindle speed, rev/min; 0: the machine's ([gcode] rpm)
 
     @property
     def radius(self) -> float:
@@ -72,6 +73,27 @@ class Tool:
         """Tip to the spindle's gauge line, mm: ``gauge_length`` (tip to holder face) plus
         ``holder_length``; what a head that tilts the tool is programmed for."""
         return self.gauge_length + self.holder_length
+
+    def lowest_z(self, tip, axis):
+        """Lowest Z (m,) mm of the modelled tool (cutter, shank, holder: :meth:`cylinders` and
+        :meth:`ring`) with its tip at ``tip (m, 3)`` and its axis along the unit ``axis (m, 3)``."""
+        tip, axis = np.atleast_2d(tip), np.atleast_2d(axis)
+        az = axis[:, 2]
+        across = np.sqrt(np.maximum(0.0, 1.0 - az * az))  # a disc of radius r reaches r * across below its centre
+        t, rho, r, _ = self.ring()
+        low = tip[:, 2] + t * az - rho * across - r
+        for t0, t1, radius, _ in self.cylinders():
+            low = np.minimum(low, tip[:, 2] + np.minimum(t0 * az, t1 * az) - radius * across)
+        return low
+
+    def spindle_length_warning(self) -> str | None:
+        """A warning when :attr:`spindle_length` is only the gauge length (no holder in the table),
+        so that a machine whose head tilts the tool would be programmed for too short a tool."""
+        if self.holder_length > 0:
+            return None
+        return (f"tool T{self.number} '{self.name}' has no holder in the tool table: its length to the spindle's "
+                f"gauge line is taken as gauge_length = {self.gauge_length:g} mm; a head that tilts the tool needs "
+                "the real length: give holder_diameter and holder_length")
 
     @property
     def reach(self) -> float:
@@ -159,9 +181,12 @@ def tool_from_entry(entry: dict, number: int, where: str) -> Tool:
     holder_l = _number(entry, "holder_length", where, default=holder_d, required=False)
     if holder_d < 0 or holder_l < 0 or (holder_d > 0 and holder_l <= 0):
         raise InputError(f"{where}: holder_diameter and holder_length must be > 0 mm")
+    rpm = _number(entry, "rpm", where, default=0.0, required=False)
+    if rpm < 0:
+        raise InputError(f"{where}: rpm must be > 0 rev/min (or left out for the machine's)")
     return Tool(name=name, type=kind, diameter=d, corner_radius=rc, flute_length=flute, gauge_length=gauge,
                 shank_diameter=shank, holder_diameter=holder_d, holder_length=holder_l if holder_d > 0 else 0.0,
-                number=number)
+                number=number, rpm=rpm)
 
 
 def load_tools(path) -> list[Tool]:
@@ -193,5 +218,7 @@ def write_tools(path, tools) -> None:
                   f"shank_diameter = {t.shank_diameter!r}"]
         if t.holder_diameter > 0:
             lines += [f"holder_diameter = {t.holder_diameter!r}", f"holder_length = {t.holder_length!r}"]
+        if t.rpm > 0:
+            lines.append(f"rpm = {t.rpm!r}")
     with open(path, "w") as fh:
         fh.write("\n".join(lines) + "\n")
