@@ -380,6 +380,10 @@ def test_dogleg_rapids(tmp_path, tools):
     for machine in ("linuxcnc-3axis", None):
         tp, _ = read(tmp_path, tools, body, machine)
         np.testing.assert_allclose(tp.tip, [[0, 0, 5], [10, 4, -2], [12, 4, -2]])
+    # G91 steps that return to a coordinate in float noise add no corner
+    tp, _ = read(tmp_path, tools, "T3\nG0 X0 Y0 Z5\nG91 G0 X0.1\nX0.2\nG90 X0.3 Y5 Z6\n", "generic-3axis")
+    np.testing.assert_allclose(tp.tip[-2:], [[0.3, 1, 6], [0.3, 5, 6]])
+    assert len(tp) == 5 and np.linalg.norm(np.diff(tp.tip, axis=0), axis=1).min() > 0.09
     # five axes: the rotaries at rotary_rapid_deg_min (9000 deg/min = 150 deg/s), X Y Z at 30 m/min = 500 mm/s
     tp, _ = read(tmp_path, tools, "T3\nG0 X0 Y0 Z50 A0 C0\nG0 X50 C300\n", "table-table-ac")
     machine = load_machine("table-table-ac")

@@ -276,9 +276,9 @@ def test_machine_files_load():
     (MACHINE_TOML + "[gcode]\nbeep = 1\n", ["unknown key 'beep'"]),
     (MACHINE_TOML + "[gcode]\ntool_change = 'T{num} M6'\n", ["'tool_change'", "unknown field {num}", "{number}"]),
     (MACHINE_TOML + "[gcode]\nrapid = 'fast'\n", ["'rapid' must be one of linear, dogleg"]),
-    (MACHINE_TOML + "[gcode]\nstart = ['%', 'O{1000}']\n", ["'start'", "unknown field {1000}"]),
     (MACHINE_TOML + "[gcode]\ncomment = '({text)'\n", ["'comment'", "expected '}'"]),
-    (MACHINE_TOML + "[gcode]\nspindle = 'S{rpm:d} M3'\n", ["'spindle'", "format code 'd'"]),
+    (MACHINE_TOML + "[gcode]\ncomment = '({text} {number})'\n", ["'comment'", "unknown field {number}", "{text}"]),
+    (MACHINE_TOML + "[gcode]\nspindle = 'S{rpm:s} M3'\n", ["'spindle'", "format code 's'"]),
     (MACHINE_TOML + "[motion]\n", []),  # a second [motion] table is a TOML error
 ])
 def test_bad_machine_files(tmp_path, text, words):

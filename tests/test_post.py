@@ -579,8 +579,11 @@ def test_a_tilt_swing_keeps_the_whole_tool_above_the_clearance(clearance):
         low = tool.lowest_z(tips, axes)
         assert low.min() >= report["clearance_z_mm"] - 1e-3
         assert (tips[:, 2] - low).max() > 0.2  # tilted, the ball reaches lower than the tip
-    with pytest.raises(InputError, match="clearance must be a Z"):
-        post_program(tp, [tool], machine, clearance=float("nan"))
+    for bad in (float("nan"), 1e308):
+        with pytest.raises(InputError, match="clearance must be a Z"):
+            post_program(tp, [tool], machine, clearance=bad)
+    _, report = post_program(tp, [tool], machine, clearance=np.float32(20.0))
+    assert any("below the path's highest tip" in w for w in report["warnings"])
 
 
 def test_a_head_table_tool_without_holder_is_warned():
@@ -596,14 +599,22 @@ def test_a_head_table_tool_without_holder_is_warned():
     assert not any("no holder" in w for w in report["warnings"])
 
 
+def test_gcode_texts_filled_in_or_written_as_given(tmp_path, tools):
+    machine = _machine_file(tmp_path, "generic-3axis",
+                            'start = ["%", "(JOB {A})"]\nspindle = "S{rpm:05d} M3"\ncomment = ";{text}"')
+    lines, _ = post_program(_square(), tools, machine)
+    assert lines[1] == "(JOB {A})" and "S10000 M3" in lines and lines[2].startswith(";meshmill post for")
+
+
 def test_each_tool_its_own_spindle_speed(tmp_path, tools):
     fast = [replace(tools[0], rpm=18000.0), *tools[1:]]
     write_tools(tmp_path / "t.toml", fast)
     assert [t.rpm for t in load_tools(tmp_path / "t.toml")] == [t.rpm for t in fast]
     tp = _square()
     tp.tool[:3] = 0
-    lines, _ = post_program(tp, fast, load_machine("generic-3axis"))
+    lines, report = post_program(tp, fast, load_machine("generic-3axis"), clearance=50.0)
     assert [line for line in lines if line.startswith("S")] == ["S18000 M3", "S10000 M3", "S10000 M3"]
+    assert any("not used on a 3-axis machine" in w for w in report["warnings"])
 
 
 def test_rotaries_slowing_a_feed_near_the_pole_are_warned():
@@ -622,3 +633,38 @@ def test_rotaries_slowing_a_feed_near_the_pole_are_warned():
     tp.axis[2] = [np.sin(tilted) * np.cos(0.01), np.sin(tilted) * np.sin(0.01), np.cos(tilted)]
     _, report = post_program(tp, tools, machine)
     assert not any("rotaries turn fast" in w for w in report["warnings"])
+
+
+def test_a_feed_move_that_turns_the_rotaries_keeps_its_feed():
+    """100 mm at 10 mm/s with A turning 10 -> 12 deg: 10 s (G93 F6), 600 mm/min in G94; never the rapid rate."""
+    machine = load_machine("table-table-ac")
+    tools = [Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1)]
+    t = np.radians([10.0, 10.0, 12.0])
+    axis = np.c_[np.zeros(3), np.sin(t), np.cos(t)]
+    tp = Toolpath(np.array([[0, 0, 5], [0, 0, 0], [100, 0, 0.0]]), axis, np.array([1, 0, 0], bool), np.zeros(3, int))
+    for m, want in ((machine, "F6.0000"), (replace(machine, gcode=replace(machine.gcode, inverse_time=False)), "F600.0")):
+        lines, _ = post_program(tp, tools, m, feed=10.0)
+        cut = [line for line in lines if "X100" in line]
+        feeds = set(re.findall(r"F[\d.]+", "\n".join(lines)))
+        assert len(cut) == 1 and (cut[0].endswith(want) if m.gcode.inverse_time else feeds == {want})
+
+
+@pytest.mark.parametrize("noise", [6.8e-8, -6.8e-8])
+def test_an_unwind_at_the_end_of_travel_leaves_room_for_the_pose_before(tools, noise):
+    """C turning the negative way on head-table-bc (C within +-360) with a pose a hair past -360
+    (a CL's rounding): unwinding two turns to +360 would leave the pose before it at +362.8, beyond
+    travel, and the cut between would turn C 717 deg; the unwind takes one turn instead."""
+    steps = np.arange(0, 300)
+    phi = -np.radians(2.8125) * steps
+    tilt = np.radians(20.0)
+    axis = np.column_stack([np.sin(tilt) * np.cos(phi), np.sin(tilt) * np.sin(phi), np.full(len(phi), np.cos(tilt))])
+    axis[128] = [np.sin(tilt), noise, np.cos(tilt)]  # -360 deg, off by the CL's last digit
+    tip = np.column_stack([20 * np.cos(phi), 20 * np.sin(phi), np.zeros(len(phi))])
+    tip = np.r_[tip[:1] + [0, 0, 10], tip]
+    axis = np.r_[axis[:1], axis]
+    rapid = np.zeros(len(tip), bool)
+    rapid[0] = True
+    tp = Toolpath(tip, axis, rapid, np.ones(len(tip), int))
+    lines, report = post_program(tp, tools, load_machine("head-table-bc"))
+    assert report["rewinds"] >= 1 and report["linearisation"]["blocks_over_tolerance"] == 0
+    assert report["linearisation"]["max_deviation_mm"] <= 0.005

@@ -464,8 +464,7 @@ def cmd_time(args):
     machine = load_machine(args.machine)
     tools = _tools_beside(args)
     is_gcode = os.path.splitext(args.toolpath)[1].lower() in TOOLPATH_GCODE
-    tp, warnings = read_toolpath(args.toolpath, tools, args.tool,
-                                 machine if is_gcode and machine.chain.type != "3-axis" else None)
+    tp, warnings = read_toolpath(args.toolpath, tools, args.tool, machine if is_gcode else None)
     feed_move = ~tp.rapid[1:]
     nominal = f"the machine's {machine.kinematics.feed * 60.0:g} mm/min"
     if args.feed is not None:
@@ -519,7 +518,7 @@ def cmd_post(args):
     from .machine.config import load_machine
     from .machine.post import post_program
     from .machine.timing import programmed_feeds
-    from .toolpath.cldata import read_apt
+    from .toolpath.cldata import MAX_COORDINATE, read_apt
 
     if args.feed is not None and not (math.isfinite(args.feed) and args.feed > 0):
         raise InputError(f"--feed must be a positive number of mm/min, got {args.feed}")
@@ -549,8 +548,8 @@ def cmd_post(args):
             origin = []
         if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
             raise InputError(f"--origin wants X,Y,Z in mm (the program's zero in machine coordinates), got '{args.origin}'")
-    if args.clearance is not None and not math.isfinite(args.clearance):
-        raise InputError(f"--clearance must be a Z in mm, got {args.clearance}")
+    if args.clearance is not None and not abs(args.clearance) <= MAX_COORDINATE:
+        raise InputError(f"--clearance must be a Z in mm (|Z| <= {MAX_COORDINATE:g}), got {args.clearance}")
     lines, report = post_program(tp, tools, machine, feed=feed, tolerance=args.tolerance, origin=origin,
                                  clearance=args.clearance)
     out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "program.nc")

@@ -75,8 +75,9 @@ class Chain:
 
 @dataclass(frozen=True)
 class GcodeFormat:
-    """How programs are written (``[gcode]``); every text may use ``{number}`` (tool number),
-    ``{name}``, ``{text}`` (comments), ``{rpm}``. ``inverse_time``: 5-axis feed moves in G93 (F =
+    """How programs are written (``[gcode]``); the tool's texts (``tool_change``, ``tool_length``,
+    ``spindle``, ``coolant_on``, ``tcp``) may use ``{number}`` (tool number), ``{name}`` and
+    ``{rpm}``, ``comment`` uses ``{text}``, the others are written as given. ``inverse_time``: 5-axis feed moves in G93 (F =
     1 / minutes), else G94 mm/min; ``tcp``: the control does the kinematics (tool tip in work
     coordinates and the rotary angles are written), its switch-on text (e.g. "G43.4 H{number}");
     ``retract``: the lines that raise the tool to the machine's Z home before each tool change's
@@ -280,31 +281,32 @@ def _gcode(table, where) -> dict:
             raise InputError(f"{where} 'rapid' must be one of {', '.join(RAPIDS)}, got {value!r}")
         values[key] = value
     gcode = GcodeFormat(dialect=dialect, **values)
-    for key in GcodeFormat.__dataclass_fields__:
-        if key in ("dialect", "rapid"):
-            continue
-        value = getattr(gcode, key)
-        for text in value if isinstance(value, tuple) else (value,) if isinstance(value, str) else ():
-            _check_template(text, key, where)
+    for key, fields in TEMPLATE_FIELDS.items():
+        _check_template(getattr(gcode, key), key, fields, where)
     return {"gcode": gcode}
 
 
-TEMPLATE_FIELDS = ("number", "name", "rpm", "text")  # what a [gcode] text may fill in
+# the [gcode] texts filled in per tool, and the fields each may use; the other texts (start, end,
+# retract, coolant_off, tcp_off) are written as given
+TOOL_FIELDS = ("number", "name", "rpm")
+TEMPLATE_FIELDS = {"tool_change": TOOL_FIELDS, "tool_length": TOOL_FIELDS, "spindle": TOOL_FIELDS,
+                   "coolant_on": TOOL_FIELDS, "tcp": TOOL_FIELDS, "comment": ("text",)}
+SAMPLE = {"number": 1, "name": "T1", "rpm": 10000, "text": "comment"}
 
 
-def _check_template(text, key, where):
+def _check_template(text, key, fields, where):
     """InputError naming the file and key when ``text`` is not a valid format string (a lone
-    brace, a format spec that does not apply) or has a field other than :data:`TEMPLATE_FIELDS`."""
-    known = ", ".join("{" + f + "}" for f in TEMPLATE_FIELDS)
+    brace, a format spec that does not apply) or has a field other than ``fields``."""
+    known = ", ".join("{" + f + "}" for f in fields)
     try:
-        fields = [f for _, f, _, _ in string.Formatter().parse(text) if f is not None]
+        names = [f for _, f, _, _ in string.Formatter().parse(text) if f is not None]
     except ValueError as exc:
         raise InputError(f"{where} '{key}' = {text!r}: {exc} (write a brace as {{{{ or }}}})") from None
-    bad = [f for f in fields if f not in TEMPLATE_FIELDS]
+    bad = [f for f in names if f not in fields]
     if bad:
-        raise InputError(f"{where} '{key}' = {text!r}: unknown field {{{bad[0]}}} (known: {known})")
+        raise InputError(f"{where} '{key}' = {text!r}: unknown field {{{bad[0]}}} (known here: {known})")
     try:
-        text.format(number=1, name="T1", rpm="10000", text="comment")
+        text.format(**{f: SAMPLE[f] for f in fields})
     except (KeyError, IndexError, ValueError) as exc:
         raise InputError(f"{where} '{key}' = {text!r}: {exc}") from None
 

@@ -49,8 +49,10 @@ from zero angles. A rotary without travel limits is unwound: it keeps counting p
 that consecutive poses never differ by a turn taken modulo 360.
 
 * Travel: where the nearest solution is beyond a rotary's travel, the same tilt with the turn's
-  equivalent within travel farthest from the end it passed is taken (a path that keeps turning
-  one way unwinds once every two turns on a [-360, 360] table or head); where the tilt itself is
+  equivalent within travel farthest from the end it passed is taken, as far as the pose before,
+  turned by the same whole turns, stays within travel too (the post retracts there and jumps; a
+  path that keeps turning one way unwinds about once every two turns on a [-360, 360] table or
+  head); where the tilt itself is
   beyond travel, the other solution (tilt of the other sign, turn 180 deg on). Either way the
   pose is marked ``rewound``: the rotaries jump there (a finite C unwinds by a full turn, or the
   tool swings over to the other side) and the post-processor must retract the tool before that
@@ -358,7 +360,7 @@ class _Rotaries:
         tilt, turn = nearest[0]
         if self._inside(tilt, turn):
             return tilt, turn, False
-        within = [(_into_travel(tilt, self.tilt_travel), _into_travel(turn, self.turn_travel))
+        within = [(_into_travel(tilt, self.tilt_travel), _into_travel(turn, self.turn_travel, turn_before))
                   for tilt, turn in nearest]
         for tilt, turn in within:
             if self._inside(tilt, turn):
@@ -386,20 +388,23 @@ def _beyond(value, travel):
     return excess if excess > LIMIT_TOLERANCE else 0.0
 
 
-def _into_travel(angle, travel):
+def _into_travel(angle, travel, previous=None):
     """The equivalent ``angle + 360 m`` (deg) within ``travel`` ((low, high) or None) farthest
     from the end ``angle`` passed, so that a path that keeps turning the same way has the most
-    travel ahead before it must unwind again (two turns for [-360, 360]); the angle itself when
-    inside; where no equivalent is inside (travel under 360 deg), the one nearest the travel."""
+    travel ahead before it must unwind again (two turns for [-360, 360]); with ``previous`` (the
+    pose before, deg), only whole turns ``m`` that bring it within travel too, so that the pose
+    before can be solved next to this one (the post retracts there and jumps by those turns); the
+    angle itself when inside; where no equivalent is inside (travel under 360 deg), the one
+    nearest the travel."""
     if travel is None or _beyond(angle, travel) == 0.0:
         return angle
     low, high = travel
-    if angle > high:  # passed the top: the lowest equivalent at or above low
-        inside = angle - 360.0 * math.floor((angle - low + LIMIT_TOLERANCE) / 360.0)
-    else:  # passed the bottom: the highest equivalent at or below high
-        inside = angle + 360.0 * math.floor((high - angle + LIMIT_TOLERANCE) / 360.0)
-    if _beyond(inside, travel) == 0.0:
-        return inside
+    turns = range(math.ceil((low - angle - LIMIT_TOLERANCE) / 360.0), math.floor((high - angle + LIMIT_TOLERANCE) / 360.0) + 1)
+    inside = [m for m in turns if _beyond(angle + 360.0 * m, travel) == 0.0]
+    both = [m for m in inside if previous is None or _beyond(previous + 360.0 * m, travel) == 0.0]
+    if both or inside:
+        m = (min if angle > high else max)(both or inside)  # passed the top: the lowest equivalent
+        return angle + 360.0 * m
     near = [angle + 360.0 * m for m in range(-int(abs(angle) // 360) - 2, int(abs(angle) // 360) + 3)]
     return min(near, key=lambda a: _beyond(a, travel) if _beyond(a, travel) > 0 else math.inf)
 

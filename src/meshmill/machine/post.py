@@ -30,9 +30,10 @@ the ``retract`` lines (the tool up to the machine's Z home), ``M5``, ``coolant_o
 ``tool_length`` (or the TCP text, or the head-table comment), ``spindle`` (S: the tool's ``rpm``, else ``gcode.rpm``),
 ``coolant_on``; the first pose of each tool is reached by ``G0`` in two blocks, every axis but Z
 first, then Z (the tool comes from the tool change, which leaves it high); then one block a move.
-Where the control moves G0 axis by axis (``gcode.rapid = "dogleg"``), a rapid that moves Z with X
-or Y is written as G1 at the rapid rate, so that the tool follows the straight line the CL path
-was verified along (a dog-leg would cut the corner at the lower end's height).
+Where the control moves G0 axis by axis (``gcode.rapid = "dogleg"``), a rapid that moves more
+than one axis is written as G1 at the rapid rate, so that the tool follows the straight line the
+CL path was verified along (a dog-leg would cut the corner: the first positioning of a tool, from
+the tool change, excepted).
 ``G94`` before a tool change and the ``end`` lines where G93 is on. Motion is modal: ``G0``/``G1``
 and each axis word are written when their text changes (fixed decimals: ``gcode.decimals`` for X Y
 Z, ``angle_decimals`` for A B C; never ``-0.000``), F when it changes (G94, one decimal) or on every
@@ -52,16 +53,19 @@ coordinates (the work zero at the machine's zero): the first block out of range 
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import InputError
 from ..tolerances import GOUGE_TOL
+from ..toolpath.cldata import MAX_COORDINATE
 from .kinematics import VERTICAL_TOLERANCE, AxisLimitError, angle_step, forward, inverse, machine_xyz
 
 SAMPLES = 16  # points inside a block where the joint-linear tip is compared with the CL segment
 MAX_DEPTH = 10  # one CL move is halved at most this deep (1024 blocks); beyond, the deviation is reported
+GROSS_STRAY = 1.0  # mm: a block that still strays this far after MAX_DEPTH halvings is refused
 MIN_BLOCK_S = 0.006  # s: the shortest G93 block time written (F <= 10000 / min; one interpolation cycle or so)
 CURVE_PIECES = 8  # the path of the flutes' top in a CL move (a curve) is checked as this many segments
 SWING_SAMPLES = 65  # poses of a rotary jump checked for its lowest tip
@@ -95,16 +99,15 @@ def format_number(value, decimals) -> str:
     return text[1:] if text.startswith("-") and not text.strip("-0.") else text
 
 
-def _fill(template, tool, rpm, text=""):
-    """A ``[gcode]`` text (checked when the machine file was read) with ``{number}``, ``{name}``,
-    ``{rpm}`` and ``{text}`` filled in."""
-    return template.format(number=tool.number if tool else "", name=tool.name if tool else "",
-                           rpm=format_number(rpm, 0), text=text)
+def _fill(template, tool, rpm):
+    """A tool's ``[gcode]`` text (checked when the machine file was read) with ``{number}``,
+    ``{name}`` and ``{rpm}`` (rev/min, an integer) filled in."""
+    return template.format(number=tool.number, name=tool.name, rpm=int(round(rpm)))
 
 
 def _comment(gcode, text):
     clean = " ".join(text.replace("(", "[").replace(")", "]").replace("%", "").split())
-    return _fill(gcode.comment, None, gcode.rpm, clean)
+    return gcode.comment.format(text=clean)
 
 
 def _where(tp, move):
@@ -188,14 +191,14 @@ def _three_axis_runs(tp, feed, machine):
 
 def _dogleg_corner(joints, machine, before=None):
     """``(m,)`` bool: the moves from ``before (m, n)`` (default: the previous row; the first row
-    False) to ``joints (m, n)`` that move Z with X or Y, where the machine's G0 is a dog-leg
+    False) to ``joints (m, n)`` that move more than one axis, where the machine's G0 is a dog-leg
     (``gcode.rapid``): written as G0 they would leave the straight line."""
     joints = np.asarray(joints)
     if machine.gcode.rapid != "dogleg":
         return np.zeros(len(joints), bool)
     before = np.r_[joints[:1], joints[:-1]] if before is None else before
-    moved = np.abs(joints[:, :3] - before[:, :3]) > 0.0  # rounded as written: any change is in the text
-    return moved[:, 2] & (moved[:, 0] | moved[:, 1])
+    moved = joints != before  # rounded as written: any change is in the text
+    return np.count_nonzero(moved, axis=1) > 1
 
 
 # --- 5-axis ----------------------------------------------------------------------------------------
@@ -249,7 +252,14 @@ class _Linearisation:
             out[c:c + DEVIATION_CHUNK] = np.maximum(_peak(_off_segment(tip, q0, q1)), _peak(off))
         return out
 
-    def accept(self, deviation):
+    def accept(self, deviation, move):
+        """Count a block of CL move ``move`` that strays ``deviation`` mm; a block that strays
+        more than :data:`GROSS_STRAY` after every halving is an InputError (a jump of the rotaries
+        within the move, not a curve that more blocks would follow)."""
+        if deviation > GROSS_STRAY:
+            raise InputError(f"{_where(self.tp, move)}: the joint-linear motion strays {deviation:.3f} mm from the CL "
+                             f"move after {MAX_DEPTH} halvings: the rotaries jump within it (check the machine's "
+                             "travel and kinematics)")
         self.largest = max(self.largest, float(deviation))
         self.over += int(deviation > self.tolerance)
 
@@ -275,12 +285,12 @@ class _Linearisation:
             if left > self.tolerance and depth < MAX_DEPTH:
                 halve(s0, sm, ja, jm, depth + 1)
             else:
-                self.accept(left)
+                self.accept(left, move)
             inserted.append((sm, jm))
             if right > self.tolerance and depth < MAX_DEPTH:
                 halve(sm, s1, jm, jb, depth + 1)
             else:
-                self.accept(right)
+                self.accept(right, move)
 
         halve(0.0, 1.0, j0, j1, 1)
         return np.array([s for s, _ in inserted]), np.array([j for _, j in inserted])
@@ -373,10 +383,12 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp, clearance=None):
             before[i - 1] = _solve(machine, tp, a + i - 1, tip[i - 1:i], axis[i - 1:i], length, tcp, joints[i])[0][0]
         # joints mode: rapids that turn a rotary are interpolated joint-linearly too, so they are
         # linearised like feed moves and written as G1 at the rapid rate; pure linear rapids stay G0
-        turns = np.r_[False, np.abs(joints[1:, 3:] - before[:, 3:]).max(axis=1) > 0.0] if not tcp else np.zeros(b - a, bool)
-        straight = np.r_[False, _dogleg_corner(joints[1:], machine, before)] & ~turns
+        turned = np.r_[False, np.abs(joints[1:, 3:] - before[:, 3:]).max(axis=1) > 0.0]
+        turns = tp.rapid[a:b] & turned if not tcp else np.zeros(b - a, bool)
+        # a dog-leg G0 would leave the CL line: G1 along it at the rapid rate
+        straight = tp.rapid[a:b] & np.r_[False, _dogleg_corner(joints[1:], machine, before)] & ~turns
         rapid = tp.rapid[a:b] & ~turns & ~straight
-        f_move = np.where(turns | (tp.rapid[a:b] & straight), machine.kinematics.rapid, feed[a:b])
+        f_move = np.where(turns | straight, machine.kinematics.rapid, feed[a:b])
         cut = np.flatnonzero(~rapid[1:]) + 1 if not tcp else np.zeros(0, np.int64)
         deviation = np.zeros(b - a)
         unit = axis / np.linalg.norm(axis, axis=1, keepdims=True)
@@ -420,7 +432,7 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp, clearance=None):
                     blocks.add(j, False, f, (sj - done) * step[i], move, added=True)
                     done = sj
             else:
-                how.accept(deviation[i])
+                how.accept(deviation[i], move)
             blocks.add(joints[i], False, f, (1.0 - done) * step[i], move)
         runs.append(blocks.run())
         stats["blocks_added"] += int(runs[-1].added.sum())
@@ -459,9 +471,9 @@ def _rewind(blocks, tp, machine, move, joints, unwound, feed, clearance, tool, t
                          f"tool {tool.name} above Z {clearance:g} all through the jump (still {dip:.3f} mm below)")
     if rise > 0.0:
         blocks.add(up, False, feed, rise, move, rewind=True)
-    if np.abs(up_unwound[:3] - up[:3]).max() > 0.0:  # a swing: joint-linear, as checked, at the rapid rate
+    if np.count_nonzero(up_unwound != up) > 1:  # a swing: joint-linear, as checked, at the rapid rate
         blocks.add(up_unwound, False, machine.kinematics.rapid, 0.0, move, rewind=True)
-    else:  # C alone turns: a G0 moves one axis the same in every control
+    else:  # C alone turns: a G0 of one axis is the same in every control
         blocks.add(up_unwound, True, np.nan, 0.0, move, rewind=True)
     if rise > 0.0:
         blocks.add(unwound, False, feed, rise, move, rewind=True)
@@ -522,7 +534,7 @@ def _rotary_limited(runs, tp, machine):
     ``machine.rotary_rapid``."""
     count, worst, first = 0, 1.0, None
     for run in runs:
-        cut = ~run.rapid & ~run.rewind & (run.tip_length > 0)
+        cut = ~run.rapid & ~run.rewind & ~tp.rapid[run.move] & (run.tip_length > 0)  # CL feed moves
         tip_s = np.where(cut, run.tip_length / np.where(cut, run.feed, 1.0), 0.0)
         turn_s = angle_step(run.joints) / machine.rotary_rapid
         slow = cut & (turn_s > 2.0 * tip_s)
@@ -655,13 +667,14 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
         raise InputError(f"the linearisation tolerance must be a positive number of mm, got {tolerance}")
     if len(toolpath) == 0:
         raise InputError("the tool path has no moves")
-    if clearance is not None and not (isinstance(clearance, (int, float)) and math.isfinite(clearance)):
-        raise InputError(f"the clearance must be a Z in mm, got {clearance}")
+    if clearance is not None and not (isinstance(clearance, numbers.Real) and abs(clearance) <= MAX_COORDINATE):
+        raise InputError(f"the clearance must be a Z in mm (|Z| <= {MAX_COORDINATE:g}), got {clearance}")
     if origin is not None:
         origin = np.asarray(origin, np.float64)
         if origin.shape != (3,) or not np.isfinite(origin).all():
             raise InputError(f"the origin must be three finite numbers X,Y,Z (mm), got {origin.tolist()}")
     g = machine.gcode
+    given = clearance
     five_axis = machine.chain.type != "3-axis"
     tcp = bool(g.tcp) if tcp is None else bool(tcp)
     if tcp and not five_axis:
@@ -680,6 +693,12 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
     inverse_time = mode == "5-axis joints" and g.inverse_time
     lines, blocks = _write(runs, tools, machine, mode, inverse_time)
     warnings = stats["warnings"]
+    top = float(toolpath.tip[:, 2].max())
+    if given is not None and not five_axis:
+        warnings.append(f"the clearance (Z {given:g}) is not used on a 3-axis machine: it has no rotaries to jump")
+    elif given is not None and given < top:
+        warnings.append(f"the clearance Z {given:g} is below the path's highest tip (Z {top:g}): where the rotaries "
+                        "jump, the tool stays above it, lower than the path's own rapids")
     if mode == "5-axis joints" and machine.chain.head_pivot:
         warnings += [w for w in (tools[i].spindle_length_warning() for i in sorted({r.tool for r in runs})) if w]
     if mode == "5-axis joints" and not inverse_time:

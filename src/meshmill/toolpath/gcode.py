@@ -376,6 +376,9 @@ def _move(modes, start, words, letters, chord_tol, where):
     return np.hstack([points, np.broadcast_to(end[3:], (len(points), len(end) - 3))]).tolist()
 
 
+DOGLEG_NOISE = 1e-6  # mm or deg: smaller G0 steps add no corner to the dog-leg
+
+
 def _dogleg(start, end, rates):
     """The corners ``[[x, y, z, ...], ...]`` of a G0 from ``start`` to ``end`` with every axis at its
     own rate ``rates (n,)`` from the same instant: an axis stops when it is done, so the path bends
@@ -383,7 +386,9 @@ def _dogleg(start, end, rates):
     start, end = np.asarray(start, np.float64), np.asarray(end, np.float64)
     d = end - start
     done = np.abs(d) / rates  # s, when each axis arrives
-    points = [start + np.sign(d) * np.minimum(np.abs(d), rates * t) for t in np.unique(done[done > 0])]
+    # an axis that moves less than a written digit (float noise of G91 steps) adds no corner
+    corners = np.unique(done[np.abs(d) > DOGLEG_NOISE])
+    points = [start + np.sign(d) * np.minimum(np.abs(d), rates * t) for t in corners]
     if not points:
         return [end.tolist()]
     points[-1] = end

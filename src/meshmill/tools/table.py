@@ -181,12 +181,13 @@ def tool_from_entry(entry: dict, number: int, where: str) -> Tool:
     holder_l = _number(entry, "holder_length", where, default=holder_d, required=False)
     if holder_d < 0 or holder_l < 0 or (holder_d > 0 and holder_l <= 0):
         raise InputError(f"{where}: holder_diameter and holder_length must be > 0 mm")
-    rpm = _number(entry, "rpm", where, default=0.0, required=False)
-    if rpm < 0:
-        raise InputError(f"{where}: rpm must be > 0 rev/min (or left out for the machine's)")
+    rpm = entry.get("rpm", 0)
+    if "rpm" in entry and (isinstance(rpm, bool) or not isinstance(rpm, (int, float)) or not 1 <= rpm < 1e6):
+        raise InputError(f"{where}: 'rpm' must be a spindle speed from 1 to 999999 rev/min "
+                         f"(or left out for the machine's), got {rpm!r}")
     return Tool(name=name, type=kind, diameter=d, corner_radius=rc, flute_length=flute, gauge_length=gauge,
                 shank_diameter=shank, holder_diameter=holder_d, holder_length=holder_l if holder_d > 0 else 0.0,
-                number=number, rpm=rpm)
+                number=number, rpm=float(rpm))
 
 
 def load_tools(path) -> list[Tool]:
