@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DATA   := src/meshmill/data
 
-.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge bench-gpu bench-choice clean
+.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge bench-gpu bench-choice bench-post clean
 
 venv: $(STAMP)
 
@@ -20,7 +20,7 @@ demo: venv
 	$(BIN)/meshmill waterline $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool B4 --step-down 2 --out demo-out/waterline
 	$(BIN)/meshmill raster $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool R6 --scallop 0.01 --angle 45 --out demo-out/raster
 	$(BIN)/meshmill simulate --design $(DATA)/vase.stl --allowance 0.5 --toolpath demo-out/toolpath.cl --tools $(DATA)/tools.toml --step 0.2 --out demo-out/simulate
-	$(BIN)/meshmill post demo-out/toolpath.cl --machine table-table-ac --tools $(DATA)/tools.toml --out demo-out/program-ac.nc
+	$(BIN)/meshmill post demo-out/toolpath.cl --machine table-table-ac --tools $(DATA)/tools.toml --clearance 75 --out demo-out/program-ac.nc
 	$(BIN)/meshmill verify $(DATA)/vase.stl demo-out/program-ac.nc --machine table-table-ac --tools $(DATA)/tools.toml --tolerance 0.015 --out demo-out/verify-program.json
 	$(BIN)/meshmill choose rubio --tool-pair 10,2 --scallop 0.01 --zones 3 --axes 3+2 --machine seed-002 --out demo-out/choose
 	$(BIN)/meshmill time demo-out/choose/toolpath.cl --machine seed-002 --tools demo-out/choose/tools.toml
@@ -48,6 +48,9 @@ bench-gpu: venv
 
 bench-choice: venv
 	$(BIN)/python bench/choice_seed_tables.py
+
+bench-post: venv
+	$(BIN)/python bench/post_programs.py
 
 clean:
 	rm -rf $(VENV) demo-out bench/out .pytest_cache

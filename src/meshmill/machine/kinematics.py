@@ -51,8 +51,8 @@ that consecutive poses never differ by a turn taken modulo 360.
 * Travel: where the nearest solution is beyond a rotary's travel, the same tilt with the turn's
   equivalent within travel farthest from the end it passed is taken, as far as the pose before,
   turned by the same whole turns, stays within travel too (the post retracts there and jumps; a
-  path that keeps turning one way unwinds about once every two turns on a [-360, 360] table or
-  head); where the tilt itself is
+  path that keeps turning one way on a [-360, 360] table or head unwinds once a turn, two turns
+  only where a pose lies on the end itself); where the tilt itself is
   beyond travel, the other solution (tilt of the other sign, turn 180 deg on). Either way the
   pose is marked ``rewound``: the rotaries jump there (a finite C unwinds by a full turn, or the
   tool swings over to the other side) and the post-processor must retract the tool before that
@@ -391,7 +391,7 @@ def _beyond(value, travel):
 def _into_travel(angle, travel, previous=None):
     """The equivalent ``angle + 360 m`` (deg) within ``travel`` ((low, high) or None) farthest
     from the end ``angle`` passed, so that a path that keeps turning the same way has the most
-    travel ahead before it must unwind again (two turns for [-360, 360]); with ``previous`` (the
+    travel ahead before it must unwind again; with ``previous`` (the
     pose before, deg), only whole turns ``m`` that bring it within travel too, so that the pose
     before can be solved next to this one (the post retracts there and jumps by those turns); the
     angle itself when inside; where no equivalent is inside (travel under 360 deg), the one

@@ -263,37 +263,56 @@ class _Linearisation:
         self.largest = max(self.largest, float(deviation))
         self.over += int(deviation > self.tolerance)
 
-    def split(self, move, a0, a1, j0, j1):
-        """Poses inserted into CL feed move ``move`` (tips ``tp.tip[move - 1]`` -> ``tp.tip[move]``,
-        unit axes ``a0`` -> ``a1`` (3,)) whose joints ``j0`` -> ``j1`` (n,) stray beyond the
-        tolerance: ``(s (r,), joints (r, n))`` in order, ``s`` the fractions of the move (tip on the
-        segment, axis on the great circle), each half split again while it strays, MAX_DEPTH deep."""
+    def split(self, moves, a0, a1, j0, j1):
+        """Poses inserted into the CL feed moves ``moves (r,)`` (tips ``tp.tip[move - 1]`` ->
+        ``tp.tip[move]``, unit axes ``a0`` -> ``a1`` (r, 3)) whose joints ``j0`` -> ``j1`` (r, n)
+        stray beyond the tolerance: per move ``(s (q,), joints (q, n))`` in order, ``s`` the
+        fractions of the move (tip on the segment, axis on the great circle), each half split
+        again while it strays, MAX_DEPTH deep. The halvings of all moves are measured together,
+        one depth at a time."""
+        inserted = [[] for _ in moves]
+        # open intervals: (index into moves, s0, s1, joints at s0, joints at s1)
+        open_ = [(k, 0.0, 1.0, j0[k], j1[k]) for k in range(len(moves))]
+        for depth in range(1, MAX_DEPTH + 1):
+            if not open_:
+                break
+            mids = [self._midpoint(moves[k], a0[k], a1[k], j0[k], j1[k], 0.5 * (s0 + s1), ja)
+                    for k, s0, s1, ja, jb in open_]
+            ks = np.array([o[0] for o in open_])
+            ja = np.array([o[3] for o in open_])
+            jb = np.array([o[4] for o in open_])
+            jm = np.array(mids)
+            p0, p1 = self.tp.tip[moves[ks] - 1], self.tp.tip[moves[ks]]
+            both = self.deviation(np.r_[ja, jm], np.r_[jm, jb], np.r_[p0, p0], np.r_[p1, p1],
+                                  np.r_[a0[ks], a0[ks]], np.r_[a1[ks], a1[ks]])
+            left, right = both[:len(open_)], both[len(open_):]
+            still = []
+            for (k, s0, s1, ja_, jb_), j, dl, dr in zip(open_, mids, left, right):
+                sm = 0.5 * (s0 + s1)
+                inserted[k].append((sm, j))
+                for d, half in ((dl, (k, s0, sm, ja_, j)), (dr, (k, sm, s1, j, jb_))):
+                    if d > self.tolerance and depth < MAX_DEPTH:
+                        still.append(half)
+                    else:
+                        self.accept(d, int(moves[k]))
+            open_ = still
+        out = []
+        for pieces in inserted:
+            pieces.sort(key=lambda sj: sj[0])
+            out.append((np.array([sj[0] for sj in pieces]), np.array([sj[1] for sj in pieces])))
+        return out
+
+    def _midpoint(self, move, a0, a1, j0, j1, sm, ja):
+        """The joints (n,) at fraction ``sm`` of CL move ``move``, solved next to ``ja``: a rapid's
+        rotaries turn joint-linearly between ``j0`` and ``j1`` with X Y Z keeping the tip on the
+        CL segment; a feed move's axis is on the great circle from ``a0`` to ``a1``."""
         p0, p1 = self.tp.tip[move - 1], self.tp.tip[move]
-        ends = np.stack([p0, p0]), np.stack([p1, p1]), np.stack([a0, a0]), np.stack([a1, a1])
-        inserted = []
-
-        def halve(s0, s1, ja, jb, depth):
-            sm = 0.5 * (s0 + s1)
-            if self.rapid:  # a rapid: the rotaries turn joint-linearly, X Y Z keep the tip on the CL segment
-                jm = j0 + sm * (j1 - j0)
-                tip, _ = forward(self.machine, jm[None], self.tool_length, self.tcp)
-                jm = _retract_joints(self.machine, jm, p0 + sm * (p1 - p0) - tip[0], self.tool_length, self.tcp)
-            else:
-                jm = _solve(self.machine, self.tp, move, (p0 + sm * (p1 - p0))[None], _great_circle(a0, a1, [sm]),
-                            self.tool_length, self.tcp, ja)[0][0]
-            left, right = self.deviation(np.stack([ja, jm]), np.stack([jm, jb]), *ends)
-            if left > self.tolerance and depth < MAX_DEPTH:
-                halve(s0, sm, ja, jm, depth + 1)
-            else:
-                self.accept(left, move)
-            inserted.append((sm, jm))
-            if right > self.tolerance and depth < MAX_DEPTH:
-                halve(sm, s1, jm, jb, depth + 1)
-            else:
-                self.accept(right, move)
-
-        halve(0.0, 1.0, j0, j1, 1)
-        return np.array([s for s, _ in inserted]), np.array([j for _, j in inserted])
+        if self.rapid:
+            jm = j0 + sm * (j1 - j0)
+            tip, _ = forward(self.machine, jm[None], self.tool_length, self.tcp)
+            return _retract_joints(self.machine, jm, p0 + sm * (p1 - p0) - tip[0], self.tool_length, self.tcp)
+        return _solve(self.machine, self.tp, move, (p0 + sm * (p1 - p0))[None], _great_circle(a0, a1, [sm]),
+                      self.tool_length, self.tcp, ja)[0][0]
 
 
 def _peak(samples):
@@ -408,6 +427,10 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp, clearance=None):
         deviation[fast] = lin_rapid.deviation(before[fast - 1], joints[fast], tip[fast - 1], tip[fast],
                                               unit[fast - 1], unit[fast])
         step = np.r_[0.0, np.linalg.norm(np.diff(tip, axis=0), axis=1)]  # mm, the tip's travel of each move
+        splits = {}  # i -> (s, joints) inserted into move i
+        for how, mask in ((lin, ~linear_turn), (lin_rapid, linear_turn)):
+            need = np.flatnonzero(~rapid & (deviation > tolerance) & mask)
+            splits.update(zip(need.tolist(), how.split(a + need, unit[need - 1], unit[need], before[need - 1], joints[need])))
         blocks = _Blocks(tool)
         blocks.add(joints[0], True, np.nan, 0.0, a)
         for i in range(1, b - a):
@@ -426,9 +449,8 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp, clearance=None):
                 continue
             done = 0.0
             how = lin_rapid if linear_turn[i] else lin
-            if deviation[i] > tolerance:
-                s, inserted = how.split(move, unit[i - 1], unit[i], before[i - 1], joints[i])
-                for sj, j in zip(s, inserted):
+            if i in splits:
+                for sj, j in zip(*splits[i]):
                     blocks.add(j, False, f, (sj - done) * step[i], move, added=True)
                     done = sj
             else:
