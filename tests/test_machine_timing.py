@@ -279,6 +279,9 @@ def test_machine_files_load():
     (MACHINE_TOML + "[gcode]\ncomment = '({text)'\n", ["'comment'", "expected '}'"]),
     (MACHINE_TOML + "[gcode]\ncomment = '({text} {number})'\n", ["'comment'", "unknown field {number}", "{text}"]),
     (MACHINE_TOML + "[gcode]\nspindle = 'S{rpm:s} M3'\n", ["'spindle'", "format code 's'"]),
+    (MACHINE_TOML + "[gcode]\ntool_change = 'T{number:>2000000000} M6'\n", ["'tool_change'", "too wide"]),
+    (MACHINE_TOML + "[gcode]\nspindle = 'S{rpm:>{rpm}}'\n", ["'spindle'", "nested"]),
+    (MACHINE_TOML + "[gcode]\nrpm = 2000000\n", ["'rpm' must be below"]),
     (MACHINE_TOML + "[motion]\n", []),  # a second [motion] table is a TOML error
 ])
 def test_bad_machine_files(tmp_path, text, words):

@@ -668,3 +668,62 @@ def test_an_unwind_at_the_end_of_travel_leaves_room_for_the_pose_before(tools, n
     lines, report = post_program(tp, tools, load_machine("head-table-bc"))
     assert report["rewinds"] >= 1 and report["linearisation"]["blocks_over_tolerance"] == 0
     assert report["linearisation"]["max_deviation_mm"] <= 0.005
+
+
+def _ax(tilt, azimuth):
+    t, a = np.radians(tilt), np.radians(azimuth)
+    return np.c_[np.sin(t) * np.cos(a), np.sin(t) * np.sin(a), np.cos(t)]
+
+
+def test_long_flutes_are_measured_against_the_curve_of_each_half():
+    """A 10 -> 30 deg tilt over 50 mm with 50 mm flutes: each half is compared with the flutes'
+    path over its own part of the move (a polyline over the whole move would leave its chord
+    error, 0.0118 mm, above the tolerance however often the move is halved)."""
+    tool = Tool("B6", "ball", 6.0, 3.0, 50.0, 60.0, 6.0, number=1)
+    tp = Toolpath(np.array([[0.0, 0, 10], [0.0, 0, 0], [50.0, 0, 0]]), _ax([10, 10, 30], [0, 0, 0]),
+                  np.array([True, False, False]), np.zeros(3, int))
+    for name in ("table-table-ac", "head-table-bc"):
+        _, report = post_program(tp, [tool], load_machine(name))
+        lin = report["linearisation"]
+        assert lin["blocks_over_tolerance"] == 0 and lin["max_deviation_mm"] <= 0.005 and lin["blocks_added"] < 200
+
+
+@pytest.mark.parametrize("name", ["table-table-ac", "head-table-bc", "head-head-ca"])
+@pytest.mark.parametrize("first", [0.0, 0.02, 0.04])
+def test_leaving_the_pole_does_not_swing_c_in_the_cut(name, first):
+    """From vertical, through a pose `first` deg off the pole (inside the 0.05 deg cone, C held), to
+    2, 4, 6 deg at azimuth 90 with the tip 150 mm off C's axis: the blocks keep C from swinging
+    where the axis hardly moves, and stay within the tolerance."""
+    tool = Tool("B6", "ball", 6.0, 3.0, 6.0, 30.0, 6.0, holder_diameter=30, holder_length=40, number=1)
+    tip = np.c_[np.full(6, 150.0), np.arange(6) * 2.0, np.r_[10, 0, 0, 0, 0, 0]]
+    tp = Toolpath(tip, _ax([0, 0, first, 2, 4, 6], [0, 0, 0, 90, 90, 90]), np.array([1, 0, 0, 0, 0, 0], bool),
+                  np.zeros(6, int))
+    _, report = post_program(tp, [tool], load_machine(name), feed=10.0)
+    assert report["linearisation"]["max_deviation_mm"] <= 0.005 and report["linearisation"]["blocks_added"] < 40
+
+
+def test_a_swing_to_the_other_solution_leaves_the_pose_before_within_travel():
+    """head-table-bc with C in [-200, 400] and B in [-120, 30]: beyond B +30 the tool swings over
+    (C + 180); C -198.3 would leave the pose before at -200.2, beyond travel; C 161.7 does not."""
+    base = load_machine("head-table-bc")
+    machine = replace(base, limits={**base.limits, "B": (-120.0, 30.0), "C": (-200.0, 400.0)})
+    tool = Tool("B6", "ball", 6.0, 3.0, 6.0, 30.0, 6.0, holder_diameter=30, holder_length=40, number=1)
+    axis = _ax([28, 29.2, 30.48, 32], [21, 20.234, 18.3, 17])
+    tip = np.c_[np.linspace(0, 10, 4), np.zeros(4), np.zeros(4)]
+    tp = Toolpath(np.r_[tip[:1] + [0, 0, 20], tip], np.r_[axis[:1], axis], np.array([1, 0, 0, 0, 0], bool),
+                  np.zeros(5, int))
+    _, report = post_program(tp, [tool], machine, feed=10.0)
+    assert report["rewinds"] == 1 and report["linearisation"]["max_deviation_mm"] <= 0.005
+
+
+def test_a_turn_across_the_end_of_a_one_turn_travel_is_refused(tools):
+    """C in [0, 360] cannot unwind: a path turning through its end is refused, naming the move."""
+    base = load_machine("head-table-bc")
+    machine = replace(base, limits={**base.limits, "C": (0.0, 360.0)})
+    phi = np.arange(-341.0, -420.0, -5.0)  # C = -azimuth on the head-table: 341 up past 360 (no pose on it)
+    axis = _ax(np.full(len(phi), 30.0), phi)
+    tip = np.c_[30 * np.cos(np.radians(phi)), 30 * np.sin(np.radians(phi)), np.zeros(len(phi))]
+    tp = Toolpath(np.r_[tip[:1] + [0, 0, 20], tip], np.r_[axis[:1], axis], np.r_[True, np.zeros(len(phi), bool)],
+                  np.ones(len(phi) + 1, int))
+    with pytest.raises(InputError, match=r"move \d+: the rotaries turn 35\d\.\d deg .* check the rotaries' travel"):
+        post_program(tp, tools, machine)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import string
 from dataclasses import dataclass, field
 
@@ -275,6 +276,8 @@ def _gcode(table, where) -> dict:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
                 raise InputError(f"{where} '{key}' must be a positive number, got {value!r}")
             value = float(value)
+            if key == "rpm" and value >= MAX_RPM:
+                raise InputError(f"{where} 'rpm' must be below {MAX_RPM:g} rev/min, got {value:g}")
         elif not isinstance(value, str):
             raise InputError(f"{where} '{key}' must be a string, got {value!r}")
         elif key == "rapid" and value not in RAPIDS:
@@ -291,7 +294,10 @@ def _gcode(table, where) -> dict:
 TOOL_FIELDS = ("number", "name", "rpm")
 TEMPLATE_FIELDS = {"tool_change": TOOL_FIELDS, "tool_length": TOOL_FIELDS, "spindle": TOOL_FIELDS,
                    "coolant_on": TOOL_FIELDS, "tcp": TOOL_FIELDS, "comment": ("text",)}
-SAMPLE = {"number": 1, "name": "T1", "rpm": 10000, "text": "comment"}
+SAMPLES = ({"number": 1, "name": "T1", "rpm": 1, "text": "comment"},  # the extremes a text is filled in with
+           {"number": 999, "name": "a tool name of forty characters, or so..", "rpm": 999999, "text": "c" * 200})
+MAX_RPM = 1e6  # rev/min: spindle speeds below this (tool tables too)
+MAX_LINE = 1000  # characters a filled-in text may have
 
 
 def _check_template(text, key, fields, where):
@@ -302,13 +308,19 @@ def _check_template(text, key, fields, where):
         names = [f for _, f, _, _ in string.Formatter().parse(text) if f is not None]
     except ValueError as exc:
         raise InputError(f"{where} '{key}' = {text!r}: {exc} (write a brace as {{{{ or }}}})") from None
+    for _, name, spec, _ in string.Formatter().parse(text):
+        if spec and ("{" in spec or any(int(w) > MAX_LINE for w in re.findall(r"\d+", spec))):
+            raise InputError(f"{where} '{key}' = {text!r}: the format spec ':{spec}' of {{{name}}} is too wide or nested")
     bad = [f for f in names if f not in fields]
     if bad:
         raise InputError(f"{where} '{key}' = {text!r}: unknown field {{{bad[0]}}} (known here: {known})")
-    try:
-        text.format(**{f: SAMPLE[f] for f in fields})
-    except (KeyError, IndexError, ValueError) as exc:
-        raise InputError(f"{where} '{key}' = {text!r}: {exc}") from None
+    for sample in SAMPLES:
+        try:
+            filled = text.format(**{f: sample[f] for f in fields})
+        except (KeyError, IndexError, ValueError, OverflowError, MemoryError) as exc:
+            raise InputError(f"{where} '{key}' = {text!r}: {exc}") from None
+        if len(filled) > MAX_LINE + len(sample["text"]):
+            raise InputError(f"{where} '{key}' = {text!r}: fills in to {len(filled)} characters (a format width?)")
 
 
 SECTIONS = {"motion": _motion, "axes": _axes, "kinematics": _kinematics, "gcode": _gcode}  # section -> reader

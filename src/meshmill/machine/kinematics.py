@@ -360,8 +360,11 @@ class _Rotaries:
         tilt, turn = nearest[0]
         if self._inside(tilt, turn):
             return tilt, turn, False
-        within = [(_into_travel(tilt, self.tilt_travel), _into_travel(turn, self.turn_travel, turn_before))
-                  for tilt, turn in nearest]
+        # the pose before, on each solution (the other one: its turn 180 deg on, next to this turn)
+        before = [turn_before if abs(tilt - tilt_before) <= abs(tilt + tilt_before) else
+                  _nearest_turn(turn_before + 180.0, turn) for tilt, turn in nearest]
+        within = [(_into_travel(tilt, self.tilt_travel), _into_travel(turn, self.turn_travel, prior))
+                  for (tilt, turn), prior in zip(nearest, before)]
         for tilt, turn in within:
             if self._inside(tilt, turn):
                 return tilt, turn, True
@@ -390,20 +393,23 @@ def _beyond(value, travel):
 
 def _into_travel(angle, travel, previous=None):
     """The equivalent ``angle + 360 m`` (deg) within ``travel`` ((low, high) or None) farthest
-    from the end ``angle`` passed, so that a path that keeps turning the same way has the most
-    travel ahead before it must unwind again; with ``previous`` (the
-    pose before, deg), only whole turns ``m`` that bring it within travel too, so that the pose
-    before can be solved next to this one (the post retracts there and jumps by those turns); the
-    angle itself when inside; where no equivalent is inside (travel under 360 deg), the one
-    nearest the travel."""
-    if travel is None or _beyond(angle, travel) == 0.0:
+    from the end ``angle`` passed (from ``previous`` on, or beyond an end), so that a path that keeps
+    turning the same way has the most travel ahead before it must unwind again; with ``previous``
+    (the pose before on the same solution, deg), only whole turns ``m`` that bring it within travel
+    too where there are such, so that the pose before can be solved next to this one (the post
+    retracts there and jumps); the angle itself when both are inside already; where no equivalent
+    is inside (travel under 360 deg), the one nearest the travel."""
+    if travel is None:
+        return angle
+    if _beyond(angle, travel) == 0.0 and (previous is None or _beyond(previous, travel) == 0.0):
         return angle
     low, high = travel
     turns = range(math.ceil((low - angle - LIMIT_TOLERANCE) / 360.0), math.floor((high - angle + LIMIT_TOLERANCE) / 360.0) + 1)
     inside = [m for m in turns if _beyond(angle + 360.0 * m, travel) == 0.0]
     both = [m for m in inside if previous is None or _beyond(previous + 360.0 * m, travel) == 0.0]
     if both or inside:
-        m = (min if angle > high else max)(both or inside)  # passed the top: the lowest equivalent
+        rising = angle > previous if previous is not None else angle > high
+        m = (min if rising else max)(both or inside)  # turning up: the lowest equivalent, most travel ahead
         return angle + 360.0 * m
     near = [angle + 360.0 * m for m in range(-int(abs(angle) // 360) - 2, int(abs(angle) // 360) + 3)]
     return min(near, key=lambda a: _beyond(a, travel) if _beyond(a, travel) > 0 else math.inf)

@@ -66,6 +66,8 @@ from .kinematics import VERTICAL_TOLERANCE, AxisLimitError, angle_step, forward,
 SAMPLES = 16  # points inside a block where the joint-linear tip is compared with the CL segment
 MAX_DEPTH = 10  # one CL move is halved at most this deep (1024 blocks); beyond, the deviation is reported
 GROSS_STRAY = 1.0  # mm: a block that still strays this far after MAX_DEPTH halvings is refused
+POLE_REACH = 10.0  # within this many pole cones (chain.singular) a midpoint may keep C from swinging
+POLE_WARNING_DEG = 2.0  # a refused move whose axis passes this near the pole is blamed on the pole
 MIN_BLOCK_S = 0.006  # s: the shortest G93 block time written (F <= 10000 / min; one interpolation cycle or so)
 CURVE_PIECES = 8  # the path of the flutes' top in a CL move (a curve) is checked as this many segments
 SWING_SAMPLES = 65  # poses of a rotary jump checked for its lowest tip
@@ -101,8 +103,10 @@ def format_number(value, decimals) -> str:
 
 def _fill(template, tool, rpm):
     """A tool's ``[gcode]`` text (checked when the machine file was read) with ``{number}``,
-    ``{name}`` and ``{rpm}`` (rev/min, an integer) filled in."""
-    return template.format(number=tool.number, name=tool.name, rpm=int(round(rpm)))
+    ``{name}`` (on one line, without the characters that start or end a comment) and ``{rpm}``
+    (rev/min, an integer) filled in."""
+    name = " ".join(tool.name.split()).replace("(", "[").replace(")", "]").replace("%", "").replace(";", ",")
+    return template.format(number=tool.number, name=name, rpm=int(round(rpm)))
 
 
 def _comment(gcode, text):
@@ -230,12 +234,15 @@ class _Linearisation:
         self.largest = 0.0  # mm, over every accepted block
         self.over = 0  # blocks left beyond the tolerance at MAX_DEPTH
 
-    def deviation(self, ja, jb, p0, p1, a0, a1):
+    def deviation(self, ja, jb, p0, p1, a0, a1, s0=None, s1=None):
         """Largest distance (m,) mm of the joint-linear motion ``ja (m, n)`` -> ``jb (m, n)`` (at
         its ends and SAMPLES points between) from the CL move: of its tip from the segments ``p0
         (m, 3)`` -> ``p1 (m, 3)``, and of its point ``flutes`` up the axis from that point's path
         in the CL move (the tip on the segment, the axis on the great circle from ``a0`` to ``a1``
-        (m, 3): a curve, taken as a polyline of ``CURVE_PIECES``)."""
+        (m, 3): a curve, taken as a polyline of ``CURVE_PIECES`` between the fractions ``s0`` and
+        ``s1`` (m,) of the move that the motion stands for; default the whole move)."""
+        s0 = np.zeros(len(ja)) if s0 is None else np.asarray(s0, np.float64)
+        s1 = np.ones(len(ja)) if s1 is None else np.asarray(s1, np.float64)
         s = np.linspace(0.0, 1.0, SAMPLES + 2)
         out = np.empty(len(ja))
         for c in range(0, len(ja), DEVIATION_CHUNK):
@@ -244,22 +251,30 @@ class _Linearisation:
             tip, axis = forward(self.machine, joints.reshape(-1, a.shape[1]), self.tool_length, self.tcp)
             tip, axis = tip.reshape(len(a), len(s), 3), axis.reshape(len(a), len(s), 3)
             q0, q1 = p0[c:c + DEVIATION_CHUNK], p1[c:c + DEVIATION_CHUNK]
-            g = np.linspace(0.0, 1.0, CURVE_PIECES + 1)
-            curve = (q0[:, None, :] + g[None, :, None] * (q1 - q0)[:, None, :]
+            lo, hi = s0[c:c + DEVIATION_CHUNK, None], s1[c:c + DEVIATION_CHUNK, None]
+            g = lo + np.linspace(0.0, 1.0, CURVE_PIECES + 1)[None, :] * (hi - lo)  # (m, pieces + 1)
+            curve = (q0[:, None, :] + g[..., None] * (q1 - q0)[:, None, :]
                      + self.flutes * _great_circle_path(a0[c:c + DEVIATION_CHUNK], a1[c:c + DEVIATION_CHUNK], g))
             upper = tip + self.flutes * axis
             off = np.min([_off_segment(upper, curve[:, k], curve[:, k + 1]) for k in range(CURVE_PIECES)], axis=0)
             out[c:c + DEVIATION_CHUNK] = np.maximum(_peak(_off_segment(tip, q0, q1)), _peak(off))
         return out
 
-    def accept(self, deviation, move):
+    def accept(self, deviation, move, turn=0.0):
         """Count a block of CL move ``move`` that strays ``deviation`` mm; a block that strays
-        more than :data:`GROSS_STRAY` after every halving is an InputError (a jump of the rotaries
-        within the move, not a curve that more blocks would follow)."""
+        more than :data:`GROSS_STRAY` after every halving is an InputError: the rotaries turn
+        ``turn`` deg in the move where the tip cannot follow (near the pole, or across the end of
+        a rotary's travel), which more blocks would not fix."""
         if deviation > GROSS_STRAY:
-            raise InputError(f"{_where(self.tp, move)}: the joint-linear motion strays {deviation:.3f} mm from the CL "
-                             f"move after {MAX_DEPTH} halvings: the rotaries jump within it (check the machine's "
-                             "travel and kinematics)")
+            a0, a1 = self.tp.axis[move - 1], self.tp.axis[move]
+            circle = _great_circle_path(a0[None] / np.linalg.norm(a0), a1[None] / np.linalg.norm(a1),
+                                        np.linspace(0.0, 1.0, 65))[0]
+            pole = float(np.degrees(np.arccos(np.clip(np.abs(circle[:, 2]), 0.0, 1.0))).min())
+            why = (f"the tool axis passes {pole:.3f} deg from the pole of the rotaries, where C must swing: tilt "
+                   "the path away from it (a lead or tilt angle) or post with TCP" if pole < POLE_WARNING_DEG else
+                   "check the rotaries' travel (a move across the end of a travel under two turns cannot unwind)")
+            raise InputError(f"{_where(self.tp, move)}: the rotaries turn {turn:.1f} deg in this move and its "
+                             f"joint-linear motion strays {deviation:.3f} mm from it after {MAX_DEPTH} halvings: {why}")
         self.largest = max(self.largest, float(deviation))
         self.over += int(deviation > self.tolerance)
 
@@ -276,15 +291,17 @@ class _Linearisation:
         for depth in range(1, MAX_DEPTH + 1):
             if not open_:
                 break
-            mids = [self._midpoint(moves[k], a0[k], a1[k], j0[k], j1[k], 0.5 * (s0 + s1), ja)
+            mids = [self._midpoint(moves[k], a0[k], a1[k], j0[k], j1[k], 0.5 * (s0 + s1), ja, jb)
                     for k, s0, s1, ja, jb in open_]
             ks = np.array([o[0] for o in open_])
             ja = np.array([o[3] for o in open_])
             jb = np.array([o[4] for o in open_])
             jm = np.array(mids)
             p0, p1 = self.tp.tip[moves[ks] - 1], self.tp.tip[moves[ks]]
+            lo, hi = np.array([o[1] for o in open_]), np.array([o[2] for o in open_])
+            mid = 0.5 * (lo + hi)
             both = self.deviation(np.r_[ja, jm], np.r_[jm, jb], np.r_[p0, p0], np.r_[p1, p1],
-                                  np.r_[a0[ks], a0[ks]], np.r_[a1[ks], a1[ks]])
+                                  np.r_[a0[ks], a0[ks]], np.r_[a1[ks], a1[ks]], np.r_[lo, mid], np.r_[mid, hi])
             left, right = both[:len(open_)], both[len(open_):]
             still = []
             for (k, s0, s1, ja_, jb_), j, dl, dr in zip(open_, mids, left, right):
@@ -294,7 +311,7 @@ class _Linearisation:
                     if d > self.tolerance and depth < MAX_DEPTH:
                         still.append(half)
                     else:
-                        self.accept(d, int(moves[k]))
+                        self.accept(d, int(moves[k]), float(np.abs(j1[k][3:] - j0[k][3:]).max()))
             open_ = still
         out = []
         for pieces in inserted:
@@ -302,17 +319,28 @@ class _Linearisation:
             out.append((np.array([sj[0] for sj in pieces]), np.array([sj[1] for sj in pieces])))
         return out
 
-    def _midpoint(self, move, a0, a1, j0, j1, sm, ja):
-        """The joints (n,) at fraction ``sm`` of CL move ``move``, solved next to ``ja``: a rapid's
-        rotaries turn joint-linearly between ``j0`` and ``j1`` with X Y Z keeping the tip on the
-        CL segment; a feed move's axis is on the great circle from ``a0`` to ``a1``."""
+    def _midpoint(self, move, a0, a1, j0, j1, sm, ja, jb):
+        """The joints (n,) at fraction ``sm`` of CL move ``move``, the middle of the interval whose
+        ends are ``ja`` and ``jb`` (n,): the rotaries halfway between them and X Y Z putting the tip
+        on the CL segment, when that keeps the axis within half the tolerance (at the flutes' top),
+        or, within POLE_REACH pole cones of the pole, within the cone's angle (``chain.singular``,
+        the axis error the pole hold allows), of the great circle from ``a0`` to ``a1`` (always for
+        a rapid, whose axis is free); else
+        the pose with its axis on the great circle, solved next to ``ja`` (near the pole of the
+        rotaries the first keeps C from swinging where the axis hardly moves)."""
         p0, p1 = self.tp.tip[move - 1], self.tp.tip[move]
+        target = p0 + sm * (p1 - p0)
+        jm = 0.5 * (ja + jb)
+        tip, axis = forward(self.machine, jm[None], self.tool_length, self.tcp)
+        jm = _retract_joints(self.machine, jm, target - tip[0], self.tool_length, self.tcp)
         if self.rapid:
-            jm = j0 + sm * (j1 - j0)
-            tip, _ = forward(self.machine, jm[None], self.tool_length, self.tcp)
-            return _retract_joints(self.machine, jm, p0 + sm * (p1 - p0) - tip[0], self.tool_length, self.tcp)
-        return _solve(self.machine, self.tp, move, (p0 + sm * (p1 - p0))[None], _great_circle(a0, a1, [sm]),
-                      self.tool_length, self.tcp, ja)[0][0]
+            return jm
+        want = _great_circle(a0, a1, [sm])[0]
+        off = np.linalg.norm(axis[0] - want)  # rad, about
+        near_pole = math.acos(min(1.0, abs(want[2]))) < POLE_REACH * self.machine.chain.singular
+        if self.flutes * off <= 0.5 * self.tolerance or (near_pole and off <= self.machine.chain.singular):
+            return jm
+        return _solve(self.machine, self.tp, move, target[None], want[None], self.tool_length, self.tcp, ja)[0][0]
 
 
 def _peak(samples):
@@ -358,14 +386,15 @@ class _Blocks:
 
 
 def _great_circle_path(a0, a1, g):
-    """Unit axes ``(m, len(g), 3)`` at fractions ``g`` of the great circles from ``a0`` to ``a1``
-    ``(m, 3)`` (slerp; the straight mix, normalised, where they nearly agree)."""
+    """Unit axes ``(m, q, 3)`` at fractions ``g`` ((q,), or (m, q) per row) of the great circles
+    from ``a0`` to ``a1`` ``(m, 3)`` (slerp; the straight mix, normalised, where they nearly agree)."""
     cos = np.clip(np.einsum("ij,ij->i", a0, a1), -1.0, 1.0)
     angle = np.arccos(cos)[:, None]
     sin = np.sin(angle)
     safe = sin > 1e-9
-    w0 = np.where(safe, np.sin((1.0 - g)[None, :] * angle) / np.where(safe, sin, 1.0), 1.0 - g[None, :])
-    w1 = np.where(safe, np.sin(g[None, :] * angle) / np.where(safe, sin, 1.0), g[None, :])
+    g = np.broadcast_to(g, (len(a0), np.shape(g)[-1]))
+    w0 = np.where(safe, np.sin((1.0 - g) * angle) / np.where(safe, sin, 1.0), 1.0 - g)
+    w1 = np.where(safe, np.sin(g * angle) / np.where(safe, sin, 1.0), g)
     out = w0[..., None] * a0[:, None, :] + w1[..., None] * a1[:, None, :]
     return out / np.linalg.norm(out, axis=2, keepdims=True)
 
@@ -689,7 +718,8 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
         raise InputError(f"the linearisation tolerance must be a positive number of mm, got {tolerance}")
     if len(toolpath) == 0:
         raise InputError("the tool path has no moves")
-    if clearance is not None and not (isinstance(clearance, numbers.Real) and abs(clearance) <= MAX_COORDINATE):
+    if clearance is not None and (isinstance(clearance, bool) or not isinstance(clearance, numbers.Real)
+                                  or not abs(clearance) <= MAX_COORDINATE):
         raise InputError(f"the clearance must be a Z in mm (|Z| <= {MAX_COORDINATE:g}), got {clearance}")
     if origin is not None:
         origin = np.asarray(origin, np.float64)
@@ -718,7 +748,7 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
     top = float(toolpath.tip[:, 2].max())
     if given is not None and not five_axis:
         warnings.append(f"the clearance (Z {given:g}) is not used on a 3-axis machine: it has no rotaries to jump")
-    elif given is not None and given < top:
+    elif given is not None and given < top and stats["rewinds"]:
         warnings.append(f"the clearance Z {given:g} is below the path's highest tip (Z {top:g}): where the rotaries "
                         "jump, the tool stays above it, lower than the path's own rapids")
     if mode == "5-axis joints" and machine.chain.head_pivot:
