@@ -282,8 +282,8 @@ class _Linearisation:
         """Poses inserted into the CL feed moves ``moves (r,)`` (tips ``tp.tip[move - 1]`` ->
         ``tp.tip[move]``, unit axes ``a0`` -> ``a1`` (r, 3)) whose joints ``j0`` -> ``j1`` (r, n)
         stray beyond the tolerance: per move ``(s (q,), joints (q, n))`` in order, ``s`` the
-        fractions of the move (tip on the segment, axis on the great circle), each half split
-        again while it strays, MAX_DEPTH deep. The halvings of all moves are measured together,
+        fractions of the move (see :meth:`_midpoint`), each half split again while it strays,
+        MAX_DEPTH deep. The halvings of all moves are measured together,
         one depth at a time."""
         inserted = [[] for _ in moves]
         # open intervals: (index into moves, s0, s1, joints at s0, joints at s1)
