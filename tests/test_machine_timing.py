@@ -271,6 +271,7 @@ def test_machine_files_load():
     (MACHINE_TOML + "[kinematics]\nsingular_deg = 45\n", ["'singular_deg'"]),
     (MACHINE_TOML + "[gcode]\ndialect = 'heidenhain'\n", ["'dialect'"]),
     (MACHINE_TOML + "[gcode]\ndecimals = 12\n", ["'decimals'"]),
+    (MACHINE_TOML + "[gcode]\nangle_decimals = 0\n", ["'angle_decimals'", "from 2 to 8"]),
     (MACHINE_TOML + "[gcode]\ninverse_time = 'yes'\n", ["'inverse_time'"]),
     (MACHINE_TOML + "[gcode]\nstart = 'G21'\n", ["'start'"]),
     (MACHINE_TOML + "[gcode]\nbeep = 1\n", ["unknown key 'beep'"]),

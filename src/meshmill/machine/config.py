@@ -270,8 +270,9 @@ def _gcode(table, where) -> dict:
             if not isinstance(value, bool):
                 raise InputError(f"{where} '{key}' must be true or false, got {value!r}")
         elif want is int:
-            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 8:
-                raise InputError(f"{where} '{key}' must be an integer from 0 to 8, got {value!r}")
+            if isinstance(value, bool) or not isinstance(value, int) or not 2 <= value <= 8:
+                raise InputError(f"{where} '{key}' must be an integer from 2 to 8 (places after the point: "
+                                 f"fewer round a tool path by 0.05 mm or 0.05 deg and more), got {value!r}")
         elif want is float:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
                 raise InputError(f"{where} '{key}' must be a positive number, got {value!r}")
