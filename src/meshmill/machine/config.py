@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 from ..errors import InputError
 from ..tomlfile import read_toml
+from ..tools.table import MAX_RPM
 from .timing import Kinematics
 
 SHIPPED = os.path.join(os.path.dirname(os.path.dirname(__file__)), "data", "machines")
@@ -297,7 +298,6 @@ TEMPLATE_FIELDS = {"tool_change": TOOL_FIELDS, "tool_length": TOOL_FIELDS, "spin
                    "coolant_on": TOOL_FIELDS, "tcp": TOOL_FIELDS, "comment": ("text",)}
 SAMPLES = ({"number": 1, "name": "T1", "rpm": 1, "text": "comment"},  # the extremes a text is filled in with
            {"number": 999, "name": "a tool name of forty characters, or so..", "rpm": 999999, "text": "c" * 200})
-MAX_RPM = 1e6  # rev/min: spindle speeds below this (tool tables too)
 MAX_LINE = 1000  # characters a filled-in text may have
 
 

@@ -101,17 +101,20 @@ def format_number(value, decimals) -> str:
     return text[1:] if text.startswith("-") and not text.strip("-0.") else text
 
 
+def _clean(text):
+    """``text`` on one line without the characters that would end a comment or the program early:
+    ``(`` ``)`` become ``[`` ``]``, ``%`` is dropped."""
+    return " ".join(text.replace("(", "[").replace(")", "]").replace("%", "").split())
+
+
 def _fill(template, tool, rpm):
     """A tool's ``[gcode]`` text (checked when the machine file was read) with ``{number}``,
-    ``{name}`` (on one line, without the characters that start or end a comment) and ``{rpm}``
-    (rev/min, an integer) filled in."""
-    name = " ".join(tool.name.split()).replace("(", "[").replace(")", "]").replace("%", "").replace(";", ",")
-    return template.format(number=tool.number, name=name, rpm=int(round(rpm)))
+    ``{name}`` (:func:`_clean`, ``;`` as ``,``) and ``{rpm}`` (rev/min, an integer) filled in."""
+    return template.format(number=tool.number, name=_clean(tool.name).replace(";", ","), rpm=int(round(rpm)))
 
 
 def _comment(gcode, text):
-    clean = " ".join(text.replace("(", "[").replace(")", "]").replace("%", "").split())
-    return gcode.comment.format(text=clean)
+    return gcode.comment.format(text=_clean(text))
 
 
 def _where(tp, move):
@@ -286,13 +289,13 @@ class _Linearisation:
         MAX_DEPTH deep. The halvings of all moves are measured together,
         one depth at a time."""
         inserted = [[] for _ in moves]
+        turn = np.abs(j1[:, 3:] - j0[:, 3:]).max(axis=1)  # deg, the rotaries' change over each move
         # open intervals: (index into moves, s0, s1, joints at s0, joints at s1)
         open_ = [(k, 0.0, 1.0, j0[k], j1[k]) for k in range(len(moves))]
         for depth in range(1, MAX_DEPTH + 1):
             if not open_:
                 break
-            mids = [self._midpoint(moves[k], a0[k], a1[k], j0[k], j1[k], 0.5 * (s0 + s1), ja, jb)
-                    for k, s0, s1, ja, jb in open_]
+            mids = [self._midpoint(moves[k], a0[k], a1[k], 0.5 * (s0 + s1), ja, jb) for k, s0, s1, ja, jb in open_]
             ks = np.array([o[0] for o in open_])
             ja = np.array([o[3] for o in open_])
             jb = np.array([o[4] for o in open_])
@@ -311,7 +314,7 @@ class _Linearisation:
                     if d > self.tolerance and depth < MAX_DEPTH:
                         still.append(half)
                     else:
-                        self.accept(d, int(moves[k]), float(np.abs(j1[k][3:] - j0[k][3:]).max()))
+                        self.accept(d, int(moves[k]), float(turn[k]))
             open_ = still
         out = []
         for pieces in inserted:
@@ -319,7 +322,7 @@ class _Linearisation:
             out.append((np.array([sj[0] for sj in pieces]), np.array([sj[1] for sj in pieces])))
         return out
 
-    def _midpoint(self, move, a0, a1, j0, j1, sm, ja, jb):
+    def _midpoint(self, move, a0, a1, sm, ja, jb):
         """The joints (n,) at fraction ``sm`` of CL move ``move``, the middle of the interval whose
         ends are ``ja`` and ``jb`` (n,): the rotaries halfway between them and X Y Z putting the tip
         on the CL segment, when that keeps the axis within half the tolerance (at the flutes' top),

@@ -18,6 +18,7 @@ from ..errors import InputError
 from ..tomlfile import read_toml
 
 TYPES = ("ball", "flat", "bull")
+MAX_RPM = 1e6  # rev/min: spindle speeds are below this (tool tables and machines)
 RING_POINTS = 36  # spheres along the torus of a bull-nose cutter in verification
 
 
@@ -182,8 +183,8 @@ def tool_from_entry(entry: dict, number: int, where: str) -> Tool:
     if holder_d < 0 or holder_l < 0 or (holder_d > 0 and holder_l <= 0):
         raise InputError(f"{where}: holder_diameter and holder_length must be > 0 mm")
     rpm = entry.get("rpm", 0)
-    if "rpm" in entry and (isinstance(rpm, bool) or not isinstance(rpm, (int, float)) or not 1 <= rpm < 1e6):
-        raise InputError(f"{where}: 'rpm' must be a spindle speed from 1 to 999999 rev/min "
+    if "rpm" in entry and (isinstance(rpm, bool) or not isinstance(rpm, (int, float)) or not 1 <= rpm < MAX_RPM):
+        raise InputError(f"{where}: 'rpm' must be a spindle speed from 1 to {MAX_RPM - 1:g} rev/min "
                          f"(or left out for the machine's), got {rpm!r}")
     return Tool(name=name, type=kind, diameter=d, corner_radius=rc, flute_length=flute, gauge_length=gauge,
                 shank_diameter=shank, holder_diameter=holder_d, holder_length=holder_l if holder_d > 0 else 0.0,
