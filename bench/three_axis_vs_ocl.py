@@ -69,7 +69,7 @@ def ocl_loops(cls, surf, cutter, z, sampling):
 
 def bench_drop(part, n):
     path = os.path.join(PARTS, part + ".stl")
-    mesh = load_mesh(path)
+    mesh = load_mesh(path, flip=os.path.basename(str(path)) == "beet_mm.stl")  # beet_mm is wound inside out
     bvh = build_bvh(mesh.vertices, mesh.faces)
     surf = ocl_surface(path)
     lo, hi = mesh.bounds
@@ -102,7 +102,7 @@ def bench_drop(part, n):
 
 def bench_waterline(part, levels):
     path = os.path.join(PARTS, part + ".stl")
-    mesh = load_mesh(path)
+    mesh = load_mesh(path, flip=os.path.basename(str(path)) == "beet_mm.stl")  # beet_mm is wound inside out
     surf = ocl_surface(path)
     lo, hi = mesh.bounds
     sampling = float((hi[:2] - lo[:2]).max() / 500)
@@ -175,7 +175,7 @@ def bench_waterline(part, levels):
 def bench_flat_levels(part, levels):
     """Loop counts at levels that lie exactly on flat facets of the part: ours and ``Waterline``'s."""
     path = os.path.join(PARTS, part + ".stl")
-    mesh = load_mesh(path)
+    mesh = load_mesh(path, flip=os.path.basename(str(path)) == "beet_mm.stl")  # beet_mm is wound inside out
     surf = ocl_surface(path)
     sampling = float((mesh.bounds[1, :2] - mesh.bounds[0, :2]).max() / 500)
     cutter = ocl.BallCutter(6.0, 30.0)  # kept alive: OpenCAMLib holds a bare pointer to it

@@ -83,3 +83,22 @@ def one_line_error(capsys, argv):
     assert rc == 2
     assert len(err) == 1 and err[0].startswith("meshmill: error:")
     return err[0]
+
+
+def propeller_like():
+    """``(vertices, faces)`` of a propeller-like part, wound outward: a hub (solid of revolution)
+    whose shaft ends are open, the top hole wider than the bottom one, so that the hub's boundary
+    loops enclose a vector area pointing down (a rule "open pieces face up" would turn it inside
+    out), and three blades through it."""
+    from meshmill.geometry.shapes import box, revolve
+
+    hub = revolve([0, 2, 8, 8, 3, 0], [0, 0, 0, 12, 12, 12], segments=48)
+    on_axis = np.nonzero(np.abs(hub.vertices[:, :2]).sum(axis=1) < 1e-9)[0]
+    parts_v, parts_f = [hub.vertices], [hub.faces[~np.isin(hub.faces, on_axis).any(axis=1)]]  # both fans: holes
+    for k in range(3):
+        a = 2 * np.pi * k / 3
+        blade = box([6, -0.8, 3], [22, 0.8, 9])
+        rot = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+        parts_f.append(blade.faces + sum(len(p) for p in parts_v))
+        parts_v.append(blade.vertices @ rot.T)
+    return np.vstack(parts_v), np.vstack(parts_f)

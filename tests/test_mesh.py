@@ -9,6 +9,8 @@ from meshmill.errors import InputError
 from meshmill.geometry.mesh import load_mesh, mesh_from_arrays
 from meshmill.geometry.shapes import box, sphere
 
+from conftest import propeller_like
+
 PARTS = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared" / "parts"
 
 
@@ -49,11 +51,14 @@ def test_degenerate_triangles_are_dropped_and_counted():
     assert any("degenerate" in w for w in m.warnings)
 
 
-def test_inward_winding_is_flipped():
+def test_inside_out_closed_mesh_is_refused_and_flip_turns_it():
     b = box([0, 0, 0], [1, 1, 1])
-    m = mesh_from_arrays(b.vertices, b.faces[:, ::-1])
-    assert m.flipped
+    with pytest.raises(InputError, match="inside out.*--flip"):
+        mesh_from_arrays(b.vertices, b.faces[:, ::-1])
+    m = mesh_from_arrays(b.vertices, b.faces[:, ::-1], flip=True)
+    assert m.flipped and m.turned_faces == 0
     assert np.allclose(m.face_normals, b.face_normals)
+    assert any("--flip" in w for w in m.warnings)
 
 
 def test_open_mesh_warns():
@@ -99,22 +104,51 @@ def test_unsupported_extension(tmp_path):
         load_mesh(p)
 
 
-def test_scrambled_winding_is_made_consistent_and_outward():
+def test_scrambled_winding_is_made_consistent_by_neighbour_agreement():
     s = sphere(5.0, 12, 24)
     F = s.faces.copy()
     rng = np.random.default_rng(3)
     bad = rng.random(len(F)) < 0.4
     F[bad] = F[bad][:, ::-1]
     m = mesh_from_arrays(s.vertices, F)
-    assert m.closed and m.flipped
+    assert m.closed and not m.flipped and m.turned_faces == bad.sum()
     centre = m.vertices[m.faces].mean(axis=1)
     assert (np.einsum("ij,ij->i", m.face_normals, centre) > 0).all()
+    assert any("against their neighbours" in w for w in m.warnings)
+
+
+def test_consistently_wound_open_part_keeps_its_winding():
+    v, f = propeller_like()
+    m = mesh_from_arrays(v, f, "propeller")
+    assert not m.flipped and m.turned_faces == 0
+    assert m.summary()["pieces"] == {"closed": 3, "with_holes": 1, "sheets": 0}
+    hub = m.piece == m.piece[0]
+    centre = m.vertices[m.faces[hub]].mean(axis=1) - [0, 0, 6]
+    assert (np.einsum("ij,ij->i", m.face_normals[hub], centre) > 0).all()  # still facing out of the hub
+    s = m.solid()
+    assert s.caps == 2 * 48 and s.curtains == 0
+    # the hub is material right up to its open ends, which are capped
+    from meshmill.kernels.backend import solid_kernels
+    inside = solid_kernels(m).points_inside(np.array([[0.0, 0, 6], [0, 0, 11.99], [0, 0, 12.01], [8.5, 0, 1]]))
+    assert inside.tolist() == [True, True, False, False]
+
+
+def test_open_surface_facing_down_is_named_and_flip_turns_it():
+    v = np.array([[0, 0, 0], [10, 0, 0], [10, 10, 1], [0, 10, 1]], float)
+    down = np.array([[0, 2, 1], [0, 3, 2]])
+    m = mesh_from_arrays(v, down, "sheet")
+    assert not m.flipped and m.summary()["pieces"]["sheets"] == 1
+    assert any("away from the spindle" in w and "--flip" in w for w in m.warnings)
+    up = mesh_from_arrays(v, down, "sheet", flip=True)
+    assert up.face_normals[:, 2].min() > 0 and not any("away from" in w for w in up.warnings)
 
 
 @pytest.mark.skipif(not (PARTS / "beet_mm.stl").exists(), reason="shared parts not present")
-def test_inward_wound_part_with_a_slit_is_turned_outward():
+def test_inward_wound_part_with_a_slit_is_refused_then_turned_by_flip():
     # beet_mm is wound inward and one sliver triangle leaves a slit when dropped
-    m = load_mesh(PARTS / "beet_mm.stl")
+    with pytest.raises(InputError, match="inside out"):
+        load_mesh(PARTS / "beet_mm.stl")
+    m = load_mesh(PARTS / "beet_mm.stl", flip=True)
     assert m.dropped_degenerate == 1 and m.flipped
     top = m.vertices[m.faces][:, :, 2].min(axis=1) > m.bounds[1, 2] - 1.0
     assert (m.face_normals[top, 2] > 0).mean() > 0.95

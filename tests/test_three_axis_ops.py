@@ -116,7 +116,7 @@ def test_waterline_near_opencamlib(cutters, part, frac):
     path = PARTS / f"{part}.stl"
     if not path.exists():
         pytest.skip("shared parts not present")
-    m = load_mesh(path)
+    m = load_mesh(path, flip=part == "beet_mm")  # beet_mm is wound inside out
     lo, hi = m.bounds[:, 2]
     z = float(np.round(lo + frac * (hi - lo), 3))
     sampling = 0.2

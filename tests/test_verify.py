@@ -1,7 +1,6 @@
 """verify: gouges, shank collisions and rapids into the part, with their depth and place."""
 import numpy as np
 
-from meshmill.geometry.bvh import build_bvh
 from meshmill.geometry.shapes import box
 from meshmill.ops.verify import verify_toolpath
 from meshmill.toolpath.model import Toolpath
@@ -18,7 +17,7 @@ def _path(points, axes=None, rapid=None, tool=0):
 
 
 def test_ball_dipping_into_a_block_reports_the_depth_and_place(tools):
-    bvh = build_bvh(*(lambda m: (m.vertices, m.faces))(box([0, 0, 0], [20, 20, 10])))
+    bvh = box([0, 0, 0], [20, 20, 10])
     # B10 (index 1) runs along the top at tip z = 10, dips 0.2 mm at x = 10, comes back up
     tp = _path([[2, 10, 10], [10, 10, 9.8], [18, 10, 10]], tool=1)
     r = verify_toolpath(bvh, tp, tools, tol=0.01, step=0.1)
@@ -28,7 +27,7 @@ def test_ball_dipping_into_a_block_reports_the_depth_and_place(tools):
 
 
 def test_clean_path_on_top_of_a_block(tools):
-    bvh = build_bvh(*(lambda m: (m.vertices, m.faces))(box([0, 0, 0], [20, 20, 10])))
+    bvh = box([0, 0, 0], [20, 20, 10])
     tp = _path([[2, 10, 20], [2, 10, 10], [18, 10, 10], [18, 10, 20]], rapid=[True, True, False, True], tool=1)
     r = verify_toolpath(bvh, tp, tools)
     assert r["ok"] and r["max_gouge"] < 1e-12
@@ -36,7 +35,7 @@ def test_clean_path_on_top_of_a_block(tools):
 
 def test_shank_collision_against_a_wall(tools):
     m = box([0, 0, 0], [10, 10, 30])
-    bvh = build_bvh(m.vertices, m.faces)
+    bvh = m
     # B2 (R 1, shank 6 mm from 5 mm up) with its ball touching the wall x = 0: the shank enters 2 mm
     tp = _path([[-1.0, 5, 5], [-1.0, 6, 5]], tool=3)
     r = verify_toolpath(bvh, tp, tools)
@@ -47,7 +46,7 @@ def test_shank_collision_against_a_wall(tools):
 
 def test_holder_collision(tools):
     m = box([0, 0, 0], [10, 10, 100])
-    bvh = build_bvh(m.vertices, m.faces)
+    bvh = m
     # B6: R 3, shank 6 mm, holder 32 mm from 45 mm up; ball 1 mm off the wall
     tp = _path([[-4.0, 5, 5], [-4.0, 6, 5]], tool=2)
     r = verify_toolpath(bvh, tp, tools)
@@ -56,7 +55,7 @@ def test_holder_collision(tools):
 
 
 def test_rapid_through_the_part(tools):
-    bvh = build_bvh(*(lambda m: (m.vertices, m.faces))(box([0, 0, 0], [20, 20, 10])))
+    bvh = box([0, 0, 0], [20, 20, 10])
     tp = _path([[-15, 10, 5], [35, 10, 5]], rapid=[True, True], tool=1)
     r = verify_toolpath(bvh, tp, tools)
     assert r["rapid_moves_touching"] == 1 and not r["ok"]
@@ -65,7 +64,7 @@ def test_rapid_through_the_part(tools):
 def test_interpolated_axis_is_checked_between_poses(tools):
     # both end poses are clear, the swing of the axis in between sweeps the holder through a post
     post = box([-2, 30, 0], [2, 34, 60])
-    bvh = build_bvh(post.vertices, post.faces)
+    bvh = post
     a = np.array([0.0, np.sin(0.6), np.cos(0.6)])
     b = np.array([0.0, -np.sin(0.6), np.cos(0.6)])
     tp = _path([[0, 0, 0], [0, 0, 0]], axes=[b, a], tool=1)
@@ -79,7 +78,7 @@ def test_bull_nose_and_flat_are_checked(tools):
     bull = tool_from_entry(dict(name="R6", type="bull", diameter=12, corner_radius=2, flute_length=20,
                                 gauge_length=40), 1, "t")
     flat = tool_from_entry(dict(name="F6", type="flat", diameter=6, flute_length=20, gauge_length=40), 2, "t")
-    bvh = build_bvh(*(lambda m: (m.vertices, m.faces))(box([0, 0, 0], [20, 20, 10])))
+    bvh = box([0, 0, 0], [20, 20, 10])
     ok = verify_toolpath(bvh, _path([[10, 10, 10], [12, 10, 10]], tool=0), [bull, flat])
     assert ok["ok"]  # resting flat on the top face is no gouge
     bad = verify_toolpath(bvh, _path([[10, 10, 9.7], [12, 10, 9.7]], tool=1), [bull, flat])
@@ -87,7 +86,7 @@ def test_bull_nose_and_flat_are_checked(tools):
 
 
 def test_move_after_a_tool_change_is_checked_along_its_way(tools):
-    bvh = build_bvh(*(lambda m: (m.vertices, m.faces))(box([0, 0, 0], [20, 20, 10])))
+    bvh = box([0, 0, 0], [20, 20, 10])
     tp = Toolpath(np.array([[-15.0, 10, 5], [35.0, 10, 5]]), np.tile(UP, (2, 1)), np.array([True, False]),
                   np.array([0, 1]))
     r = verify_toolpath(bvh, tp, tools)

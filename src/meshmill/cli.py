@@ -13,6 +13,7 @@ import time
 
 from . import __version__
 from .errors import InputError
+from .runfiles import RunFiles
 from .tolerances import GOUGE_TOL, HOLDER_CLEARANCE
 
 
@@ -22,6 +23,18 @@ class _Parser(argparse.ArgumentParser):
 
 
 _status_line = [False]  # a progress line is open on the terminal (to be ended before other text)
+_run = [None]  # the result files of the command running (RunFiles), committed when it succeeds
+
+# the files each command writes into its --out folder, the summary last
+FOLDER_OUTPUTS = {
+    "finish": ("contours.npz", "toolpath.cl", "summary.json"),
+    "raster": ("toolpath.cl", "summary.json"),
+    "waterline": ("toolpath.cl", "summary.json"),
+    "plunge": ("toolpath.cl", "summary.json"),
+    "simulate": ("deviation.npz", "machined.stl", "deviation.json", "summary.json"),
+    "analyze": ("analysis.npz", "summary.json"),
+    "choose": ("tools.toml", "toolpath.cl", "zones.npz", "summary.json"),
+}
 
 
 def _quiet(args):
@@ -117,12 +130,36 @@ def _write_json(path, data):
         raise InputError(f"{path}: cannot write ({exc.strerror})") from None
 
 
-def _out_dir(path):
-    try:
-        os.makedirs(path, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot create the output folder ({exc.strerror})") from None
-    return path
+def _results(paths) -> RunFiles:
+    """The result files of this run (earlier results under their names are removed now; the new
+    ones appear when the command succeeds)."""
+    _run[0] = RunFiles(paths)
+    return _run[0]
+
+
+def _folder_results(command, out) -> tuple[str, RunFiles]:
+    """``(folder, RunFiles)`` of a command that writes :data:`FOLDER_OUTPUTS` into ``out``."""
+    run = _results([os.path.join(out, name) for name in FOLDER_OUTPUTS[command]])
+    return out, run
+
+
+def _clear_after_usage_error(argv):
+    """A command refused by the parser still must not leave an earlier run's files looking like its
+    own: remove the results in the folder its ``--out`` names (or the default folder)."""
+    if not argv or argv[0] not in FOLDER_OUTPUTS:
+        return
+    out = {"finish": "out", "raster": "out", "waterline": "out", "plunge": "out", "simulate": "sim",
+           "analyze": "analysis", "choose": "choose"}[argv[0]]
+    for i, a in enumerate(argv):
+        if a == "--out" and i + 1 < len(argv):
+            out = argv[i + 1]
+        elif a.startswith("--out="):
+            out = a[len("--out="):]
+    if os.path.isdir(out):
+        try:
+            RunFiles([os.path.join(out, name) for name in FOLDER_OUTPUTS[argv[0]]])
+        except InputError:
+            pass
 
 
 def cmd_finish(args):
@@ -132,6 +169,7 @@ def cmd_finish(args):
     from .tools.table import load_tools
     from .toolpath.cldata import write_apt
 
+    out, run = _folder_results("finish", args.out)
     t0 = time.perf_counter()
     tools = load_tools(args.tools)
     mesh = _load_part(args, args.part)
@@ -141,18 +179,18 @@ def cmd_finish(args):
                           clearance=args.clearance, lead=args.lead)
     params.check()
     device = _device(args)
-    out = _out_dir(args.out)
     tp, summary, detail = finish(mesh, tools, params, progress=_progress(args), device=device)
     summary["device"] = device
     summary["tools_file"] = os.path.abspath(args.tools)
     con = detail["contours"]
-    np.savez_compressed(os.path.join(out, "contours.npz"), points=con.points, offsets=con.offsets, z=con.z,
+    np.savez_compressed(run.tmp(os.path.join(out, "contours.npz")), points=con.points, offsets=con.offsets, z=con.z,
                         closed=con.closed, machinable=detail["contour_tool"] >= 0)
     summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
     summary["seconds"]["load"] = round(load_s, 4)
     summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
-    write_apt(os.path.join(out, "toolpath.cl"), tp, tools, partno=os.path.basename(args.part))
-    _write_json(os.path.join(out, "summary.json"), summary)
+    write_apt(run.tmp(os.path.join(out, "toolpath.cl")), tp, tools, partno=os.path.basename(args.part))
+    _write_json(run.tmp(os.path.join(out, "summary.json")), summary)
+    run.commit()
     v = summary["verify"]
     _say(args, f"contours {summary['contours']} (machinable {summary['machinable_contours']}), "
                f"CC points {summary['cc_points']}, left out {summary['points_left_out']}, "
@@ -172,11 +210,11 @@ def _three_axis(args, run):
     from .tools.table import load_tools
     from .toolpath.cldata import write_apt
 
+    out, files = _folder_results(args.command, args.out)
     t0 = time.perf_counter()
     tools = load_tools(args.tools)
     mesh = _load_part(args, args.part)
     load_s = time.perf_counter() - t0
-    out = _out_dir(args.out)
     device = _device(args)
     tp, summary = run(mesh, tools, device)
     summary["device"] = device
@@ -184,8 +222,9 @@ def _three_axis(args, run):
     summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
     summary["seconds"]["load"] = round(load_s, 4)
     summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
-    write_apt(os.path.join(out, "toolpath.cl"), tp, tools, partno=os.path.basename(args.part))
-    _write_json(os.path.join(out, "summary.json"), summary)
+    write_apt(files.tmp(os.path.join(out, "toolpath.cl")), tp, tools, partno=os.path.basename(args.part))
+    _write_json(files.tmp(os.path.join(out, "summary.json")), summary)
+    files.commit()
     v = summary["verify"]
     _say(args, f"{summary['cl_points']} CL points, {summary['moves']} moves; verify: {'OK' if v['ok'] else 'PROBLEMS'} "
                f"(max gouge {v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
@@ -248,12 +287,13 @@ def cmd_plunge(args):
 
 
 def cmd_verify(args):
-    from .geometry.bvh import build_bvh
+    from .kernels.backend import solid_kernels
     from .machine.config import load_machine
     from .ops.simulate import read_toolpath
     from .ops.verify import verify_toolpath
     from .tools.table import load_tools
 
+    run = _results([args.out]) if args.out else None
     if not (math.isfinite(args.step) and args.step >= 1e-4):
         raise InputError(f"--step must be a finite number of at least 0.0001 mm, got {args.step}")
     if not (math.isfinite(args.tolerance) and args.tolerance >= 0):
@@ -265,11 +305,11 @@ def cmd_verify(args):
     for w in warnings:
         _say(args, f"warning: {w}")
     device = _device(args)
-    report = verify_toolpath(build_bvh(mesh.vertices, mesh.faces), tp, tools, args.tolerance, args.step,
-                             worst=args.worst, device=device)
+    report = verify_toolpath(solid_kernels(mesh, device), tp, tools, args.tolerance, args.step, worst=args.worst)
     report.pop("problem_moves")
-    if args.out:
-        _write_json(args.out, report)
+    if run:
+        _write_json(run.tmp(args.out), report)
+        run.commit()
     pieces = 0 < report["lines"] < report["moves"]  # G-code: arcs and rotary blocks are read as several moves
 
     def count(n, kind):
@@ -293,23 +333,24 @@ def cmd_dexel(args):
 
     if args.index != "bvh" and args.device == "auto":
         args.device = "cpu"  # the seed's indexes run on the CPU only
+    out = args.out or os.path.splitext(os.path.basename(args.part))[0] + ".dexel.npz"
+    if not out.lower().endswith((".td", ".npz")):
+        out += ".npz"
+    folder = os.path.dirname(os.path.abspath(out))
+    run = _results([out, os.path.join(folder, "summary.json")])
     mesh = _load_part(args, args.part)
     device = _device(args)
     model, summary = dexel_model(mesh, args.step, args.index, args.partitions, args.init, args.minibatch,
                                  args.kmax, progress=_progress(args), device=device)
     model.name = os.path.basename(args.part)
-    out = args.out or os.path.splitext(os.path.basename(args.part))[0] + ".dexel.npz"
-    folder = os.path.dirname(os.path.abspath(out))
-    _out_dir(folder)
     if out.lower().endswith(".td"):
-        export_td(out, model)
+        export_td(run.tmp(out), model)
     else:
-        if not out.lower().endswith(".npz"):
-            out += ".npz"
-        save_npz(out, model)
+        save_npz(run.tmp(out), model)
     summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
     summary["file"] = os.path.abspath(out)
-    _write_json(os.path.join(folder, "summary.json"), summary)
+    _write_json(run.tmp(os.path.join(folder, "summary.json")), summary)
+    run.commit()
     d = summary["dexels"]
     _say(args, f"dexels X {d['X']:,}, Y {d['Y']:,}, Z {d['Z']:,}; volume {summary['volume_mm3']:.3f} mm^3 "
                f"(mesh {_mesh_volume(mesh):.3f}); cast in {model.info['cast_seconds']:.2f} s with {model.info['index']}")
@@ -332,6 +373,7 @@ def cmd_simulate(args):
     from .ops.simulate import read_toolpath, simulate
     from .tools.table import load_tools
 
+    out, run = _folder_results("simulate", args.out)
     if not (math.isfinite(args.step) and args.step > 0):
         raise InputError(f"--step must be a positive number of mm, got {args.step}")
     tools = load_tools(args.tools)
@@ -345,22 +387,22 @@ def cmd_simulate(args):
     tp, warnings = read_toolpath(args.toolpath, tools, args.tool, machine)
     for w in warnings:
         _say(args, f"warning: {w}")
-    out = _out_dir(args.out)
     device = _device(args)
     deviation, summary, _, (verts, faces), samples = simulate(
         design, tp, tools, args.step, stock=stock, allowance=args.allowance, tolerance=args.tolerance,
         mode=args.mode, progress=_progress(args), device=device)
     summary["device"] = device
     summary["tools_file"] = os.path.abspath(args.tools)
-    np.savez_compressed(os.path.join(out, "deviation.npz"), points=samples["points"], e=samples["e"])
+    np.savez_compressed(run.tmp(os.path.join(out, "deviation.npz")), points=samples["points"], e=samples["e"])
     summary["design"] = {"file": os.path.abspath(args.design), **design.summary()}
     summary["toolpath"] = {"file": os.path.abspath(args.toolpath), "warnings": warnings}
-    _write_json(os.path.join(out, "deviation.json"), deviation)
-    _write_json(os.path.join(out, "summary.json"), summary)
     if len(faces):
         import trimesh
 
-        trimesh.Trimesh(verts, faces, process=False).export(os.path.join(out, "machined.stl"))
+        trimesh.Trimesh(verts, faces, process=False).export(run.tmp(os.path.join(out, "machined.stl")))
+    _write_json(run.tmp(os.path.join(out, "deviation.json")), deviation)
+    _write_json(run.tmp(os.path.join(out, "summary.json")), summary)
+    run.commit()
     for w in summary["warnings"]:
         _say(args, f"warning: {w}")
     _end_status()
@@ -385,6 +427,7 @@ def cmd_analyze(args):
     from .geometry import analysis
     from .geometry.bvh import build_bvh
 
+    out, run = _folder_results("analyze", args.out)
     try:
         direction = [float(v) for v in args.direction.split(",")]
     except ValueError:
@@ -392,7 +435,6 @@ def cmd_analyze(args):
     if len(direction) != 3:
         raise InputError(f"--direction must be three numbers X,Y,Z, got '{args.direction}'")
     mesh = _load_part(args, args.part)
-    out = _out_dir(args.out)
     t0 = time.perf_counter()
     bvh = build_bvh(mesh.vertices, mesh.faces)
     tri = analysis.triangle_parameters(mesh)
@@ -417,8 +459,9 @@ def cmd_analyze(args):
                           "best_share": float(share.max()), "never_reached_triangles": int((reached == 0).sum())}
         arrays.update(map_directions=dirs, map_share=share, triangles_reached=reached)
     summary["seconds"] = seconds
-    np.savez_compressed(os.path.join(out, "analysis.npz"), **arrays)
-    _write_json(os.path.join(out, "summary.json"), summary)
+    np.savez_compressed(run.tmp(os.path.join(out, "analysis.npz")), **arrays)
+    _write_json(run.tmp(os.path.join(out, "summary.json")), summary)
+    run.commit()
     _say(args, f"{summary['visible_triangles']} of {len(mesh.faces)} triangles visible along {summary['direction']}, "
                f"{summary['accessible_triangles']} accessible; {summary['accessible_vertices']} of {len(mesh.vertices)} "
                f"vertices accessible ({seconds['visibility']:.2f} s)")
@@ -437,7 +480,10 @@ def cmd_report(args):
     folder = os.path.dirname(os.path.abspath(out))
     if not os.path.isdir(folder):
         raise InputError(f"{folder}: no such folder for --out")
-    info = write_report(args.folders, out, progress=_progress(args))
+    run = _results([out])
+    info = write_report(args.folders, run.tmp(out), progress=_progress(args))
+    run.commit()
+    info["file"] = os.path.abspath(out)
     for r in info["runs"]:
         for n in r["notes"]:
             _say(args, f"note: {r['folder']}: {n}")
@@ -459,6 +505,7 @@ def cmd_time(args):
     from .machine.timing import programmed_feeds, rotary_seconds, tool_times
     from .ops.simulate import TOOLPATH_GCODE, read_toolpath
 
+    run = _results([args.out]) if args.out else None
     if args.feed is not None and not (math.isfinite(args.feed) and args.feed > 0):
         raise InputError(f"--feed must be a positive number of mm/min, got {args.feed}")
     machine = load_machine(args.machine)
@@ -495,8 +542,9 @@ def cmd_time(args):
                "machine": machine.summary(), "tools_file": os.path.abspath(args.tools), "notes": notes,
                "feed_moves": int(feed_move.sum()), "feed_moves_at_machine_feed": unset,
                "tools": {tools[t].name: entry for t, entry in times["tools"].items()}, "total": times["total"]}
-    if args.out:
-        _write_json(args.out, summary)
+    if run:
+        _write_json(run.tmp(args.out), summary)
+        run.commit()
     for w in warnings:
         _say(args, f"warning: {w}")
     if args.json:
@@ -520,6 +568,8 @@ def cmd_post(args):
     from .machine.timing import programmed_feeds
     from .toolpath.cldata import MAX_COORDINATE, read_apt
 
+    out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "program.nc")
+    run = _results([out])
     if args.feed is not None and not (math.isfinite(args.feed) and args.feed > 0):
         raise InputError(f"--feed must be a positive number of mm/min, got {args.feed}")
     if not (math.isfinite(args.tolerance) and args.tolerance > 0):
@@ -552,13 +602,12 @@ def cmd_post(args):
         raise InputError(f"--clearance must be a Z in mm (|Z| <= {MAX_COORDINATE:g}), got {args.clearance}")
     lines, report = post_program(tp, tools, machine, feed=feed, tolerance=args.tolerance, origin=origin,
                                  clearance=args.clearance)
-    out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "program.nc")
-    _out_dir(os.path.dirname(os.path.abspath(out)))
     try:
-        with open(out, "w") as fh:
+        with open(run.tmp(out), "w") as fh:
             fh.write("\n".join(lines) + "\n")
     except OSError as exc:
         raise InputError(f"{out}: cannot write ({exc.strerror})") from None
+    run.commit()
     report = {"operation": "post", "toolpath": os.path.abspath(args.toolpath), "program": os.path.abspath(out),
               "tools_file": os.path.abspath(args.tools), "feeds": feeds, **report}
     report["warnings"] = warnings + report["warnings"]
@@ -592,6 +641,7 @@ def cmd_choose(args):
     from .tools.table import load_tools, write_tools
     from .toolpath.cldata import write_apt
 
+    out, run = _folder_results("choose", args.out)
     if (args.tool_pair is None) == (args.tools is None):
         raise InputError("give exactly one of --tool-pair and --tools")
     if args.zones == "auto":
@@ -609,15 +659,15 @@ def cmd_choose(args):
     machine = load_machine(args.machine)
     device = _device(args)
     surface = load_surface(args.surface, params)
-    out = _out_dir(args.out)
     tp, summary, zones, chooser = choose(surface, tools, machine, params, progress=_progress(args), device=device)
     summary["tools_file"] = os.path.abspath(os.path.join(out, "tools.toml"))
-    write_tools(os.path.join(out, "tools.toml"), chooser.tools)
-    write_apt(os.path.join(out, "toolpath.cl"), tp, chooser.tools, partno=os.path.basename(args.surface))
+    write_tools(run.tmp(os.path.join(out, "tools.toml")), chooser.tools)
+    write_apt(run.tmp(os.path.join(out, "toolpath.cl")), tp, chooser.tools, partno=os.path.basename(args.surface))
     s = chooser.samples
-    np.savez_compressed(os.path.join(out, "zones.npz"), grid_shape=np.array(s.grid_shape), zones=zones,
+    np.savez_compressed(run.tmp(os.path.join(out, "zones.npz")), grid_shape=np.array(s.grid_shape), zones=zones,
                         points=s.points, normals=s.normals, valid=s.valid)
-    _write_json(os.path.join(out, "summary.json"), summary)
+    _write_json(run.tmp(os.path.join(out, "summary.json")), summary)
+    run.commit()
     v = summary["verify"]
     if not _quiet(args):
         _end_status()
@@ -848,10 +898,14 @@ def build_parser():
 
 def main(argv=None) -> int:
     _status_line[0] = False
+    _run[0] = None
     parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # usage errors (2), --help and --version (0)
+        if exc.code:
+            _clear_after_usage_error(argv)
         return int(exc.code or 0)
     if not getattr(args, "command", None):
         parser.print_help()
@@ -866,6 +920,9 @@ def main(argv=None) -> int:
         _end_status()
         print("meshmill: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if _run[0] is not None and not _run[0].done:
+            _run[0].abort()  # a run that did not complete leaves no result behind
 
 
 if __name__ == "__main__":

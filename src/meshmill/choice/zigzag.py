@@ -19,8 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..geometry.bvh import build_bvh
-from ..kernels.backend import MeshKernels
+from ..kernels.backend import solid_kernels
 from ..ops.dropcutter import ToolDrop
 from .clustering import wrap_axial
 from .scallop import stepover, stepover_exact
@@ -77,9 +76,10 @@ class SurfaceSetup:
     def __init__(self, smesh: SurfaceMesh, grid_shape, tool, rotation=None, device="cpu"):
         self.rotation = np.eye(3) if rotation is None else np.asarray(rotation, float)
         self.tool = tool
-        verts = smesh.mesh.vertices @ self.rotation.T
-        self.kern = MeshKernels(build_bvh(verts, smesh.mesh.faces), device)
-        self.floor = float(verts[:, 2].min()) - 1.0  # below the lowest point: a flat bottom resting there touches
+        turned = smesh.mesh.transformed(self.rotation)
+        self.floor = float(turned.vertices[:, 2].min()) - 1.0  # below the lowest point: a flat bottom resting there touches
+        self.kern = solid_kernels(turned, device, self.floor)  # the solid, sheets down to the floor
+        verts = turned.vertices
         self.top = float(verts[:, 2].max())
         self.drop = ToolDrop(tool, self.kern, self.floor)
         self.smesh = smesh

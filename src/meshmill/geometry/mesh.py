@@ -1,8 +1,14 @@
 """Loading, checking and cleaning triangle meshes.
 
-A :class:`Mesh` is an indexed triangle mesh in mm with welded vertices and faces wound so that
-their normals point out of the material. STL (ASCII and binary, also binary files whose header
-starts with "solid"), OBJ and PLY are read with trimesh.
+A :class:`Mesh` is an indexed triangle mesh in mm with welded vertices. Its winding is the file's:
+where neighbouring faces disagree (they traverse their shared edge the same way), the faces of the
+smaller share of each connected piece's area are turned to agree with the rest; a consistently
+wound mesh is never turned over, closed or open, unless asked (``flip``). A closed mesh wound
+inside out (negative volume) is refused, pointing to ``--flip``; an open surface whose normals
+face mostly away from the spindle (-Z) is named in a warning. Each piece is closed, a solid with
+holes, or a sheet (:mod:`meshmill.geometry.solid`, which builds the solid the checks take as
+material). STL (ASCII and binary, also binary files whose header starts with "solid"), OBJ and PLY
+are read with trimesh.
 """
 from __future__ import annotations
 
@@ -17,6 +23,11 @@ from ..errors import InputError
 from ..tolerances import DEGENERATE_AREA, WELD_DIGITS
 
 SUPPORTED = (".stl", ".obj", ".ply")
+CLOSED, HOLES, SHEET = 0, 1, 2  # kinds of connected pieces
+# an open piece is a sheet (a surface with material behind it) when its boundary loops enclose at
+# least this share of its area (its vector area: zero for a closed piece, the projected area of a
+# flat sheet); below it, a solid with holes
+SHEET_SHARE = 0.2
 
 
 @dataclass
@@ -27,8 +38,12 @@ class Mesh:
     faces: np.ndarray
     closed: bool = True
     dropped_degenerate: int = 0
-    flipped: bool = False
+    flipped: bool = False  # turned over as a whole (asked for)
+    turned_faces: int = 0  # faces turned to agree with their neighbours
     warnings: list = field(default_factory=list)
+    piece: np.ndarray | None = None  # (m,) connected piece of each face (across manifold edges)
+    piece_kind: np.ndarray | None = None  # (p,) int8 per piece: CLOSED, HOLES or SHEET
+    _solids: dict = field(default_factory=dict, repr=False)
 
     @property
     def face_normals(self) -> np.ndarray:
@@ -43,14 +58,37 @@ class Mesh:
         return np.array([self.vertices.min(axis=0), self.vertices.max(axis=0)])
 
     def summary(self) -> dict:
+        kinds = self.piece_kind if self.piece_kind is not None else np.zeros(0, np.int8)
         return {
             "vertices": int(len(self.vertices)),
             "triangles": int(len(self.faces)),
             "closed": bool(self.closed),
             "dropped_degenerate": int(self.dropped_degenerate),
             "flipped": bool(self.flipped),
+            "turned_faces": int(self.turned_faces),
+            "pieces": {"closed": int((kinds == CLOSED).sum()), "with_holes": int((kinds == HOLES).sum()),
+                       "sheets": int((kinds == SHEET).sum())},
             "bounds": self.bounds.round(6).tolist(),
         }
+
+    def transformed(self, rotation=None, offset=None) -> "Mesh":
+        """The same mesh with ``vertices @ rotation.T + offset`` (a rigid motion; its pieces and
+        their kinds kept: a sheet's material then lies below it in the new frame)."""
+        v = self.vertices if rotation is None else self.vertices @ np.asarray(rotation, float).T
+        v = v if offset is None else v + np.asarray(offset, float)
+        return Mesh(vertices=np.ascontiguousarray(v), faces=self.faces, closed=self.closed,
+                    dropped_degenerate=self.dropped_degenerate, flipped=self.flipped, turned_faces=self.turned_faces,
+                    piece=self.piece, piece_kind=self.piece_kind)
+
+    def solid(self, floor: float | None = None):
+        """The :class:`~meshmill.geometry.solid.Solid` this mesh bounds, sheets down to ``floor``
+        (default: the mesh's lowest point, the floor of its box stock); built once per floor."""
+        from .solid import bounded_solid
+
+        floor = float(self.bounds[0, 2]) if floor is None else float(floor)
+        if floor not in self._solids:
+            self._solids[floor] = bounded_solid(self, floor)
+        return self._solids[floor]
 
 
 def edge_face_counts(faces: np.ndarray, n_vertices: int) -> np.ndarray:
@@ -60,8 +98,9 @@ def edge_face_counts(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return counts
 
 
-def mesh_from_arrays(vertices, faces, name="mesh") -> Mesh:
-    """Check and clean raw arrays into a :class:`Mesh` (raises :class:`InputError`)."""
+def mesh_from_arrays(vertices, faces, name="mesh", flip=False) -> Mesh:
+    """Check and clean raw arrays into a :class:`Mesh` (raises :class:`InputError`); ``flip``
+    turns every face over (after making neighbours agree)."""
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if len(f) == 0 or len(v) == 0:
@@ -95,9 +134,13 @@ def mesh_from_arrays(vertices, faces, name="mesh") -> Mesh:
         mesh.warnings.append(f"{name}: dropped {dropped} degenerate triangle(s)")
     counts = edge_face_counts(mesh.faces, len(v))
     mesh.closed = bool((counts == 2).all())
-    _orient_outward(mesh, name)
+    _orient(mesh, name, flip)
     if not mesh.closed:
-        mesh.warnings.append(f"{name}: the mesh is open (not watertight); machining it as a surface")
+        k = mesh.piece_kind
+        mesh.warnings.append(f"{name}: the mesh is open (not watertight): " + ", ".join(
+            f"{n} {what}" for n, what in ((int((k == SHEET).sum()), "surface(s) with the material below them"),
+                                          (int((k == HOLES).sum()), "solid(s) with holes, closed across them"),
+                                          (int((k == CLOSED).sum()), "closed piece(s)")) if n))
     return mesh
 
 
@@ -146,10 +189,12 @@ def _winding_parity(n_faces, pair_a, pair_b, pair_same):
     return flip, comp
 
 
-def _orient_outward(mesh: Mesh, name: str) -> None:
-    """Make the winding consistent across shared edges, then point every connected piece's normals
-    out of the material: by its signed volume when it is closed or nearly so (its projected area
-    cancels out), else (an open surface) so that its normals face up on the whole."""
+def _orient(mesh: Mesh, name: str, flip: bool) -> None:
+    """Make neighbouring faces agree (per connected piece, the faces of the smaller share of its
+    area turn), turn everything over when ``flip``, classify the pieces, and refuse a mesh whose
+    closed pieces enclose a negative volume (wound inside out)."""
+    from .solid import boundary_loops, piece_kinds
+
     F = mesh.faces.astype(np.int64)
     nv = len(mesh.vertices)
     directed = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
@@ -161,27 +206,43 @@ def _orient_outward(mesh: Mesh, name: str) -> None:
     two = np.nonzero(first)[0][run == 2]  # manifold edges: exactly two faces
     ea, eb = order[two], order[two + 1]
     pair_same = directed[ea, 0] == directed[eb, 0]
-    flip, comp = _winding_parity(len(F), ea // 3, eb // 3, pair_same)
+    turn, comp = _winding_parity(len(F), ea // 3, eb // 3, pair_same)
     tri = mesh.vertices[F]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    sign = np.where(flip, -1.0, 1.0)
-    ncomp = comp.max() + 1
-    vol = np.bincount(comp, sign * np.einsum("ij,ij->i", tri[:, 0], cross), ncomp)
-    up = np.bincount(comp, sign * cross[:, 2], ncomp)
-    size = np.bincount(comp, np.linalg.norm(cross, axis=1), ncomp)
-    closedish = np.abs(up) <= 1e-6 * size
-    comp_flip = np.where(closedish, vol < 0.0, up < 0.0)
-    flip ^= comp_flip[comp]
-    if flip.any():
-        F[flip] = F[flip][:, ::-1]
-        mesh.faces = F.astype(np.int32)
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    ncomp = int(comp.max()) + 1
+    # neighbour agreement: in each piece the larger share of the area keeps its winding
+    turned_share = np.bincount(comp, area * turn, ncomp)
+    majority_turned = turned_share > 0.5 * np.bincount(comp, area, ncomp)
+    turn ^= majority_turned[comp]
+    if turn.any():
+        F[turn] = F[turn][:, ::-1]
+        mesh.turned_faces = int(turn.sum())
+        mesh.warnings.append(f"{name}: {mesh.turned_faces} face(s) were wound against their neighbours; turned "
+                             "them to agree with the rest of their piece")
+    if flip:
+        F = F[:, ::-1].copy()
         mesh.flipped = True
-        mesh.warnings.append(f"{name}: {int(flip.sum())} face(s) were wound inward or against their "
-                             "neighbours; flipped them")
+        mesh.warnings.append(f"{name}: --flip: every face turned over (normals reversed)")
+    mesh.faces = F.astype(np.int32)
+    mesh.piece = comp
+    loops, loop_piece = boundary_loops(mesh.faces, comp)
+    mesh.piece_kind, volume, up, area = piece_kinds(mesh.vertices, mesh.faces, comp, loops, loop_piece)
+    solid = mesh.piece_kind != SHEET
+    if solid.any() and volume[solid].sum() < 0.0:
+        raise InputError(f"{name}: the mesh is wound inside out (its closed pieces enclose {volume[solid].sum():.6g} "
+                         "mm^3: the normals point into the material); pass --flip to turn it over")
+    sheet = mesh.piece_kind == SHEET
+    down = sheet & (up < 0.0)
+    if down.any() and area[down].sum() > 0.05 * area.sum():  # not for a few stray fragments
+        mesh.warnings.append(f"{name}: {int(down.sum())} of {int(sheet.sum())} open surface(s) "
+                             f"({100 * area[down].sum() / area[sheet].sum():.0f} % of their area) face mostly away "
+                             "from the spindle (-Z): the tool works on the side the normals face and the material "
+                             "is what lies below; if they should face up, pass --flip")
 
 
-def load_mesh(path) -> Mesh:
-    """Read STL/OBJ/PLY ``path`` into a checked :class:`Mesh` (raises :class:`InputError`)."""
+def load_mesh(path, flip=False) -> Mesh:
+    """Read STL/OBJ/PLY ``path`` into a checked :class:`Mesh` (raises :class:`InputError`);
+    ``flip`` turns every face over."""
     path = os.fspath(path)
     name = os.path.basename(path)
     if not os.path.exists(path):
@@ -204,4 +265,4 @@ def load_mesh(path) -> Mesh:
     faces = getattr(loaded, "faces", None)
     if faces is None or len(faces) == 0:
         raise InputError(f"{path}: not a mesh or no triangles")
-    return mesh_from_arrays(loaded.vertices, faces, name)
+    return mesh_from_arrays(loaded.vertices, faces, name, flip)

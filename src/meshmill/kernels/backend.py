@@ -52,16 +52,20 @@ def implementation(device: str):
 
 class MeshKernels:
     """The mesh kernels of one backend bound to the mesh of ``bvh`` (a
-    :class:`~meshmill.geometry.bvh.BVH`); on CUDA its arrays are copied to the GPU once, here, and
-    stay there for every call. Arguments and results are host numpy arrays, as documented in
-    :mod:`meshmill.kernels.cpu`."""
+    :class:`~meshmill.geometry.bvh.BVH`) and, for the checks that tell inside from outside, to
+    ``inside`` (:attr:`meshmill.geometry.solid.Solid.inside`); on CUDA their arrays are copied to
+    the GPU once, here, and stay there for every call. Arguments and results are host numpy
+    arrays, as documented in :mod:`meshmill.kernels.cpu`."""
 
-    def __init__(self, bvh, device: str = "cpu"):
+    def __init__(self, bvh, device: str = "cpu", inside=None):
         if device not in ("cpu", "cuda"):
             raise ValueError(f"device must be 'cpu' or 'cuda' (resolve '{device}' first)")
         self.bvh, self.device = bvh, device
         self.impl = implementation(device)
         self.mesh = self.impl.to_device(bvh) if device == "cuda" else bvh.arrays
+        self.inside = None
+        if inside is not None:
+            self.inside = self.impl.inside_to_device(inside) if device == "cuda" else inside
 
     def mesh_distances(self, points, cap=1e150):
         return self.impl.mesh_distances(points, self.mesh, cap)
@@ -73,8 +77,20 @@ class MeshKernels:
         return self.impl.axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body, offsets,
                                      self.mesh)
 
-    def pose_penetration(self, tip, axis, tool, rings, segs, base=None):
-        return self.impl.pose_penetration(tip, axis, tool, rings, segs, self.mesh, base)
+    def _inside(self):
+        if self.inside is None:
+            raise ValueError("these kernels were bound without the solid's inside arrays")
+        return self.inside
+
+    def pose_penetration(self, tip, axis, tool, grow, rings, segs, base):
+        return self.impl.pose_penetration(tip, axis, tool, grow, rings, segs, base, self.mesh, self._inside())
+
+    def intervals_clear(self, tip_a, axis_a, tip_b, axis_b, tool, grow, limit, rings, segs, base):
+        return self.impl.intervals_clear(tip_a, axis_a, tip_b, axis_b, tool, grow, limit, rings, segs, base,
+                                         self.mesh)
+
+    def points_inside(self, points):
+        return self.impl.points_inside(points, self._inside())
 
     def drop_cutter(self, xy, radius, corner_radius, floor, body=None):
         return self.impl.drop_cutter(xy, radius, corner_radius, floor, self.mesh, body)
@@ -93,3 +109,13 @@ def bind(bvh_or_kernels, device: str = "cpu") -> MeshKernels:
     if isinstance(bvh_or_kernels, MeshKernels):
         return bvh_or_kernels
     return MeshKernels(bvh_or_kernels, device)
+
+
+def solid_kernels(mesh, device: str = "cpu", floor=None) -> MeshKernels:
+    """The kernels of ``device`` bound to the solid ``mesh`` bounds (its check mesh and inside
+    arrays, :meth:`meshmill.geometry.mesh.Mesh.solid`), sheets down to ``floor`` (default: the
+    mesh's lowest point)."""
+    from ..geometry.bvh import build_bvh
+
+    solid = mesh.solid(floor)
+    return MeshKernels(build_bvh(solid.vertices, solid.faces), device, inside=solid.inside)

@@ -11,19 +11,23 @@ import numba
 import numpy as np
 from numba import prange
 
-from . import cutters
+from . import clearance, cutters
+from .clearance import WORK_SIZE
 from .cpu_dexel import cut_tiles, move_constants, rays_blocked  # noqa: F401  (one module offers every kernel)
 from .cutters import NO_BODY
 from .geom import INF, STACK_SIZE, build
 
 dev = build(numba.njit(fastmath=False, cache=True))
 cut = cutters.build(numba.njit(fastmath=False, cache=True))
+clr = clearance.build(numba.njit(fastmath=False, cache=True))
 CHUNK = 64  # points of a drop-cutter batch run in order by one thread
 _point = dev.mesh_point_dist2
 _ball = dev.largest_clear_ball
 _first_clear_axis = dev.first_clear_axis
 _keep_previous_axes = dev.keep_previous_axes
-_pose_depth = dev.pose_depth
+_pose_depth = clr.pose_depth
+_interval_clear = clr.interval_clear
+_inside = clr.inside
 _drop_run = cut.drop_run
 _touch_point = cut.touch_point
 
@@ -103,31 +107,75 @@ def axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body
 
 
 @numba.njit(parallel=True, cache=True)
-def _pose_penetration(tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
-                      node_lo, node_hi, node_child, node_range, tris):
+def _pose_penetration(tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
+                      node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
+                      in_kind, floor):
     ring = np.zeros(tip.shape[0])
     segs = np.zeros((tip.shape[0], seg_r.shape[1]))
     for i in prange(tip.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
-        _pose_depth(i, tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
-                       node_lo, node_hi, node_child, node_range, tris, stack, ring, segs)
+        _pose_depth(i, tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
+                    node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
+                    in_kind, floor, stack, ring, segs)
     return ring, segs
 
 
-def pose_penetration(tip, axis, tool, rings, segs, bvh, base=None):
-    """How deep each tool pose enters the mesh, mm (0 where clear).
+def _f(a):
+    return np.ascontiguousarray(a, np.float64)
 
-    ``tip, axis (k, 3)``; ``tool (k,)`` index into the per-tool arrays; ``rings`` is
-    ``(ring_t, ring_rho, ring_r, ring_n)`` (T,): spheres of radius ring_r centred on a circle of
-    radius ring_rho at ring_t along the axis (a ball: rho 0, n 1); ``segs`` is
-    ``(seg_t0, seg_t1, seg_r)`` (T, K) cylinders. Returns ``ring (k,)`` and ``segs (k, K)``:
-    the depth of the deepest point inside each part (radial for spheres; the smaller of the
-    radial and axial depths for cylinders, the axial one measured from ``base (T, K)``, default
-    the cylinders' own bottoms).
+
+def pose_penetration(tip, axis, tool, grow, rings, segs, base, bvh, inside):
+    """How deep each tool pose enters the material, mm (0 where clear).
+
+    ``tip, axis (k, 3)``; ``tool (k,)`` index into the per-tool arrays; ``grow (k,)`` mm every part
+    is grown by; ``rings`` is ``(ring_t, ring_rho, ring_r, ring_n)`` (T,): spheres of radius
+    ring_r centred on a circle of radius ring_rho at ring_t along the axis (a ball: rho 0);
+    ``segs`` is ``(seg_t0, seg_t1, seg_r)`` (T, K) cylinders and ``base (T, K)`` where their axial
+    depth is measured from; ``bvh`` the check mesh's arrays, ``inside`` the
+    :attr:`~meshmill.geometry.solid.Solid.inside` arrays. Returns ``ring (k,)`` and ``segs (k, K)``
+    (see :func:`meshmill.kernels.clearance.build`'s ``pose_depth``).
     """
-    base = segs[0] if base is None else base
-    return _pose_penetration(np.ascontiguousarray(tip, np.float64), np.ascontiguousarray(axis, np.float64),
-                             np.ascontiguousarray(tool, np.int32), *rings, *segs, np.ascontiguousarray(base), *bvh)
+    *in_bvh, kind, floor = inside
+    return _pose_penetration(_f(tip), _f(axis), np.ascontiguousarray(tool, np.int32), _f(grow), *rings, *segs,
+                             _f(base), *bvh, *in_bvh, np.ascontiguousarray(kind, np.int8), float(floor))
+
+
+@numba.njit(parallel=True, cache=True)
+def _intervals_clear(tip_a, axis_a, tip_b, axis_b, tool, grow, limit, ring_t, ring_rho, ring_r, seg_t0, seg_t1,
+                     seg_r, seg_base, node_lo, node_hi, node_child, node_range, tris):
+    out = np.zeros(tip_a.shape[0], np.bool_)
+    for i in prange(tip_a.shape[0]):
+        stack = np.empty(STACK_SIZE, np.int32)
+        work = np.empty(WORK_SIZE)
+        out[i] = _interval_clear(i, tip_a, axis_a, tip_b, axis_b, tool, grow, limit, ring_t, ring_rho, ring_r,
+                                 seg_t0, seg_t1, seg_r, seg_base, node_lo, node_hi, node_child, node_range, tris,
+                                 stack, work)
+    return out
+
+
+def intervals_clear(tip_a, axis_a, tip_b, axis_b, tool, grow, limit, rings, segs, base, bvh):
+    """``(k,) bool``: whether the tool of each interval, every part grown by ``grow (k,)``, stays
+    within ``limit (k,)`` mm of the mesh at every pose from (tip_a, axis_a) to (tip_b, axis_b)
+    (``(k, 3)`` each; the move's interpolation: tip linear, axis normalised linear). True is a
+    proof; False means: look closer (see :mod:`meshmill.kernels.clearance`)."""
+    return _intervals_clear(_f(tip_a), _f(axis_a), _f(tip_b), _f(axis_b), np.ascontiguousarray(tool, np.int32),
+                            _f(grow), _f(limit), *rings[:3], *segs, _f(base), *bvh)
+
+
+@numba.njit(parallel=True, cache=True)
+def _points_inside(p, in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor):
+    out = np.zeros(p.shape[0], np.bool_)
+    for i in prange(p.shape[0]):
+        stack = np.empty(STACK_SIZE, np.int32)
+        out[i] = _inside(p[i, 0], p[i, 1], p[i, 2], in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor, stack)
+    return out
+
+
+def points_inside(points, inside):
+    """``(k,) bool``: whether each of ``points (k, 3)`` lies in the material of a
+    :attr:`~meshmill.geometry.solid.Solid.inside`."""
+    *in_bvh, kind, floor = inside
+    return _points_inside(_f(points), *in_bvh, np.ascontiguousarray(kind, np.int8), float(floor))
 
 
 @numba.njit(parallel=True, cache=True)

@@ -16,7 +16,8 @@ import numba
 import numpy as np
 from numba import cuda, float64, int32, int64
 
-from . import carve, cutters, raycast
+from . import carve, clearance, cutters, raycast
+from .clearance import WORK_SIZE
 from .cutters import NO_BODY
 from .geom import STACK_SIZE, build
 from .raycast import MAX_HITS
@@ -27,11 +28,14 @@ dev = build(_dev)
 cut = cutters.build(_dev)
 ray = raycast.build(_dev)
 crv = carve.build(_dev)
+clr = clearance.build(_dev)
 _point = dev.mesh_point_dist2
 _ball = dev.largest_clear_ball
 _first_clear_axis = dev.first_clear_axis
 _keep_previous_axes = dev.keep_previous_axes
-_pose_depth = dev.pose_depth
+_pose_depth = clr.pose_depth
+_interval_clear = clr.interval_clear
+_inside = clr.inside
 _drop_run = cut.drop_run
 _touch_point = cut.touch_point
 _cast_bvh_line = ray.cast_bvh_line
@@ -56,6 +60,13 @@ def _d(a, dtype=np.float64):
 def to_device(bvh):
     """Copy ``BVH.arrays`` to the GPU once; the result goes where ``bvh`` arrays are expected."""
     return tuple(cuda.to_device(np.ascontiguousarray(a)) for a in bvh.arrays)
+
+
+def inside_to_device(inside):
+    """Copy a :attr:`~meshmill.geometry.solid.Solid.inside` tuple to the GPU once (the floor stays a number)."""
+    *arrays, kind, floor = inside
+    return (*(cuda.to_device(np.ascontiguousarray(a)) for a in arrays), cuda.to_device(np.ascontiguousarray(kind, np.int8)),
+            float(floor))
 
 
 @cuda.jit
@@ -123,26 +134,65 @@ def axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body
 
 
 @cuda.jit
-def _pose_penetration(tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
-                      node_lo, node_hi, node_child, node_range, tris, ring, segs):
+def _pose_penetration(tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
+                      node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
+                      in_kind, floor, ring, segs):
     i = cuda.grid(1)
     if i < tip.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
-        _pose_depth(i, tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
-                    node_lo, node_hi, node_child, node_range, tris, stack, ring, segs)
+        _pose_depth(i, tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
+                    node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
+                    in_kind, floor, stack, ring, segs)
 
 
-def pose_penetration(tip, axis, tool, rings, segs, bvh, base=None):
-    """As :func:`meshmill.kernels.cpu.pose_penetration`."""
-    base = segs[0] if base is None else base
+def pose_penetration(tip, axis, tool, grow, rings, segs, base, bvh, inside):
+    """As :func:`meshmill.kernels.cpu.pose_penetration` (``inside`` from :func:`inside_to_device`)."""
     k = len(tip)
     ring = cuda.to_device(np.zeros(k))
     depth = cuda.to_device(np.zeros((k, np.shape(segs[2])[1])))
     ring_t, ring_rho, ring_r, ring_n = rings
-    _pose_penetration[_blocks(k), THREADS](_d(tip), _d(axis), _d(tool, np.int32), _d(ring_t), _d(ring_rho),
-                                           _d(ring_r), _d(ring_n, np.asarray(ring_n).dtype),
-                                           *(_d(a) for a in segs), _d(base), *bvh, ring, depth)
+    _pose_penetration[_blocks(k), THREADS](_d(tip), _d(axis), _d(tool, np.int32), _d(grow), _d(ring_t),
+                                           _d(ring_rho), _d(ring_r), _d(ring_n, np.asarray(ring_n).dtype),
+                                           *(_d(a) for a in segs), _d(base), *bvh, *inside, ring, depth)
     return ring.copy_to_host(), depth.copy_to_host()
+
+
+@cuda.jit
+def _intervals_clear(tip_a, axis_a, tip_b, axis_b, tool, grow, limit, ring_t, ring_rho, ring_r, seg_t0, seg_t1,
+                     seg_r, seg_base, node_lo, node_hi, node_child, node_range, tris, out):
+    i = cuda.grid(1)
+    if i < tip_a.shape[0]:
+        stack = cuda.local.array(STACK_SIZE, int32)
+        work = cuda.local.array(WORK_SIZE, float64)
+        out[i] = _interval_clear(i, tip_a, axis_a, tip_b, axis_b, tool, grow, limit, ring_t, ring_rho, ring_r,
+                                 seg_t0, seg_t1, seg_r, seg_base, node_lo, node_hi, node_child, node_range, tris,
+                                 stack, work)
+
+
+def intervals_clear(tip_a, axis_a, tip_b, axis_b, tool, grow, limit, rings, segs, base, bvh):
+    """As :func:`meshmill.kernels.cpu.intervals_clear`."""
+    k = len(tip_a)
+    out = cuda.to_device(np.zeros(k, np.bool_))
+    _intervals_clear[_blocks(k), THREADS](_d(tip_a), _d(axis_a), _d(tip_b), _d(axis_b), _d(tool, np.int32),
+                                          _d(grow), _d(limit), *(_d(a) for a in rings[:3]),
+                                          *(_d(a) for a in segs), _d(base), *bvh, out)
+    return out.copy_to_host()
+
+
+@cuda.jit
+def _points_inside(p, in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor, out):
+    i = cuda.grid(1)
+    if i < p.shape[0]:
+        stack = cuda.local.array(STACK_SIZE, int32)
+        out[i] = _inside(p[i, 0], p[i, 1], p[i, 2], in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor,
+                         stack)
+
+
+def points_inside(points, inside):
+    """As :func:`meshmill.kernels.cpu.points_inside`."""
+    out = cuda.to_device(np.zeros(len(points), np.bool_))
+    _points_inside[_blocks(len(points)), THREADS](_d(points), *inside, out)
+    return out.copy_to_host()
 
 
 @cuda.jit

@@ -47,22 +47,13 @@ def build(jit):
         return wx * wx + wy * wy + wz * wz
 
     @jit
-    def point_triangle_dist2(px, py, pz, tris, t):
-        """Squared distance from point p to triangle t.
+    def point_tri_dist2(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+        """Squared distance from point p to triangle abc.
 
         The plane distance where p projects inside the triangle, else the smallest edge distance.
         Robust on slivers: a wrong inside/outside call near an edge costs at most the sliver's
-        width, and the plane distance never exceeds the true one.
+        width, and the plane distance never exceeds the true one. A degenerate triangle is its edges.
         """
-        ax = tris[t, 0]
-        ay = tris[t, 1]
-        az = tris[t, 2]
-        bx = tris[t, 3]
-        by = tris[t, 4]
-        bz = tris[t, 5]
-        cx = tris[t, 6]
-        cy = tris[t, 7]
-        cz = tris[t, 8]
         abx = bx - ax
         aby = by - ay
         abz = bz - az
@@ -93,6 +84,12 @@ def build(jit):
         d = point_segment_dist2(px, py, pz, ax, ay, az, bx, by, bz)
         d = min(d, point_segment_dist2(px, py, pz, bx, by, bz, cx, cy, cz))
         return min(d, point_segment_dist2(px, py, pz, cx, cy, cz, ax, ay, az))
+
+    @jit
+    def point_triangle_dist2(px, py, pz, tris, t):
+        """Squared distance from point p to triangle t of ``tris`` (see :func:`point_tri_dist2`)."""
+        return point_tri_dist2(px, py, pz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
+                               tris[t, 6], tris[t, 7], tris[t, 8])
 
     @jit
     def segment_line_dist2(p0x, p0y, p0z, p1x, p1y, p1z, ax, ay, az, ux, uy, uz):
@@ -444,76 +441,15 @@ def build(jit):
                           node_lo, node_hi, node_child, node_range, tris, stack):
                 choice[i] = prev
 
-    @jit
-    def pose_depth(i, tip, axis, tool, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
-                   node_lo, node_hi, node_child, node_range, tris, stack, ring, segs):
-        """How deep pose i enters the mesh: ``ring[i]`` and ``segs[i, :]`` (see the CPU
-        ``pose_penetration``; both zero on entry)."""
-        t = tool[i]
-        px = tip[i, 0]
-        py = tip[i, 1]
-        pz = tip[i, 2]
-        ux = axis[i, 0]
-        uy = axis[i, 1]
-        uz = axis[i, 2]
-        # two unit vectors normal to the axis
-        if abs(ux) < 0.9:
-            ex, ey, ez = 0.0, -uz, uy
-        else:
-            ex, ey, ez = uz, 0.0, -ux
-        en = math.sqrt(ex * ex + ey * ey + ez * ez)
-        ex /= en
-        ey /= en
-        ez /= en
-        gx = uy * ez - uz * ey
-        gy = uz * ex - ux * ez
-        gz = ux * ey - uy * ex
-        cx = px + ring_t[t] * ux
-        cy = py + ring_t[t] * uy
-        cz = pz + ring_t[t] * uz
-        r = ring_r[t]
-        if r > 0.0:
-            for j in range(ring_n[t]):
-                phi = 2.0 * math.pi * j / ring_n[t]
-                rx = ring_rho[t] * (math.cos(phi) * ex + math.sin(phi) * gx)
-                ry = ring_rho[t] * (math.cos(phi) * ey + math.sin(phi) * gy)
-                rz = ring_rho[t] * (math.cos(phi) * ez + math.sin(phi) * gz)
-                d2 = mesh_point_dist2(cx + rx, cy + ry, cz + rz, r * r, 0.0,
-                                      node_lo, node_hi, node_child, node_range, tris, stack)
-                ring[i] = max(ring[i], r - math.sqrt(d2))
-        for k in range(seg_r.shape[1]):
-            r = seg_r[t, k]
-            if r <= 0.0:
-                break
-            t0 = seg_t0[t, k]
-            t1 = seg_t1[t, k]
-            d2 = mesh_cylinder_dist2(px, py, pz, ux, uy, uz, t0, t1, r * r, 0.0,
-                                     node_lo, node_hi, node_child, node_range, tris, stack)
-            if d2 >= r * r:
-                continue
-            radial = r - math.sqrt(d2)
-            # axial depth: how far the bottom of the cylinder must rise to clear (bisection)
-            lo = t0
-            hi = t1
-            if mesh_cylinder_dist2(px, py, pz, ux, uy, uz, hi - 1e-9, t1, r * r, r * r,
-                                   node_lo, node_hi, node_child, node_range, tris, stack) < r * r:
-                segs[i, k] = radial
-                continue
-            for _ in range(30):
-                mid = 0.5 * (lo + hi)
-                if mesh_cylinder_dist2(px, py, pz, ux, uy, uz, mid, t1, r * r, r * r,
-                                       node_lo, node_hi, node_child, node_range, tris, stack) < r * r:
-                    lo = mid
-                else:
-                    hi = mid
-            segs[i, k] = min(radial, hi - seg_base[t, k])
-
     return SimpleNamespace(
         tilted_axis=tilted_axis,
         first_clear_axis=first_clear_axis,
         keep_previous_axes=keep_previous_axes,
-        pose_depth=pose_depth,
         point_triangle_dist2=point_triangle_dist2,
+        point_tri_dist2=point_tri_dist2,
+        point_segment_dist2=point_segment_dist2,
+        box_point_dist2=box_point_dist2,
+        box_may_touch_cylinder=box_may_touch_cylinder,
         segment_line_dist2=segment_line_dist2,
         triangle_axis_dist2=triangle_axis_dist2,
         mesh_point_dist2=mesh_point_dist2,

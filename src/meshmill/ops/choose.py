@@ -26,8 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..geometry.bvh import build_bvh
-from ..kernels.backend import MeshKernels
+from ..kernels.backend import solid_kernels
 from ..machine.timing import path_time
 from ..tolerances import GOUGE_TOL
 from ..tools.table import Tool
@@ -397,7 +396,7 @@ def choose(surface, tools, machine, params: ChooseParams, progress=None, device=
                     "machined": r.ok, "moves_left_out": r.moves_left_out})
     say("verify")
     t = time.perf_counter()
-    kern = MeshKernels(build_bvh(chooser.smesh.mesh.vertices, chooser.smesh.mesh.faces), device)
+    kern = solid_kernels(chooser.smesh.mesh, device, float(chooser.smesh.mesh.vertices[:, 2].min()) - 1.0)
     report = verify_toolpath(kern, result.toolpath, chooser.tools, GOUGE_TOL, DEFAULT_STEP)
     report.pop("problem_moves")
     whole = path_time(result.toolpath.tip, result.toolpath.rapid, machine)

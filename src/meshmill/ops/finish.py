@@ -25,10 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..geometry.bvh import build_bvh
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import slice_contours, z_levels
-from ..kernels.backend import MeshKernels
+from ..kernels.backend import solid_kernels
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE
 from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
@@ -263,8 +262,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
 
     say("index")
     t = time.perf_counter()
-    bvh = build_bvh(mesh.vertices, mesh.faces)
-    kern = MeshKernels(bvh, device)  # the mesh stays on the device for every stage
+    kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device for every stage
     seconds["index"] = time.perf_counter() - t
 
     say("contours")
@@ -398,5 +396,5 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "seconds": {k: round(v, 4) for k, v in seconds.items()},
     }
     detail = dict(contours=con, best=best, contour_tool=contour_tool, point_tool=point_tool, choice=choice,
-                  axis=axis, tip=tip, ce=ce, cut=cut, balls=balls, bvh=bvh)
+                  axis=axis, tip=tip, ce=ce, cut=cut, balls=balls, kern=kern)
     return tp, summary, detail

@@ -34,8 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..geometry.bvh import build_bvh
-from ..kernels.backend import MeshKernels
+from ..kernels.backend import solid_kernels
 from ..tolerances import GOUGE_TOL
 from ..toolpath.model import Toolpath
 from .dropcutter import pick_tool
@@ -105,9 +104,9 @@ def contours(bounds, engagement, step) -> list[np.ndarray]:
     return out
 
 
-def grown_tool_drop(tool, allowance, bvh, floor, device="cpu"):
-    """Drop heights of the real tip of ``tool`` kept ``allowance`` mm from the mesh of ``bvh`` (run
-    on ``device``): a callable
+def grown_tool_drop(tool, allowance, kern, floor):
+    """Drop heights of the real tip of ``tool`` kept ``allowance`` mm from the solid of ``kern``
+    (:class:`~meshmill.kernels.backend.MeshKernels`): a callable
     ``xy (k, 2) -> (tip (k,), contact (k, 3))``, tips never below ``floor``, contacts the mesh
     points touched (NaN where none is)."""
     a = allowance
@@ -117,7 +116,6 @@ def grown_tool_drop(tool, allowance, bvh, floor, device="cpu"):
         body_r.append(0.5 * tool.holder_diameter + a)
         body_t.append(tool.gauge_length)
     body = (np.array(body_r), np.array(body_t))
-    kern = MeshKernels(bvh, device)
 
     def drop(xy):
         z, contact = kern.drop_cutter(xy, tool.radius + a, tool.corner_radius + a, floor - a, body)
@@ -133,7 +131,7 @@ def _verified(mesh, tools, index, tips, axes, rapid, say, device):
     tp = Toolpath(np.array(tips, np.float64), np.array(axes, np.float64), np.array(rapid),
                   np.full(len(tips), index, np.int64))
     say("verify")
-    report = verify_toolpath(build_bvh(mesh.vertices, mesh.faces), tp, tools, GOUGE_TOL, DEFAULT_STEP, device=device)
+    report = verify_toolpath(solid_kernels(mesh, device), tp, tools, GOUGE_TOL, DEFAULT_STEP)
     report.pop("problem_moves")
     return tp, report
 
@@ -162,8 +160,11 @@ def _turned_drop(mesh, tool, allowance, centre, u, floor, device):
     """``(frame (3, 3), drop)``: the tool frame of axis u (rows T1, T2, U) and the grown-tool drop
     over the part turned into it, about ``centre``, never below ``floor`` along u."""
     frame = np.stack([*tool_frame(u), u])
-    turned = (mesh.vertices - centre) @ frame.T
-    return frame, grown_tool_drop(tool, allowance, build_bvh(turned, mesh.faces), floor, device)
+    turned = mesh.transformed(frame, -centre @ frame.T)
+    lo, hi = mesh.bounds
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    bottom = float(((corners - centre) @ u).min())  # the stock's floor seen along u: sheets reach down to it
+    return frame, grown_tool_drop(tool, allowance, solid_kernels(turned, device, bottom), floor)
 
 
 def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
@@ -182,8 +183,7 @@ def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
     if n_points > 5_000_000:
         raise InputError(f"{n_points:,} plunge points: use a larger --radial-step or --engagement")
     say(f"{len(rings)} contours, {n_points} plunge points")
-    bvh = build_bvh(mesh.vertices, mesh.faces)
-    drop = grown_tool_drop(tool, params.allowance, bvh, z_min, params.device)
+    drop = grown_tool_drop(tool, params.allowance, solid_kernels(mesh, params.device), z_min)
     clear_z = z_max + params.clearance
     tips, rapid, contour_of = [], [], []
     depths = []

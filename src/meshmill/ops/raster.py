@@ -17,8 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..geometry.bvh import build_bvh
-from ..kernels.backend import MeshKernels
+from ..kernels.backend import solid_kernels
 from ..geometry.mesh import Mesh
 from ..tolerances import GOUGE_TOL
 from ..toolpath.linking import simplify_polyline
@@ -133,7 +132,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
         raise InputError(f"about {estimate:.3g} CL points: use a larger --stepover or --sample")
     say("index")
     t = time.perf_counter()
-    kern = MeshKernels(build_bvh(mesh.vertices, mesh.faces), device)  # on the device from here on
+    kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device from here on
     seconds["index"] = time.perf_counter() - t
     say("drop-cutter")
     t = time.perf_counter()

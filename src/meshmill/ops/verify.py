@@ -1,12 +1,23 @@
-"""Gouge and collision check of any tool path against a mesh.
+"""Gouge and collision check of any tool path against the solid a mesh bounds, certified between
+its poses.
 
-Every pose of the path is checked exactly (distances to the triangles, not to sampled points), and
-each move is checked at intermediate poses no more than ``step`` apart (tip, and axis motion at the
-far end of the tool), with the tip and the axis interpolated linearly as a controller would.
+A move goes from one point to the next with the tip linear and the axis interpolated linearly and
+normalised, as a controller would. Each move is first looked at in poses at most ``step`` apart,
+each measured exactly (distances to the triangles, and whether a part lies in the material,
+:mod:`meshmill.kernels.clearance`). Then every interval between two neighbouring poses is
+*certified*: a test that cannot miss (the end swept as a capsule or chord patches, the cylinders
+as stadium prisms, with the slack the turning axis adds) shows that no pose in between enters the
+material by more than the tolerance, or the interval is halved and its midpoint measured, until
+the test passes, a pose is found too deep, or the interval is shorter than ``MIN_INTERVAL`` (then
+the move is reported with the bound). So "OK" means that no point of the modelled tool enters the
+part deeper than the tolerance anywhere along any feed move, and that no rapid move touches the
+stock at all, whatever ``step`` was.
 
-A feed move gouges when the cutting part (end and flutes) enters the part by more than ``tol``; it
-collides when the shank or holder does. Any rapid move that touches the part is reported too.
-Bull-nose ends are checked as 36 spheres along their torus (the rest exactly).
+A feed move **gouges** when the cutting part (end and flutes) enters the part by more than ``tol``;
+it **collides** when the shank or holder does. A **rapid** move must keep every part of the tool
+out of the stock: the part grown by the stock's allowance (material the path expects to find on
+the design) plus the clearance a rapid keeps, and, when one is given, out of a stock mesh by the
+clearance. For an open surface the material is the solid below it (:mod:`meshmill.geometry.solid`).
 """
 from __future__ import annotations
 
@@ -14,12 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels.backend import bind
+from ..kernels.backend import MeshKernels, solid_kernels
 from ..tolerances import GOUGE_TOL
 from ..tools.table import pack_cylinders, pack_rings
 from ..toolpath.model import Toolpath
 
-DEFAULT_STEP = 0.5  # mm between checked poses along a move
+DEFAULT_STEP = 0.5  # mm between the poses first measured along a move
+MIN_INTERVAL = 1e-5  # mm: an interval this short that cannot be certified is reported with its bound
+MAX_ROUNDS = 40  # halvings of an interval (0.5 mm / 2^40: far below MIN_INTERVAL)
 
 
 @dataclass
@@ -34,15 +47,32 @@ class Problem:
     def describe(self) -> str:
         where = f"line {self.line}" if self.line else f"move {self.move + 1}"
         x, y, z = self.tip
-        return f"{self.kind}: {self.part} {self.depth:.4f} mm deep at {where}, tip ({x:.3f}, {y:.3f}, {z:.3f})"
+        into = " into the stock" if self.kind == "rapid" else ""
+        return (f"{self.kind}: {self.part} {self.depth:.4f} mm{into} deep at {where}, "
+                f"tip ({x:.3f}, {y:.3f}, {z:.3f})")
+
+
+@dataclass
+class StockCheck:
+    """What rapid moves must keep clear of besides the design: ``allowance`` mm of material on the
+    design (every part grown by it), a stock mesh's kernels (``kern``, or None), and the
+    ``clearance`` mm a rapid keeps from both."""
+
+    allowance: float = 0.0
+    kern: MeshKernels | None = None
+    clearance: float = 0.0
+
+    def summary(self) -> dict:
+        return {"allowance": float(self.allowance), "mesh": self.kern is not None, "clearance": float(self.clearance)}
 
 
 def sample_moves(tp: Toolpath, tools, step: float):
-    """Poses along the path: ``tip, axis (s, 3)``, ``tool, move (s,)``, ``rapid (s,) bool``."""
+    """Poses along the path: ``tip, axis (s, 3)``, ``tool, move (s,)``, ``frac (s,)`` (the pose's
+    place along its move, 0 at the point before, 1 at the move's point), ``rapid (s,) bool``."""
     k = len(tp)
     if k == 0:
         e3, e = np.empty((0, 3)), np.empty(0, np.int64)
-        return e3, e3, e, e, np.empty(0, bool)
+        return e3, e3, e, e, np.empty(0), np.empty(0, bool)
     reach = np.array([t.reach for t in tools])[tp.tool]
     dtip = np.zeros(k)
     dang = np.zeros(k)
@@ -51,18 +81,25 @@ def sample_moves(tp: Toolpath, tools, step: float):
         cosang = np.clip(np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1]), -1.0, 1.0)
         dang[1:] = np.arccos(cosang) * reach[1:]
     n = np.maximum(1, np.ceil(np.maximum(dtip, dang) / step)).astype(np.int64)
-    n[0] = 1  # a move after a tool change is checked along its way with the new tool
+    n[0] = 1
     move = np.repeat(np.arange(k), n)
     first = np.cumsum(n) - n
     j = np.arange(n.sum()) - np.repeat(first, n) + 1
     frac = j / np.repeat(n, n)
-    prev = np.maximum(move - 1, 0)
     frac[move == 0] = 1.0
-    tip = tp.tip[prev] + frac[:, None] * (tp.tip[move] - tp.tip[prev])
-    axis = tp.axis[prev] + frac[:, None] * (tp.axis[move] - tp.axis[prev])
+    tip, axis = move_poses(tp, move, frac)
+    return tip, axis, tp.tool[move], move, frac, tp.rapid[move]
+
+
+def move_poses(tp: Toolpath, move, frac):
+    """Tips and unit axes ``(s, 3)`` at ``frac (s,)`` along ``move (s,)`` (from point move-1)."""
+    prev = np.maximum(move - 1, 0)
+    f = frac[:, None]
+    tip = tp.tip[prev] + f * (tp.tip[move] - tp.tip[prev])
+    axis = tp.axis[prev] + f * (tp.axis[move] - tp.axis[prev])
     norm = np.linalg.norm(axis, axis=1, keepdims=True)
     axis = np.where(norm > 1e-9, axis / np.maximum(norm, 1e-300), tp.axis[move])
-    return tip, axis, tp.tool[move], move, tp.rapid[move]
+    return tip, axis
 
 
 def _part_names(tools, k):
@@ -78,44 +115,143 @@ def _part_names(tools, k):
     return names
 
 
-def verify_toolpath(bvh, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: float = DEFAULT_STEP,
-                    worst: int = 10, device: str = "cpu") -> dict:
-    """Check ``tp`` against the mesh of ``bvh`` (a BVH run on ``device``, or
-    :class:`~meshmill.kernels.backend.MeshKernels`); returns a JSON-ready report with the counts of
-    moves that gouge, collide or rapid into the part, and the ``worst`` cases. Where the moves come
-    from a file, ``lines`` counts its lines with moves and ``problem_lines`` its lines with a
-    problem of each kind (a G-code arc or rotary block is read as several moves)."""
-    tip, axis, tool, move, rapid = sample_moves(tp, tools, step)
-    (t0, t1, r), cutting = pack_cylinders(tools)
-    # a flat bottom resting exactly on a facet touches it: the slab of a cutting cylinder that
-    # starts at the tip starts tol above it
-    segs = (np.where(cutting & (t0 == 0.0), tol, t0), t1, r)
+class _Measure:
+    """The tool geometry and the solids a path is measured against."""
+
+    def __init__(self, kern, tools, tol, stock: StockCheck):
+        (t0, t1, r), self.cutting = pack_cylinders(tools)
+        # a flat bottom resting exactly on a facet touches it: the slab of a cutting cylinder that
+        # starts at the tip starts tol above it
+        self.segs = (np.where(self.cutting & (t0 == 0.0), tol, t0), t1, r)
+        self.base = t0
+        self.rings = pack_rings(tools)
+        self.reach = np.array([t.reach for t in tools])
+        self.kern, self.tol, self.stock = kern, tol, stock
+
+    def _grow(self, rapid, on_stock):
+        c = self.stock.clearance
+        return np.where(rapid, c if on_stock else self.stock.allowance + c, 0.0)
+
+    def depths(self, tip, axis, tool, rapid):
+        """``(end (s,), body (s,), ring (s,), segs (s, K))``: how deep each pose enters; rapid poses
+        are measured against the stock (grown) and reported as depth into it."""
+        ring, segs = self.kern.pose_penetration(tip, axis, tool, self._grow(rapid, False), self.rings, self.segs,
+                                                self.base)
+        if self.stock.kern is not None and rapid.any():
+            r2, s2 = self.stock.kern.pose_penetration(tip[rapid], axis[rapid], tool[rapid],
+                                                      self._grow(rapid[rapid], True), self.rings, self.segs,
+                                                      self.base)
+            ring[rapid] = np.maximum(ring[rapid], r2)
+            segs[rapid] = np.maximum(segs[rapid], s2)
+        cut = self.cutting[tool]
+        end = np.maximum(ring, np.where(cut, segs, 0.0).max(axis=1))
+        body = np.where(~cut, segs, 0.0).max(axis=1)
+        return end, body, ring, segs
+
+    def clear(self, ta, xa, tb, xb, tool, rapid):
+        """``(k,) bool``: intervals certified within the tolerance (rapids: out of the stock)."""
+        lim = np.full(len(ta), self.tol)
+        ok = self.kern.intervals_clear(ta, xa, tb, xb, tool, self._grow(rapid, False), lim, self.rings, self.segs,
+                                       self.base)
+        if self.stock.kern is not None and (ok & rapid).any():
+            sel = np.nonzero(ok & rapid)[0]
+            ok[sel] = self.stock.kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel],
+                                                      self._grow(rapid[sel], True), lim[sel], self.rings, self.segs,
+                                                      self.base)
+        return ok
+
+
+def verify_toolpath(kern, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: float = DEFAULT_STEP,
+                    worst: int = 10, device: str = "cpu", stock: StockCheck | None = None) -> dict:
+    """Check ``tp`` against the solid of ``kern`` (:class:`~meshmill.kernels.backend.MeshKernels`
+    bound to it, :func:`~meshmill.kernels.backend.solid_kernels`; or a
+    :class:`~meshmill.geometry.mesh.Mesh`, bound here on ``device``); returns a JSON-ready report
+    with the counts of moves that gouge, collide or rapid into the stock, and the ``worst`` cases.
+    Where the moves come from a file, ``lines`` counts its lines with moves and ``problem_lines``
+    its lines with a problem of each kind (a G-code arc or rotary block is read as several moves)."""
+    stock = stock or StockCheck()
+    if not isinstance(kern, MeshKernels):
+        kern = solid_kernels(kern, device)
+    tip, axis, tool, move, frac, rapid = sample_moves(tp, tools, step)
+    base = {"moves": int(len(tp)), "step": float(step), "tolerance": float(tol), "stock": stock.summary()}
     if len(tip) == 0:
-        return {"moves": 0, "poses_checked": 0, "step": float(step), "tolerance": float(tol), "gouging_moves": 0,
+        return {**base, "poses_checked": 0, "intervals_certified": 0, "poses_refined": 0, "gouging_moves": 0,
                 "colliding_moves": 0, "rapid_moves_touching": 0, "max_gouge": 0.0, "max_collision": 0.0,
-                "ok": True, "worst": [], "problem_moves": [], "lines": 0,
+                "unresolved_moves": 0, "ok": True, "worst": [], "problem_moves": [], "lines": 0,
                 "problem_lines": {"gouge": 0, "collision": 0, "rapid": 0}}
-    ring_depth, seg_depth = bind(bvh, device).pose_penetration(tip, axis, tool, pack_rings(tools), segs, base=t0)
-    cut_mask = cutting[tool]
+    meas = _Measure(kern, tools, tol, stock)
+    end, body, ring, segs = meas.depths(tip, axis, tool, rapid)
+    poses = [(tip, tool, move, rapid, end, body, ring, segs)]
+    bad_move = np.zeros(len(tp), bool)
+    bad_move[move[(end > tol) | (body > tol)]] = True
+    # the intervals between neighbouring poses of each move (the first pose of a move starts at the
+    # previous move's last pose), unless the move already failed
+    ia = np.arange(len(tip) - 1)
+    keep = ~bad_move[move[ia + 1]]
+    ta, xa, fa = tip[ia][keep], axis[ia][keep], np.zeros(keep.sum())
+    fa[:] = np.where(move[ia][keep] == move[ia + 1][keep], frac[ia][keep], 0.0)
+    tb, xb, fb = tip[ia + 1][keep], axis[ia + 1][keep], frac[ia + 1][keep]
+    im, it, ir = move[ia + 1][keep], tool[ia + 1][keep], rapid[ia + 1][keep]
+    certified = refined = 0
+    unresolved = []  # (move, tip, bound) of intervals too short to halve that stay unproven
+    for _ in range(MAX_ROUNDS):
+        if len(im) == 0:
+            break
+        alive = ~bad_move[im]
+        ta, xa, fa, tb, xb, fb, im, it, ir = (a[alive] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
+        ok = meas.clear(ta, xa, tb, xb, it, ir)
+        certified += int(ok.sum())
+        todo = ~ok
+        ta, xa, fa, tb, xb, fb, im, it, ir = (a[todo] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
+        if len(im) == 0:
+            break
+        turn = np.arccos(np.clip(np.einsum("ij,ij->i", xa, xb), -1.0, 1.0))
+        span = np.linalg.norm(tb - ta, axis=1) + meas.reach[it] * turn
+        short = span < MIN_INTERVAL
+        for k in np.nonzero(short)[0]:
+            unresolved.append((int(im[k]), ta[k], float(span[k])))
+            bad_move[im[k]] = True
+        live = ~short
+        ta, xa, fa, tb, xb, fb, im, it, ir = (a[live] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
+        fm = 0.5 * (fa + fb)
+        tm, xm = move_poses(tp, im, fm)
+        e2, b2, r2, s2 = meas.depths(tm, xm, it, ir)
+        refined += len(im)
+        poses.append((tm, it, im, ir, e2, b2, r2, s2))
+        bad_move[im[(e2 > tol) | (b2 > tol)]] = True
+        ta, xa, fa, tb, xb, fb, im, it, ir = (np.concatenate([a, b]) for a, b in
+                                              ((ta, tm), (xa, xm), (fa, fm), (tm, tb), (xm, xb), (fm, fb),
+                                               (im, im), (it, it), (ir, ir)))
+    else:
+        for k in range(len(im)):
+            unresolved.append((int(im[k]), ta[k], float(np.linalg.norm(tb[k] - ta[k]))))
+    tip, tool, move, rapid, end, body, ring, segs = (np.concatenate(a) for a in zip(*poses))
+    return _report(tp, tools, tip, tool, move, rapid, end, body, ring, segs, meas, unresolved, certified, refined,
+                   worst, base)
+
+
+def _report(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth, seg_depth, meas, unresolved,
+            certified, refined, worst, base):
+    tol = meas.tol
+    cut_mask = meas.cutting[tool]
     seg_cut = np.where(cut_mask, seg_depth, 0.0)
     seg_body = np.where(~cut_mask, seg_depth, 0.0)
-    end_depth = np.maximum(ring_depth, seg_cut.max(axis=1))
-    body_depth = seg_body.max(axis=1)
     names = _part_names(tools, seg_depth.shape[1])
     problems = []
+    clearance = meas.stock.clearance
 
-    def collect(kind, mask, depth, part_of):
+    def collect(kind, mask, depth, part_of, shift=0.0):
         idx = np.nonzero(mask)[0]
         if len(idx) == 0:
-            return 0
-        # the deepest sample of each offending move
+            return set()
+        # the deepest pose of each offending move
         order = np.lexsort((-depth[idx], move[idx]))
         idx = idx[order]
         firsts = idx[np.r_[True, move[idx][1:] != move[idx][:-1]]]
         for i in firsts:
-            problems.append(Problem(kind, int(move[i]), int(tp.line[move[i]]), part_of(i), float(depth[i]),
+            problems.append(Problem(kind, int(move[i]), int(tp.line[move[i]]), part_of(i), float(depth[i] - shift),
                                     tuple(float(v) for v in tip[i])))
-        return len(firsts)
+        return {int(move[i]) for i in firsts}
 
     def end_part(i):
         if ring_depth[i] >= seg_cut[i].max():
@@ -128,24 +264,35 @@ def verify_toolpath(bvh, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: floa
     def any_part(i):
         return end_part(i) if end_depth[i] >= body_depth[i] else body_part(i)
 
-    n_gouge = collect("gouge", ~rapid & (end_depth > tol), end_depth, end_part)
-    n_coll = collect("collision", ~rapid & (body_depth > tol), body_depth, body_part)
+    gouge = collect("gouge", ~rapid & (end_depth > tol), end_depth, end_part)
+    coll = collect("collision", ~rapid & (body_depth > tol), body_depth, body_part)
     worst_any = np.maximum(end_depth, body_depth)
-    n_rapid = collect("rapid", rapid & (worst_any > tol), worst_any, any_part)
+    rap = collect("rapid", rapid & (worst_any > tol), worst_any, any_part, clearance)
+    unresolved_moves = set()
+    for m, at, span in unresolved:
+        unresolved_moves.add(m)
+        if m in gouge or m in coll or m in rap:
+            continue
+        kind = "rapid" if tp.rapid[m] else "gouge"
+        (rap if kind == "rapid" else gouge).add(m)
+        problems.append(Problem(kind, m, int(tp.line[m]), "tool (not certified within the tolerance)",
+                                float(tol + span), tuple(float(v) for v in at)))
     problems.sort(key=lambda p: -p.depth)
     lines = {kind: len({p.line for p in problems if p.kind == kind and p.line > 0})
              for kind in ("gouge", "collision", "rapid")}
+    feed = ~rapid
     return {
-        "moves": int(len(tp)),
+        **base,
         "poses_checked": int(len(tip)),
-        "step": float(step),
-        "tolerance": float(tol),
-        "gouging_moves": n_gouge,
-        "colliding_moves": n_coll,
-        "rapid_moves_touching": n_rapid,
-        "max_gouge": float(end_depth[~rapid].max()) if (~rapid).any() else 0.0,
-        "max_collision": float(body_depth[~rapid].max()) if (~rapid).any() else 0.0,
-        "ok": n_gouge == 0 and n_coll == 0 and n_rapid == 0,
+        "poses_refined": int(refined),
+        "intervals_certified": int(certified),
+        "gouging_moves": len(gouge),
+        "colliding_moves": len(coll),
+        "rapid_moves_touching": len(rap),
+        "unresolved_moves": len(unresolved_moves),
+        "max_gouge": float(end_depth[feed].max()) if feed.any() else 0.0,
+        "max_collision": float(body_depth[feed].max()) if feed.any() else 0.0,
+        "ok": not (gouge or coll or rap),
         "worst": [p.describe() for p in problems[:worst]],
         "problem_moves": sorted({p.move for p in problems}),
         "lines": int(len(np.unique(tp.line[tp.line > 0]))),

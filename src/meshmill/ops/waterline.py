@@ -24,8 +24,7 @@ import numba
 import numpy as np
 
 from ..errors import InputError
-from ..geometry.bvh import build_bvh
-from ..kernels.backend import MeshKernels
+from ..kernels.backend import solid_kernels
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import z_levels
 from ..tolerances import GOUGE_TOL
@@ -230,7 +229,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     t_all = time.perf_counter()
     say("index")
     t = time.perf_counter()
-    kern = MeshKernels(build_bvh(mesh.vertices, mesh.faces), device)  # on the device from here on
+    kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device from here on
     seconds["index"] = time.perf_counter() - t
     say("drop-cutter bounds")
     t = time.perf_counter()

@@ -5,9 +5,13 @@ Written: ``PARTNO``, ``UNITS/MM``, ``MULTAX/ON``, ``CUTTER/diameter, corner_radi
 each rapid ``GOTO``, ``GOTO/x, y, z, i, j, k`` (tool tip and unit tool axis), ``FINI``.
 
 Read: the same, plus what other CAM systems write: ``$$`` comments, ``$`` continuation lines,
-``GOTO/x, y, z`` without an axis (vertical), ``CUTTER/`` with up to seven parameters, and
-statements we do not need (``FEDRAT``, ``SPINDL``, ``COOLNT``, ...), which are skipped.
-``ROTABL`` and ``TLAXIS`` are skipped with a warning.
+``GOTO/x, y, z`` without an axis (vertical), ``CUTTER/`` with up to seven parameters,
+``UNITS/INCHES`` (every length after it times 25.4), and the statements of :data:`HARMLESS`
+(feeds, spindle, coolant, comments, tolerances...), which do not move the tool and are skipped.
+``ROTABL``, ``TLAXIS`` and the others of :data:`IGNORED_WITH_WARNING` are skipped with a warning.
+Every other statement is refused with ``file:line``: a move we cannot read (``CIRCLE``, ``GODLTA``,
+``CYCLE``, ``ORIGIN``, a ``GOTO`` without its slash, a garbled word) would otherwise vanish from
+the path, and the path would be checked, simulated and posted without it.
 """
 from __future__ import annotations
 
@@ -20,7 +24,29 @@ from ..errors import InputError
 from .model import Toolpath
 
 MAX_COORDINATE = 1e6  # mm: a kilometre is no machine's travel
-IGNORED_WITH_WARNING = ("ROTABL", "TLAXIS", "INDIRV", "TLON", "TLLFT", "TLRGT")
+IGNORED_WITH_WARNING = ("ROTABL", "TLAXIS", "INDIRV", "TLON", "TLLFT", "TLRGT", "INSERT", "PPFUN")
+# statements that neither move the tool nor change how the moves are read
+HARMLESS = ("PARTNO", "MULTAX", "MACHIN", "FEDRAT", "SPINDL", "COOLNT", "SELCTL", "PPRINT", "DISPLY", "TOLER",
+            "INTOL", "OUTTOL", "CLRSRF", "CLEARP", "OPSTOP", "STOP", "OPSKIP", "DELAY", "AUTOPS", "NOPOST",
+            "TITLES", "REMARK", "SEQNO", "END", "LEADER", "OPNAME", "TPRINT", "MCHTOL")
+REFUSED = {
+    "CIRCLE": "circular moves (CIRCLE/ before a GOTO) are not read: output linear moves",
+    "GODLTA": "incremental moves (GODLTA) are not read: output GOTO",
+    "CYCLE": "canned cycles are not read: output the moves",
+    "ORIGIN": "ORIGIN shifts the coordinates, which this reader does not apply",
+    "TRANS": "TRANS shifts the coordinates, which this reader does not apply",
+    "FROM": "FROM (the start position) is not read: output it as RAPID and GOTO",
+    "GOFWD": "drive-surface motion (GOFWD, GOLFT, ...) is not read: output GOTO",
+    "GOLFT": "drive-surface motion (GOFWD, GOLFT, ...) is not read: output GOTO",
+    "GORGT": "drive-surface motion (GOFWD, GOLFT, ...) is not read: output GOTO",
+    "GOBACK": "drive-surface motion (GOFWD, GOLFT, ...) is not read: output GOTO",
+    "GOUP": "drive-surface motion (GOFWD, GOLFT, ...) is not read: output GOTO",
+    "GODOWN": "drive-surface motion (GOFWD, GOLFT, ...) is not read: output GOTO",
+    "CUTCOM": "cutter compensation changes the moves, which this reader does not apply",
+    "TRACUT": "TRACUT transforms the moves, which this reader does not apply",
+    "COPY": "COPY repeats moves, which this reader does not apply",
+}
+INCH = 25.4  # mm
 
 
 def write_apt(path, toolpath: Toolpath, tools, partno="meshmill") -> None:
@@ -78,7 +104,8 @@ def _statements(text):
         yield start, pending
 
 
-def _numbers(args, where):
+def _numbers(args, where, scale=1.0):
+    """The comma-separated numbers of ``args`` times ``scale`` (a unit's mm); range-checked in mm."""
     out = []
     for a in args.split(","):
         a = a.strip()
@@ -90,6 +117,7 @@ def _numbers(args, where):
             raise InputError(f"{where}: expected numbers, got '{a}'") from None
         if not math.isfinite(v):
             raise InputError(f"{where}: NaN or infinite value")
+        v *= scale
         if abs(v) > MAX_COORDINATE:
             raise InputError(f"{where}: value {v:g} is out of range (|v| <= {MAX_COORDINATE:g} mm)")
         out.append(v)
@@ -117,19 +145,22 @@ def read_apt(path, tools) -> tuple[Toolpath, list[str]]:
     current = -1
     cutter = None
     next_rapid = False
+    scale = 1.0  # mm per unit of the file (UNITS/INCHES: 25.4)
     for number, stmt in _statements(text):
         where = f"{name}:{number}"
-        word, _, args = stmt.partition("/")
+        word, slash, args = stmt.partition("/")
         word = word.strip().upper()
+        if not slash and word not in ("RAPID", "FINI", "END") and not word.isalpha():
+            raise InputError(f"{where}: cannot read '{stmt.strip()[:40]}' (an APT statement is WORD or WORD/arguments)")
         if word == "GOTO":
-            v = _numbers(args, where)
+            v = _numbers(args, where, scale)
             if len(v) not in (3, 6):
                 raise InputError(f"{where}: GOTO needs x, y, z or x, y, z, i, j, k")
             if current < 0:
                 if cutter is None:
                     raise InputError(f"{where}: GOTO before any CUTTER/ or LOADTL/")
                 current = _tool_for_cutter(cutter, tools, where)
-            axis = v[3:] if len(v) == 6 else [0.0, 0.0, 1.0]
+            axis = [a / scale for a in v[3:]] if len(v) == 6 else [0.0, 0.0, 1.0]
             n = math.sqrt(sum(a * a for a in axis))
             if n < 1e-9:
                 raise InputError(f"{where}: zero-length tool axis")
@@ -141,8 +172,16 @@ def read_apt(path, tools) -> tuple[Toolpath, list[str]]:
             next_rapid = False
         elif word == "RAPID":
             next_rapid = True
+        elif word == "UNITS":
+            unit = args.strip().upper()
+            if unit in ("MM", "MILLIMETERS", "MILLIMETRES"):
+                scale = 1.0
+            elif unit in ("INCHES", "INCH", "IN"):
+                scale = INCH
+            else:
+                raise InputError(f"{where}: UNITS/{args.strip()}: only UNITS/MM and UNITS/INCHES are known")
         elif word == "CUTTER":
-            cutter = _numbers(args, where)
+            cutter = _numbers(args, where, scale)
             if not cutter or cutter[0] <= 0:
                 raise InputError(f"{where}: CUTTER needs a positive diameter")
             current = -1
@@ -155,6 +194,11 @@ def read_apt(path, tools) -> tuple[Toolpath, list[str]]:
             break
         elif word in IGNORED_WITH_WARNING:
             skipped[word] = skipped.get(word, 0) + 1
+        elif word in REFUSED:
+            raise InputError(f"{where}: {word}: {REFUSED[word]}")
+        elif word not in HARMLESS:
+            shown = word if len(word) <= 20 else word[:20] + "..."
+            raise InputError(f"{where}: unknown statement '{shown}' (refused: a move it stands for would be lost)")
     for word, count in skipped.items():
         warnings.append(f"{name}: ignored {count} {word} statement(s)")
     if not tips:

@@ -15,7 +15,9 @@ Read:
 - ``T<n>`` selects the tool whose ``number`` is n for the moves that follow (``M6`` or not); a
   move before the first T word is refused. With no T word in the program: the tool named
   ``tool_name``, else the table's only tool.
-- Skipped: ``F S M N O P H D Q`` words, ``%`` lines, ``( ... )`` and ``; ...`` comments, ``G4``
+- Skipped: ``F S M N O H D`` words, ``P`` and ``Q`` on a ``G4`` or ``G64`` line (refused elsewhere:
+  on a move they would stand for a cycle or a subprogram this reader does not run; ``K`` likewise,
+  which no XY-plane move uses), ``%`` lines, ``( ... )`` and ``; ...`` comments, ``G4``
   (dwell; its line does not move), ``G17 G40 G43 G49 G61 G64 G80 G93 G94`` (``G93`` inverse-time
   and ``G94`` feeds: F words are read by :mod:`meshmill.machine.timing`; a feed move under ``G93``
   without F is refused, as a control would stop there); ``G54``-``G59`` with a warning that work offsets
@@ -85,9 +87,10 @@ REFUSED_G = {
 END_RETRACT = ("G28", "G53")  # read as a retract of Z alone in machine coordinates
 TCP_ON = {"G43.4", "G43.5"}  # tool centre point control on (Fanuc-like controls)
 TCP_OFF = {"G49", "G43"}  # off: cancel, or plain tool length compensation (the same modal group)
-LENGTH_LETTERS = "XYZIJKR"
+LENGTH_LETTERS = "XYZIJR"
 ROTARY_LETTERS = "ABC"
-SKIPPED_LETTERS = "FSMNOPHDQ"
+SKIPPED_LETTERS = "FSMNOHDPQ"
+PARAMETER_CODES = {"G4", "G64"}  # the only lines whose P and Q words are read (and skipped)
 KNOWN_LETTERS = set(LENGTH_LETTERS + SKIPPED_LETTERS + "T")
 LINEAR_AXES = ("X", "Y", "Z")
 INCH = 25.4
@@ -194,6 +197,10 @@ def _parse_line(raw, where, axes):
             raise InputError(f"{where}: {letter} given twice")
         else:
             words[letter] = value
+    odd = [k for k in "PQ" if k in words]
+    if odd and not PARAMETER_CODES.intersection(gcodes) and not REFUSED_G.keys() & set(gcodes):
+        raise InputError(f"{where}: unsupported word {odd[0]}{words[odd[0]]:g} (P and Q are read only on G4 and G64 "
+                         "lines; on a move they stand for a cycle or a call this reader does not run)")
     return gcodes, words
 
 

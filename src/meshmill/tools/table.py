@@ -18,6 +18,8 @@ from ..errors import InputError
 from ..tomlfile import read_toml
 
 TYPES = ("ball", "flat", "bull")
+KEYS = ("name", "type", "diameter", "corner_radius", "flute_length", "gauge_length", "shank_diameter",
+        "holder_diameter", "holder_length", "rpm")
 MAX_RPM = 1e6  # rev/min: spindle speeds are below this (tool tables and machines)
 RING_POINTS = 36  # spheres along the torus of a bull-nose cutter in verification
 
@@ -149,6 +151,10 @@ def tool_from_entry(entry: dict, number: int, where: str) -> Tool:
     """Check one ``[[tools]]`` table into a :class:`Tool` (raises :class:`InputError`)."""
     name = str(entry.get("name", f"T{number}"))
     where = f"{where}: tool {number} ('{name}')"
+    for key in entry:
+        if key not in KEYS:
+            # a misspelt key (holder_diamter) would silently drop what it meant to give
+            raise InputError(f"{where}: unknown key '{key}' (known: {', '.join(KEYS)})")
     kind = entry.get("type")
     if kind not in TYPES:
         raise InputError(f"{where}: 'type' must be one of {', '.join(TYPES)}, got {kind!r}")

@@ -1,0 +1,781 @@
+"""Certified clearance of tool poses and of the tool between two poses (device functions, written
+once for every backend; conventions of :mod:`meshmill.kernels.geom`).
+
+A tool is the union of its parts along the unit axis ``u`` from the tip: the rounded end (spheres
+of radius ``r`` centred on a circle of radius ``rho`` at ``t`` along the axis: a ball is rho = 0)
+and flat-ended cylinders ``[t0, t1]`` of radius ``rad``. A part *penetrates by at most* ``limit``
+when (sphere) its radius shrunk by ``limit`` stays out of the mesh, or (cylinder) its radius
+shrunk by ``limit`` does, or its bottom raised so that it starts ``limit`` above ``base`` does (the
+measure :func:`pose_depth` reports). Every part may be grown by ``grow`` (radius, and both ends of a
+cylinder), for the clearance a rapid keeps from the stock.
+
+:func:`interval_clear` decides, without sampling, that every pose between pose a and pose b of a
+move (tip linear, axis by normalised linear interpolation, as verification and simulation model a
+move) keeps every part within ``limit``:
+
+- the rounded end: its circle is covered by chords (sagitta added to the radius); a chord swept
+  from a to b is the bilinear patch of its four end points, within ``dev = l (1 - cos(theta/2))``
+  of the true swept chord (l the chord points' distance from the tip, theta the axis turn: the
+  normalised interpolation of a vector shortens it by at most that) and within a quarter of the
+  patch's twist of its two triangles; so the swept end lies within ``r + slack`` of two triangles,
+  whose distance to the mesh is exact (triangle-triangle distance). Chords near the mesh are halved
+  until that suffices or cannot (then the caller halves the interval). A ball's chord is a point and
+  its sweep a segment: a capsule, exact for a move with a fixed axis.
+- a cylinder: cut into bands along its axis. A band held at the axis halfway between the two
+  poses' and swept along the path of its middle lies in the prism of a stadium (the disk swept
+  along the move's part across that axis) over the slab widened by the move's part along it; the
+  band turns about its middle by at most theta/2, which moves its side by ``half length x
+  sin(theta/2)`` across the axis and its rim by ``radius x sin(theta/2)`` along it, and the
+  middle's path bows by ``t_m (1 - cos(theta/2))``: added to the radius and the slab. Bands are
+  halved where their own turn is what fails. The prism's distance to a triangle is exact (the
+  triangle clipped to the slab, projected across the axis, against the stadium's segment), so a
+  move with a fixed axis (a waterline, a flat floor) is decided exactly.
+
+Every test is conservative: "clear" is a proof, "not clear" only asks the caller to look closer.
+"""
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+from . import geom, raycast
+
+INF = 1.0e300
+RING_ARCS = 8  # chords the circle of a rounded end starts with
+MIN_ARC = 1e-4  # rad: a chord is not halved below this
+ARC_STACK = 64  # chords waiting at once (pairs of angles in the work array)
+WORK_SIZE = 2 * ARC_STACK + 64  # float64 scratch a caller hands in: arcs, then two triangles and a polygon
+_TRI_A = 2 * ARC_STACK  # offsets in the work array
+_TRI_B = _TRI_A + 9
+_POLY = _TRI_B + 9  # up to 5 clipped points (h, x, y), twice
+_POLY_B = _POLY + 15
+
+
+def build(jit):
+    """Compile the device functions with ``jit`` and return them in a namespace."""
+    g = geom.build(jit)
+    ray = raycast.build(jit)
+    point_tri = g.point_tri_dist2
+    axis_dist = g.triangle_axis_dist2
+    point_seg = g.point_segment_dist2
+    point_dist = g.mesh_point_dist2
+    cylinder_dist = g.mesh_cylinder_dist2
+    hit = ray.hit
+
+    @jit
+    def seg_seg_dist2(p0x, p0y, p0z, p1x, p1y, p1z, q0x, q0y, q0z, q1x, q1y, q1z):
+        """Squared distance between segments p0-p1 and q0-q1 (either may be a point)."""
+        d1x = p1x - p0x
+        d1y = p1y - p0y
+        d1z = p1z - p0z
+        d2x = q1x - q0x
+        d2y = q1y - q0y
+        d2z = q1z - q0z
+        rx = p0x - q0x
+        ry = p0y - q0y
+        rz = p0z - q0z
+        a = d1x * d1x + d1y * d1y + d1z * d1z
+        e = d2x * d2x + d2y * d2y + d2z * d2z
+        f = d2x * rx + d2y * ry + d2z * rz
+        s = 0.0
+        t = 0.0
+        if a <= 1e-300 and e <= 1e-300:
+            return rx * rx + ry * ry + rz * rz
+        if a <= 1e-300:
+            t = min(1.0, max(0.0, f / e))
+        else:
+            c = d1x * rx + d1y * ry + d1z * rz
+            if e <= 1e-300:
+                s = min(1.0, max(0.0, -c / a))
+            else:
+                b = d1x * d2x + d1y * d2y + d1z * d2z
+                den = a * e - b * b
+                if den > 0.0:
+                    s = min(1.0, max(0.0, (b * f - c * e) / den))
+                t = (b * s + f) / e
+                if t < 0.0:
+                    t = 0.0
+                    s = min(1.0, max(0.0, -c / a))
+                elif t > 1.0:
+                    t = 1.0
+                    s = min(1.0, max(0.0, (b - c) / a))
+        wx = rx + s * d1x - t * d2x
+        wy = ry + s * d1y - t * d2y
+        wz = rz + s * d1z - t * d2z
+        return wx * wx + wy * wy + wz * wz
+
+    @jit
+    def pierces(p0x, p0y, p0z, p1x, p1y, p1z, ax, ay, az, bx, by, bz, cx, cy, cz):
+        """Whether segment p0-p1 crosses the plane of triangle abc inside it (a degenerate triangle
+        or a segment in its plane never does: distances decide those)."""
+        e1x = bx - ax
+        e1y = by - ay
+        e1z = bz - az
+        e2x = cx - ax
+        e2y = cy - ay
+        e2z = cz - az
+        dx = p1x - p0x
+        dy = p1y - p0y
+        dz = p1z - p0z
+        px = dy * e2z - dz * e2y
+        py = dz * e2x - dx * e2z
+        pz = dx * e2y - dy * e2x
+        det = e1x * px + e1y * py + e1z * pz
+        if abs(det) <= 1e-300:
+            return False
+        inv = 1.0 / det
+        tx = p0x - ax
+        ty = p0y - ay
+        tz = p0z - az
+        u = (tx * px + ty * py + tz * pz) * inv
+        if u < 0.0 or u > 1.0:
+            return False
+        qx = ty * e1z - tz * e1y
+        qy = tz * e1x - tx * e1z
+        qz = tx * e1y - ty * e1x
+        v = (dx * qx + dy * qy + dz * qz) * inv
+        if v < 0.0 or u + v > 1.0:
+            return False
+        s = (e2x * qx + e2y * qy + e2z * qz) * inv
+        return s >= 0.0 and s <= 1.0
+
+    @jit
+    def tri_tri_dist2(q, o, tris, t):
+        """Squared distance between the triangle ``q[o:o+9]`` (may be degenerate) and triangle t."""
+        best = INF
+        for i in range(3):
+            i0 = o + 3 * i
+            i1 = o + 3 * ((i + 1) % 3)
+            for j in range(3):
+                j0 = 3 * j
+                j1 = 3 * ((j + 1) % 3)
+                d = seg_seg_dist2(q[i0], q[i0 + 1], q[i0 + 2], q[i1], q[i1 + 1], q[i1 + 2],
+                                  tris[t, j0], tris[t, j0 + 1], tris[t, j0 + 2],
+                                  tris[t, j1], tris[t, j1 + 1], tris[t, j1 + 2])
+                if d < best:
+                    best = d
+        for i in range(3):
+            i0 = o + 3 * i
+            d = point_tri(q[i0], q[i0 + 1], q[i0 + 2], tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4],
+                          tris[t, 5], tris[t, 6], tris[t, 7], tris[t, 8])
+            if d < best:
+                best = d
+            j0 = 3 * i
+            d = point_tri(tris[t, j0], tris[t, j0 + 1], tris[t, j0 + 2], q[o], q[o + 1], q[o + 2], q[o + 3],
+                          q[o + 4], q[o + 5], q[o + 6], q[o + 7], q[o + 8])
+            if d < best:
+                best = d
+        if best > 0.0:
+            for i in range(3):
+                i0 = o + 3 * i
+                i1 = o + 3 * ((i + 1) % 3)
+                if pierces(q[i0], q[i0 + 1], q[i0 + 2], q[i1], q[i1 + 1], q[i1 + 2], tris[t, 0], tris[t, 1],
+                           tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5], tris[t, 6], tris[t, 7], tris[t, 8]):
+                    return 0.0
+                j0 = 3 * i
+                j1 = 3 * ((i + 1) % 3)
+                if pierces(tris[t, j0], tris[t, j0 + 1], tris[t, j0 + 2], tris[t, j1], tris[t, j1 + 1],
+                           tris[t, j1 + 2], q[o], q[o + 1], q[o + 2], q[o + 3], q[o + 4], q[o + 5], q[o + 6],
+                           q[o + 7], q[o + 8]):
+                    return 0.0
+        return best
+
+    @jit
+    def box_box_dist2(node_lo, node_hi, n, lox, loy, loz, hix, hiy, hiz):
+        """Squared distance between node n's box and the box [lo, hi]."""
+        d = 0.0
+        for k in range(3):
+            lo = lox if k == 0 else (loy if k == 1 else loz)
+            hi = hix if k == 0 else (hiy if k == 1 else hiz)
+            if node_lo[n, k] > hi:
+                d += (node_lo[n, k] - hi) ** 2
+            elif lo > node_hi[n, k]:
+                d += (lo - node_hi[n, k]) ** 2
+        return d
+
+    @jit
+    def mesh_tris_dist2(q, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack):
+        """Smallest squared distance from the two triangles ``q[_TRI_A:+9]``, ``q[_TRI_B:+9]`` to the
+        mesh, capped at cap2, returning early below stop2."""
+        lox = INF
+        loy = INF
+        loz = INF
+        hix = -INF
+        hiy = -INF
+        hiz = -INF
+        for k in range(6):
+            o = _TRI_A + 3 * k
+            lox = min(lox, q[o])
+            loy = min(loy, q[o + 1])
+            loz = min(loz, q[o + 2])
+            hix = max(hix, q[o])
+            hiy = max(hiy, q[o + 1])
+            hiz = max(hiz, q[o + 2])
+        best = cap2
+        stack[0] = 0
+        sp = 1
+        while sp > 0:
+            sp -= 1
+            n = stack[sp]
+            if box_box_dist2(node_lo, node_hi, n, lox, loy, loz, hix, hiy, hiz) >= best:
+                continue
+            left = node_child[n, 0]
+            if left < 0:
+                first = node_range[n, 0]
+                for t in range(first, first + node_range[n, 1]):
+                    d = tri_tri_dist2(q, _TRI_A, tris, t)
+                    if d < best:
+                        best = d
+                    d = tri_tri_dist2(q, _TRI_B, tris, t)
+                    if d < best:
+                        best = d
+                    if best < stop2:
+                        return best
+            else:
+                stack[sp] = node_child[n, 1]
+                stack[sp + 1] = left
+                sp += 2
+        return best
+
+    @jit
+    def box_may_touch_capsule(node_lo, node_hi, n, ax, ay, az, bx, by, bz, r):
+        """False only when box n certainly lies farther than r from segment a-b."""
+        if node_lo[n, 0] > max(ax, bx) + r or node_hi[n, 0] < min(ax, bx) - r:
+            return False
+        if node_lo[n, 1] > max(ay, by) + r or node_hi[n, 1] < min(ay, by) - r:
+            return False
+        if node_lo[n, 2] > max(az, bz) + r or node_hi[n, 2] < min(az, bz) - r:
+            return False
+        cx = 0.5 * (node_lo[n, 0] + node_hi[n, 0])
+        cy = 0.5 * (node_lo[n, 1] + node_hi[n, 1])
+        cz = 0.5 * (node_lo[n, 2] + node_hi[n, 2])
+        hx = 0.5 * (node_hi[n, 0] - node_lo[n, 0])
+        hy = 0.5 * (node_hi[n, 1] - node_lo[n, 1])
+        hz = 0.5 * (node_hi[n, 2] - node_lo[n, 2])
+        reach = r + math.sqrt(hx * hx + hy * hy + hz * hz)
+        return point_seg(cx, cy, cz, ax, ay, az, bx, by, bz) <= reach * reach
+
+    @jit
+    def mesh_segment_dist2(ax, ay, az, bx, by, bz, cap2, stop2, node_lo, node_hi, node_child, node_range, tris,
+                           stack):
+        """Smallest squared distance from segment a-b to the mesh (capped at cap2, returning early
+        below stop2): per triangle the least of the segment's distance within the slab it spans
+        and its two ends' distances."""
+        dx = bx - ax
+        dy = by - ay
+        dz = bz - az
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if length <= 1e-12:
+            return point_dist(ax, ay, az, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack)
+        ux = dx / length
+        uy = dy / length
+        uz = dz / length
+        best = cap2
+        stack[0] = 0
+        sp = 1
+        while sp > 0:
+            sp -= 1
+            n = stack[sp]
+            if not box_may_touch_capsule(node_lo, node_hi, n, ax, ay, az, bx, by, bz, math.sqrt(best)):
+                continue
+            left = node_child[n, 0]
+            if left < 0:
+                first = node_range[n, 0]
+                for t in range(first, first + node_range[n, 1]):
+                    d = axis_dist(tris, t, ax, ay, az, ux, uy, uz, 0.0, length)
+                    d = min(d, point_tri(ax, ay, az, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4],
+                                         tris[t, 5], tris[t, 6], tris[t, 7], tris[t, 8]))
+                    d = min(d, point_tri(bx, by, bz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4],
+                                         tris[t, 5], tris[t, 6], tris[t, 7], tris[t, 8]))
+                    if d < best:
+                        best = d
+                        if best < stop2:
+                            return best
+            else:
+                stack[sp] = node_child[n, 1]
+                stack[sp + 1] = left
+                sp += 2
+        return best
+
+    @jit
+    def seg2d_dist2(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y):
+        """Squared distance between 2-D segments p0-p1 and q0-q1 (0 when they cross)."""
+        d = INF
+        for k in range(4):
+            if k == 0:
+                ax, ay, bx, by, cx, cy = p0x, p0y, q0x, q0y, q1x, q1y
+            elif k == 1:
+                ax, ay, bx, by, cx, cy = p1x, p1y, q0x, q0y, q1x, q1y
+            elif k == 2:
+                ax, ay, bx, by, cx, cy = q0x, q0y, p0x, p0y, p1x, p1y
+            else:
+                ax, ay, bx, by, cx, cy = q1x, q1y, p0x, p0y, p1x, p1y
+            ex = cx - bx
+            ey = cy - by
+            ee = ex * ex + ey * ey
+            s = 0.0
+            if ee > 0.0:
+                s = min(1.0, max(0.0, ((ax - bx) * ex + (ay - by) * ey) / ee))
+            wx = ax - bx - s * ex
+            wy = ay - by - s * ey
+            d = min(d, wx * wx + wy * wy)
+        if d > 0.0:
+            o1 = (p1x - p0x) * (q0y - p0y) - (p1y - p0y) * (q0x - p0x)
+            o2 = (p1x - p0x) * (q1y - p0y) - (p1y - p0y) * (q1x - p0x)
+            o3 = (q1x - q0x) * (p0y - q0y) - (q1y - q0y) * (p0x - q0x)
+            o4 = (q1x - q0x) * (p1y - q0y) - (q1y - q0y) * (p1x - q0x)
+            if o1 * o2 < 0.0 and o3 * o4 < 0.0:
+                return 0.0
+        return d
+
+    @jit
+    def clip_slab(w, src, n, dst, h0, keep_above):
+        """Clip the polygon of ``n`` points (h, x, y) at ``w[src:]`` by h >= h0 (keep_above) or
+        h <= h0 into ``w[dst:]``; returns its point count (at most n + 1)."""
+        m = 0
+        for k in range(n):
+            a = src + 3 * k
+            b = src + 3 * ((k + 1) % n)
+            ha = w[a] - h0 if keep_above else h0 - w[a]
+            hb = w[b] - h0 if keep_above else h0 - w[b]
+            if ha >= 0.0:
+                w[dst + 3 * m] = w[a]
+                w[dst + 3 * m + 1] = w[a + 1]
+                w[dst + 3 * m + 2] = w[a + 2]
+                m += 1
+            if (ha >= 0.0) != (hb >= 0.0):
+                f = ha / (ha - hb)
+                w[dst + 3 * m] = w[a] + f * (w[b] - w[a])
+                w[dst + 3 * m + 1] = w[a + 1] + f * (w[b + 1] - w[a + 1])
+                w[dst + 3 * m + 2] = w[a + 2] + f * (w[b + 2] - w[a + 2])
+                m += 1
+        return m
+
+    @jit
+    def stadium_tri_dist2(tris, t, ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, w):
+        """Distance² across the axis between triangle t, clipped to s0 <= (p - a)·u <= s1, and the
+        2-D segment from 0 to (vx, vy) in the frame (e1, e2); INF when the triangle misses the slab."""
+        for k in range(3):
+            px = tris[t, 3 * k] - ax
+            py = tris[t, 3 * k + 1] - ay
+            pz = tris[t, 3 * k + 2] - az
+            w[_POLY + 3 * k] = px * ux + py * uy + pz * uz
+            w[_POLY + 3 * k + 1] = px * e1x + py * e1y + pz * e1z
+            w[_POLY + 3 * k + 2] = px * e2x + py * e2y + pz * e2z
+        n = clip_slab(w, _POLY, 3, _POLY_B, s0, True)
+        if n == 0:
+            return INF
+        n = clip_slab(w, _POLY_B, n, _POLY, s1, False)
+        if n == 0:
+            return INF
+        best = INF
+        for k in range(n):
+            a = _POLY + 3 * k
+            b = _POLY + 3 * ((k + 1) % n)
+            d = seg2d_dist2(0.0, 0.0, vx, vy, w[a + 1], w[a + 2], w[b + 1], w[b + 2])
+            if d < best:
+                best = d
+        if best > 0.0 and n >= 3:
+            pos = False
+            neg = False
+            for k in range(n):
+                a = _POLY + 3 * k
+                b = _POLY + 3 * ((k + 1) % n)
+                c = (w[b + 1] - w[a + 1]) * (0.0 - w[a + 2]) - (w[b + 2] - w[a + 2]) * (0.0 - w[a + 1])
+                if c > 0.0:
+                    pos = True
+                elif c < 0.0:
+                    neg = True
+            if pos != neg:
+                return 0.0
+        return best
+
+    @jit
+    def mesh_stadium_dist2(ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, cap2, stop2,
+                           node_lo, node_hi, node_child, node_range, tris, stack, w):
+        """Smallest squared distance across the axis from the stadium prism (see
+        :func:`stadium_tri_dist2`) to the mesh: a flat cylinder of radius rad over [s0, s1], swept
+        across its axis by (vx, vy), overlaps the mesh iff this is below rad²."""
+        # the prism's box: its four corner points, widened by the distance being asked about
+        lox = INF
+        loy = INF
+        loz = INF
+        hix = -INF
+        hiy = -INF
+        hiz = -INF
+        for k in range(4):
+            h = s0 if k < 2 else s1
+            f = 0.0 if k % 2 == 0 else 1.0
+            x = ax + h * ux + f * (vx * e1x + vy * e2x)
+            y = ay + h * uy + f * (vx * e1y + vy * e2y)
+            z = az + h * uz + f * (vx * e1z + vy * e2z)
+            lox = min(lox, x)
+            loy = min(loy, y)
+            loz = min(loz, z)
+            hix = max(hix, x)
+            hiy = max(hiy, y)
+            hiz = max(hiz, z)
+        best = cap2
+        stack[0] = 0
+        sp = 1
+        while sp > 0:
+            sp -= 1
+            n = stack[sp]
+            if box_box_dist2(node_lo, node_hi, n, lox, loy, loz, hix, hiy, hiz) >= best:
+                continue
+            left = node_child[n, 0]
+            if left < 0:
+                first = node_range[n, 0]
+                for t in range(first, first + node_range[n, 1]):
+                    d = stadium_tri_dist2(tris, t, ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1,
+                                          vx, vy, w)
+                    if d < best:
+                        best = d
+                        if best < stop2:
+                            return best
+            else:
+                stack[sp] = node_child[n, 1]
+                stack[sp + 1] = left
+                sp += 2
+        return best
+
+    @jit
+    def inside(px, py, pz, in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor, stack):
+        """Whether p lies in the material: the crossings of the line up from p with the solid
+        triangles (``in_kind`` 1, signed) wind around it, or it is above ``floor`` with an odd
+        number of sheet triangles (``in_kind`` 0) above it (the solid an open surface bounds below)."""
+        wind = 0
+        odd = False
+        stack[0] = 0
+        sp = 1
+        while sp > 0:
+            sp -= 1
+            n = stack[sp]
+            if px < in_lo[n, 0] or px > in_hi[n, 0] or py < in_lo[n, 1] or py > in_hi[n, 1] or in_hi[n, 2] <= pz:
+                continue
+            left = in_child[n, 0]
+            if left < 0:
+                first = in_range[n, 0]
+                for t in range(first, first + in_range[n, 1]):
+                    side, z = hit(in_tris, t, 2, px, py)
+                    if side != 0 and z > pz:
+                        if in_kind[t] == 1:
+                            wind += side
+                        else:
+                            odd = not odd
+            else:
+                stack[sp] = left
+                stack[sp + 1] = in_child[n, 1]
+                sp += 2
+        return wind > 0 or (odd and pz >= floor)
+
+    @jit
+    def normal_frame(ux, uy, uz):
+        """Two unit vectors completing the unit u to an orthonormal frame."""
+        if abs(ux) < 0.9:
+            ex, ey, ez = 0.0, -uz, uy
+        else:
+            ex, ey, ez = uz, 0.0, -ux
+        en = math.sqrt(ex * ex + ey * ey + ez * ez)
+        ex /= en
+        ey /= en
+        ez /= en
+        return ex, ey, ez, uy * ez - uz * ey, uz * ex - ux * ez, ux * ey - uy * ex
+
+    @jit
+    def turned(x, y, z, ax, ay, az, bx, by, bz):
+        """Vector (x, y, z) turned by the rotation that takes unit a to unit b about a x b."""
+        nx = ay * bz - az * by
+        ny = az * bx - ax * bz
+        nz = ax * by - ay * bx
+        s = math.sqrt(nx * nx + ny * ny + nz * nz)
+        c = ax * bx + ay * by + az * bz
+        if s <= 1e-15:
+            return x, y, z
+        nx /= s
+        ny /= s
+        nz /= s
+        d = nx * x + ny * y + nz * z
+        cx = ny * z - nz * y
+        cy = nz * x - nx * z
+        cz = nx * y - ny * x
+        return (x * c + cx * s + nx * d * (1.0 - c), y * c + cy * s + ny * d * (1.0 - c),
+                z * c + cz * s + nz * d * (1.0 - c))
+
+    @jit
+    def put_point(w, o, px, py, pz):
+        w[o] = px
+        w[o + 1] = py
+        w[o + 2] = pz
+
+    @jit
+    def quad_clear(w, a0x, a0y, a0z, a1x, a1y, a1z, b0x, b0y, b0z, b1x, b1y, b1z, need,
+                   node_lo, node_hi, node_child, node_range, tris, stack):
+        """Whether the two triangles (a0, a1, b1), (a0, b1, b0) keep ``need`` mm from the mesh."""
+        if need <= 0.0:
+            return True
+        put_point(w, _TRI_A, a0x, a0y, a0z)
+        put_point(w, _TRI_A + 3, a1x, a1y, a1z)
+        put_point(w, _TRI_A + 6, b1x, b1y, b1z)
+        put_point(w, _TRI_B, a0x, a0y, a0z)
+        put_point(w, _TRI_B + 3, b1x, b1y, b1z)
+        put_point(w, _TRI_B + 6, b0x, b0y, b0z)
+        need2 = need * need
+        return mesh_tris_dist2(w, need2, need2, node_lo, node_hi, node_child, node_range, tris, stack) >= need2
+
+    @jit
+    def ring_clear(ta, ua, tb, ub, t_ring, rho, r, limit, node_lo, node_hi, node_child, node_range, tris, stack, w):
+        """Whether the rounded end (``r`` already grown) keeps within ``limit`` between poses a and b
+        (tips ``ta, tb``, unit axes ``ua, ub``: 3-arrays)."""
+        cth = min(1.0, max(-1.0, ua[0] * ub[0] + ua[1] * ub[1] + ua[2] * ub[2]))
+        dev = math.sqrt(t_ring * t_ring + rho * rho) * (1.0 - math.sqrt(0.5 * (1.0 + cth)))
+        e1x, e1y, e1z, e2x, e2y, e2z = normal_frame(ua[0], ua[1], ua[2])
+        f1x, f1y, f1z = turned(e1x, e1y, e1z, ua[0], ua[1], ua[2], ub[0], ub[1], ub[2])
+        f2x, f2y, f2z = turned(e2x, e2y, e2z, ua[0], ua[1], ua[2], ub[0], ub[1], ub[2])
+        cax = ta[0] + t_ring * ua[0]
+        cay = ta[1] + t_ring * ua[1]
+        caz = ta[2] + t_ring * ua[2]
+        cbx = tb[0] + t_ring * ub[0]
+        cby = tb[1] + t_ring * ub[1]
+        cbz = tb[2] + t_ring * ub[2]
+        arcs = 1 if rho <= 0.0 else RING_ARCS
+        sp = 0
+        for k in range(arcs):
+            w[2 * sp] = 2.0 * math.pi * k / arcs
+            w[2 * sp + 1] = 2.0 * math.pi * (k + 1) / arcs
+            sp += 1
+        while sp > 0:
+            sp -= 1
+            f0 = w[2 * sp]
+            f1 = w[2 * sp + 1]
+            c0 = math.cos(f0)
+            s0 = math.sin(f0)
+            c1 = math.cos(f1)
+            s1 = math.sin(f1)
+            # corners: (a, f0) (a, f1) (b, f0) (b, f1); triangles (a0, a1, b1) and (a0, b1, b0)
+            a0x = cax + rho * (c0 * e1x + s0 * e2x)
+            a0y = cay + rho * (c0 * e1y + s0 * e2y)
+            a0z = caz + rho * (c0 * e1z + s0 * e2z)
+            a1x = cax + rho * (c1 * e1x + s1 * e2x)
+            a1y = cay + rho * (c1 * e1y + s1 * e2y)
+            a1z = caz + rho * (c1 * e1z + s1 * e2z)
+            b0x = cbx + rho * (c0 * f1x + s0 * f2x)
+            b0y = cby + rho * (c0 * f1y + s0 * f2y)
+            b0z = cbz + rho * (c0 * f1z + s0 * f2z)
+            b1x = cbx + rho * (c1 * f1x + s1 * f2x)
+            b1y = cby + rho * (c1 * f1y + s1 * f2y)
+            b1z = cbz + rho * (c1 * f1z + s1 * f2z)
+            tx = a0x - a1x - b0x + b1x
+            ty = a0y - a1y - b0y + b1y
+            tz = a0z - a1z - b0z + b1z
+            twist = 0.25 * math.sqrt(tx * tx + ty * ty + tz * tz)
+            sagitta = rho * (1.0 - math.cos(0.5 * (f1 - f0)))
+            need = r + sagitta + dev + twist - limit
+            if rho <= 0.0:  # a ball: its centre's chord
+                need2 = need * need
+                if need <= 0.0 or mesh_segment_dist2(a0x, a0y, a0z, b0x, b0y, b0z, need2, need2, node_lo, node_hi,
+                                                     node_child, node_range, tris, stack) >= need2:
+                    continue
+                return False
+            if quad_clear(w, a0x, a0y, a0z, a1x, a1y, a1z, b0x, b0y, b0z, b1x, b1y, b1z, need,
+                          node_lo, node_hi, node_child, node_range, tris, stack):
+                continue
+            # halving the chord helps only while its own slack (sagitta, twist) is what fails
+            if rho <= 0.0 or f1 - f0 < MIN_ARC or sagitta + twist <= 0.25 * dev or sp + 2 > ARC_STACK:
+                return False
+            fm = 0.5 * (f0 + f1)
+            w[2 * sp] = f0
+            w[2 * sp + 1] = fm
+            w[2 * sp + 2] = fm
+            w[2 * sp + 3] = f1
+            sp += 2
+        return True
+
+    @jit
+    def band_clear(ta, ua, tb, ub, mx, my, mz, e1x, e1y, e1z, e2x, e2y, e2z, b0, b1, s_lo, rad, shorten, chord,
+                   need_extra, node_lo, node_hi, node_child, node_range, tris, stack, w):
+        """Whether the band [b0, b1] of a cylinder of radius ``rad`` (its part above ``s_lo``) keeps
+        ``rad + need_extra`` across the axis from the mesh between poses a and b: the prism of the
+        band about its middle, along the mid axis m, the slack of its turn added (the middle's path
+        bows by ``|t_m| shorten``; the band turns about it by theta/2 at most, moving its side by
+        ``half · chord`` across and its rim by ``rad · chord`` along the axis, chord = sin(theta/2))."""
+        tm = 0.5 * (b0 + b1)
+        half = 0.5 * (b1 - b0)
+        bow = abs(tm) * shorten
+        across = half * chord + bow
+        along = rad * chord + bow
+        cax = ta[0] + tm * ua[0]
+        cay = ta[1] + tm * ua[1]
+        caz = ta[2] + tm * ua[2]
+        vx = tb[0] + tm * ub[0] - cax
+        vy = tb[1] + tm * ub[1] - cay
+        vz = tb[2] + tm * ub[2] - caz
+        vu = vx * mx + vy * my + vz * mz
+        v1 = vx * e1x + vy * e1y + vz * e1z
+        v2 = vx * e2x + vy * e2y + vz * e2z
+        lo = max(b0, s_lo) - tm - along + min(0.0, vu)
+        hi = b1 - tm + along + max(0.0, vu)
+        if lo >= hi:
+            return True
+        need = rad + need_extra + across
+        if need <= 0.0:
+            return True
+        need2 = need * need
+        return mesh_stadium_dist2(cax, cay, caz, mx, my, mz, e1x, e1y, e1z, e2x, e2y, e2z, lo, hi, v1, v2, need2,
+                                  need2, node_lo, node_hi, node_child, node_range, tris, stack, w) >= need2
+
+    @jit
+    def cylinder_clear(ta, ua, tb, ub, t0, t1, rad, base, grow, limit,
+                       node_lo, node_hi, node_child, node_range, tris, stack, w):
+        """Whether the flat cylinder [t0, t1] of radius rad (grown by ``grow``) keeps within
+        ``limit`` between poses a and b: radially (its radius shrunk by limit stays out) or else
+        axially (its part from ``base + limit`` up stays out), at every pose. Bands of the cylinder
+        (:func:`band_clear`) are halved where their turn's slack is what fails."""
+        cth = min(1.0, max(-1.0, ua[0] * ub[0] + ua[1] * ub[1] + ua[2] * ub[2]))
+        mx = ua[0] + ub[0]
+        my = ua[1] + ub[1]
+        mz = ua[2] + ub[2]
+        mn = math.sqrt(mx * mx + my * my + mz * mz)
+        if mn <= 1e-12:
+            return False
+        mx /= mn
+        my /= mn
+        mz /= mn
+        e1x, e1y, e1z, e2x, e2y, e2z = normal_frame(mx, my, mz)
+        shorten = 1.0 - math.sqrt(0.5 * (1.0 + cth))  # 1 - cos(theta / 2)
+        chord = math.sqrt(max(0.0, 0.5 * (1.0 - cth)))  # sin(theta / 2)
+        lo = t0 - grow
+        hi = t1 + grow
+        r = rad + grow
+        for mode in range(2):  # 0: radially, 1: axially
+            s_lo = lo if mode == 0 else max(t0, base + limit) - grow
+            extra = -limit if mode == 0 else 0.0
+            if s_lo >= hi:
+                return True
+            ok = True
+            w[0] = lo
+            w[1] = hi
+            sp = 1
+            while sp > 0:
+                sp -= 1
+                b0 = w[2 * sp]
+                b1 = w[2 * sp + 1]
+                if band_clear(ta, ua, tb, ub, mx, my, mz, e1x, e1y, e1z, e2x, e2y, e2z, b0, b1, s_lo, r, shorten,
+                              chord, extra, node_lo, node_hi, node_child, node_range, tris, stack, w):
+                    continue
+                # halving helps only while the band's own turn across its length is what fails
+                if 0.5 * (b1 - b0) * chord <= 0.25 * (r * chord + abs(0.5 * (b0 + b1)) * shorten) + 1e-9 \
+                        or b1 - b0 < 1e-6 or sp + 2 > ARC_STACK:
+                    ok = False
+                    break
+                bm = 0.5 * (b0 + b1)
+                w[2 * sp] = b0
+                w[2 * sp + 1] = bm
+                w[2 * sp + 2] = bm
+                w[2 * sp + 3] = b1
+                sp += 2
+            if ok:
+                return True
+        return False
+
+    @jit
+    def interval_clear(i, tip_a, axis_a, tip_b, axis_b, tool, grow, limit, ring_t, ring_rho, ring_r,
+                       seg_t0, seg_t1, seg_r, seg_base, node_lo, node_hi, node_child, node_range, tris, stack, w):
+        """Whether every part of interval i's tool, grown by ``grow[i]``, keeps within ``limit[i]``
+        at every pose from (tip_a[i], axis_a[i]) to (tip_b[i], axis_b[i])."""
+        t = tool[i]
+        g_i = grow[i]
+        lim = limit[i]
+        if ring_r[t] > 0.0:
+            if not ring_clear(tip_a[i], axis_a[i], tip_b[i], axis_b[i], ring_t[t], ring_rho[t], ring_r[t] + g_i, lim,
+                              node_lo, node_hi, node_child, node_range, tris, stack, w):
+                return False
+        for k in range(seg_r.shape[1]):
+            r = seg_r[t, k]
+            if r <= 0.0:
+                break
+            if not cylinder_clear(tip_a[i], axis_a[i], tip_b[i], axis_b[i], seg_t0[t, k], seg_t1[t, k], r,
+                                  seg_base[t, k], g_i, lim, node_lo, node_hi, node_child, node_range, tris, stack, w):
+                return False
+        return True
+
+    @jit
+    def pose_depth(i, tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
+                   node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris, in_kind,
+                   floor, stack, ring, segs):
+        """How deep pose i (every part grown by ``grow[i]``) enters the material: ``ring[i]`` for
+        the rounded end (its ``ring_n`` spheres; a ball is one), ``segs[i, k]`` for each cylinder
+        (the smaller of the radial and the axial depth from ``seg_base``), 0 where clear. A part
+        whose reference point (sphere centre, the cylinder's top on the axis) lies in the material
+        (:func:`inside`) is measured from the far side: radius plus distance."""
+        t = tool[i]
+        g_i = grow[i]
+        px = tip[i, 0]
+        py = tip[i, 1]
+        pz = tip[i, 2]
+        ux = axis[i, 0]
+        uy = axis[i, 1]
+        uz = axis[i, 2]
+        ex, ey, ez, gx, gy, gz = normal_frame(ux, uy, uz)
+        r = ring_r[t] + g_i
+        if ring_r[t] > 0.0:
+            cx = px + ring_t[t] * ux
+            cy = py + ring_t[t] * uy
+            cz = pz + ring_t[t] * uz
+            buried = inside(cx, cy, cz, in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor, stack)
+            rho = ring_rho[t]
+            n = ring_n[t] if rho > 0.0 else 1
+            for j in range(n):
+                phi = 2.0 * math.pi * j / n
+                qx = cx + rho * (math.cos(phi) * ex + math.sin(phi) * gx)
+                qy = cy + rho * (math.cos(phi) * ey + math.sin(phi) * gy)
+                qz = cz + rho * (math.cos(phi) * ez + math.sin(phi) * gz)
+                cap = r * r if not buried else INF
+                d = math.sqrt(point_dist(qx, qy, qz, cap, 0.0, node_lo, node_hi, node_child, node_range, tris, stack))
+                if buried and (rho <= 0.0 or inside(qx, qy, qz, in_lo, in_hi, in_child, in_range, in_tris, in_kind,
+                                                    floor, stack)):
+                    ring[i] = max(ring[i], r + d)
+                elif d < r:
+                    ring[i] = max(ring[i], r - d)
+        for k in range(seg_r.shape[1]):
+            r = seg_r[t, k]
+            if r <= 0.0:
+                break
+            r += g_i
+            t0 = seg_t0[t, k] - g_i
+            t1 = seg_t1[t, k] + g_i
+            r2 = r * r
+            d2 = cylinder_dist(px, py, pz, ux, uy, uz, t0, t1, r2, 0.0, node_lo, node_hi, node_child, node_range,
+                               tris, stack)
+            qx = px + t1 * ux
+            qy = py + t1 * uy
+            qz = pz + t1 * uz
+            if inside(qx, qy, qz, in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor, stack):
+                # the top of the cylinder lies in the material: as deep as it gets across the axis
+                top = math.sqrt(point_dist(qx, qy, qz, INF, 0.0, node_lo, node_hi, node_child, node_range, tris,
+                                           stack))
+                segs[i, k] = r + max(top, math.sqrt(d2) if d2 < r2 else 0.0)
+                continue
+            if d2 >= r2:
+                continue
+            radial = r - math.sqrt(d2)
+            # axial depth: how far the bottom of the cylinder must rise to clear (bisection)
+            lo = t0
+            hi = t1
+            if cylinder_dist(px, py, pz, ux, uy, uz, hi - 1e-9, t1, r2, r2, node_lo, node_hi, node_child, node_range,
+                             tris, stack) < r2:
+                segs[i, k] = radial
+                continue
+            for _ in range(30):
+                mid = 0.5 * (lo + hi)
+                if cylinder_dist(px, py, pz, ux, uy, uz, mid, t1, r2, r2, node_lo, node_hi, node_child, node_range,
+                                 tris, stack) < r2:
+                    lo = mid
+                else:
+                    hi = mid
+            segs[i, k] = min(radial, hi - (seg_base[t, k] - g_i))
+
+    return SimpleNamespace(seg_seg_dist2=seg_seg_dist2, tri_tri_dist2=tri_tri_dist2, mesh_tris_dist2=mesh_tris_dist2,
+                           seg2d_dist2=seg2d_dist2, stadium_tri_dist2=stadium_tri_dist2,
+                           mesh_stadium_dist2=mesh_stadium_dist2, inside=inside, ring_clear=ring_clear,
+                           cylinder_clear=cylinder_clear, interval_clear=interval_clear, pose_depth=pose_depth)

@@ -1,0 +1,115 @@
+"""The certified clearance kernels against independent references: dense sampling of triangles,
+and of the poses of a move (each pose measured exactly, 1 µm apart) for every "clear" claim."""
+import numpy as np
+import pytest
+
+from meshmill.geometry.mesh import mesh_from_arrays
+from meshmill.geometry.shapes import box, sphere
+from meshmill.kernels import cpu
+from meshmill.kernels.backend import solid_kernels
+from meshmill.ops.verify import move_poses
+from meshmill.toolpath.model import Toolpath
+from meshmill.tools.table import pack_cylinders, pack_rings, tool_from_entry
+
+from conftest import brute_point_triangle_dist
+
+
+def _tri_samples(tri, n=40):
+    a, b = np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1), indexing="ij")
+    keep = a + b <= 1 + 1e-12
+    a, b = a[keep], b[keep]
+    return tri[0] + a[:, None] * (tri[1] - tri[0]) + b[:, None] * (tri[2] - tri[0])
+
+
+def test_triangle_triangle_distance_matches_dense_sampling():
+    rng = np.random.default_rng(1)
+    for case in range(40):
+        A = rng.uniform(-1, 1, (3, 3))
+        B = rng.uniform(-1, 1, (3, 3)) + rng.uniform(-1.5, 1.5, 3) * (case % 3 != 0)
+        if case % 5 == 0:
+            A[2] = A[1]  # a degenerate triangle: a segment
+        q = np.zeros(cpu.WORK_SIZE)
+        q[:9] = A.ravel()
+        got = np.sqrt(cpu.clr.tri_tri_dist2(q, 0, B.reshape(1, 9).copy(), 0))
+        pa, pb = _tri_samples(A), _tri_samples(B)
+        ref = min(np.linalg.norm(pa[i:i + 64, None] - pb[None], axis=2).min() for i in range(0, len(pa), 64))
+        step = max(np.linalg.norm(T[i] - T[j]) for T in (A, B) for i in range(3) for j in range(3)) / 40
+        assert got <= ref + 1e-9, case
+        assert got >= ref - 2 * step, case
+
+
+def _tools():
+    ball = tool_from_entry(dict(name="B6", type="ball", diameter=6, flute_length=12, gauge_length=30,
+                                holder_diameter=20, holder_length=20), 1, "t")
+    bull = tool_from_entry(dict(name="R8", type="bull", diameter=8, corner_radius=2, flute_length=12,
+                                gauge_length=30), 2, "t")
+    flat = tool_from_entry(dict(name="F6", type="flat", diameter=6, flute_length=12, gauge_length=30,
+                                holder_diameter=16, holder_length=20), 3, "t")
+    return [ball, bull, flat]
+
+
+def _ridge():
+    """A sharp ridge along Y (apex at x = 0, z = 10) on a block: a closed prism."""
+    v = np.array([[-10, -10, 0], [10, -10, 0], [0, -10, 10], [-10, 10, 0], [10, 10, 0], [0, 10, 10]], float)
+    f = np.array([[0, 2, 1], [3, 4, 5], [0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [2, 0, 3], [2, 3, 5]])
+    return mesh_from_arrays(v, f[:, ::-1], "ridge")
+
+
+@pytest.mark.parametrize("part", ["box", "ridge", "sphere"])
+def test_every_clear_interval_is_clear_at_every_pose(part):
+    mesh = {"box": box([-10, -10, 0], [10, 10, 10]), "ridge": _ridge(), "sphere": sphere(8.0, 12, 24)}[part]
+    top = mesh.bounds[1, 2]
+    kern = solid_kernels(mesh)
+    tools = _tools()
+    (t0, t1, r), cutting = pack_cylinders(tools)
+    tol = 0.01
+    segs = (np.where(cutting & (t0 == 0.0), tol, t0), t1, r)
+    rings = pack_rings(tools)
+    fine = (rings[0], rings[1], rings[2], np.full(3, 720))  # the torus densely sampled for the reference
+    rng = np.random.default_rng({"box": 2, "ridge": 3, "sphere": 4}[part])
+    n = 240
+    tool = rng.integers(0, 3, n)
+    ta = np.column_stack([rng.uniform(-8, 8, n), rng.uniform(-8, 8, n), top + rng.uniform(-0.3, 0.6, n)])
+    move = rng.normal(size=(n, 3)) * rng.uniform(0.0, 1.5, (n, 1))
+    tb = ta + move
+    tilt = lambda k: np.column_stack([rng.uniform(-0.4, 0.4, (k, 2)), np.ones(k)])  # noqa: E731
+    xa = tilt(n)
+    xa /= np.linalg.norm(xa, axis=1, keepdims=True)
+    xb = np.where(rng.random((n, 1)) < 0.5, xa, xa + rng.normal(scale=0.05, size=(n, 3)))
+    xb /= np.linalg.norm(xb, axis=1, keepdims=True)
+    grow = np.where(rng.random(n) < 0.2, 0.5, 0.0)
+    ok = kern.intervals_clear(ta, xa, tb, xb, tool, grow, np.full(n, tol), rings, segs, t0)
+    tp = Toolpath(np.stack([ta, tb], 1).reshape(-1, 3), np.stack([xa, xb], 1).reshape(-1, 3),
+                  np.zeros(2 * n, bool), np.repeat(tool, 2))
+    s = np.linspace(0.0, 1.0, 801)
+    worst = np.zeros(n)
+    for i in range(n):
+        m = np.full(len(s), 2 * i + 1)
+        tip, axis = move_poses(tp, m, s)
+        ring, seg = kern.pose_penetration(tip, axis, np.full(len(s), tool[i]), np.full(len(s), grow[i]), fine,
+                                          segs, t0)
+        worst[i] = max(ring.max(), seg.max())
+    # a "clear" interval is clear at every pose, within what 800 poses can miss (the moves are
+    # at most a few mm long and turn a few degrees: the poses are a few µm apart)
+    assert (worst[ok] <= tol + 2e-4).all(), (worst[ok].max(), np.nonzero(ok & (worst > tol + 2e-4))[0])
+    # and the test is not idle: most intervals well clear of the part are proven so
+    free = worst <= 0.0
+    assert ok[free].mean() > 0.8
+    assert ok.any() and (~ok).any()
+
+
+def test_points_inside_a_closed_solid_a_void_and_under_a_sheet():
+    outer = box([0, 0, 0], [10, 10, 10])
+    inner = box([3, 3, 3], [7, 7, 7])
+    v = np.vstack([outer.vertices, inner.vertices])
+    f = np.vstack([outer.faces, inner.faces[:, ::-1] + len(outer.vertices)])  # the void faces inward
+    hollow = mesh_from_arrays(v, f, "hollow")
+    k = solid_kernels(hollow)
+    pts = np.array([[1, 1, 1], [5, 5, 5], [5, 5, 8], [5, 5, 11], [-1, 5, 5], [5, 5, 2]], float)
+    assert k.points_inside(pts).tolist() == [True, False, True, False, False, True]
+    # a sheet: a tilted quad; the material is below it, down to its lowest point
+    sheet = mesh_from_arrays(np.array([[0, 0, 0], [10, 0, 2], [10, 10, 2], [0, 10, 0]], float),
+                             np.array([[0, 1, 2], [0, 2, 3]]), "sheet")
+    k = solid_kernels(sheet)
+    pts = np.array([[5, 5, 0.5], [5, 5, 1.5], [5, 5, -0.5], [11, 5, 0.5], [0, 5, 0.0], [5, 5, 1.0]], float)
+    assert k.points_inside(pts).tolist() == [True, False, False, False, False, False]
