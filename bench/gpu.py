@@ -78,8 +78,8 @@ SEED_T8 = {
     0.5: (361, 280436, 1926.39, 171.63),
     0.25: (721, 560496, 3927.66, 322.05),
 }
-KERNELS = ("mesh_distances", "largest_ball", "axis_search", "pose_penetration", "drop_cutter", "touch_points",
-           "rays_blocked")
+KERNELS = ("mesh_distances", "largest_ball", "axis_search", "pose_penetration", "intervals_clear", "points_inside",
+           "drop_cutter", "touch_points", "rays_blocked")
 GOAL_E2E_S, GOAL_DEXEL_S, GOAL_RATIO = 5.0, 1.0, 20.0
 
 # Sizes of each mode: finish samples, the dexel part and step, the simulation's part and path.

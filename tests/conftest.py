@@ -89,7 +89,7 @@ def propeller_like():
     """``(vertices, faces)`` of a propeller-like part, wound outward: a hub (solid of revolution)
     whose shaft ends are open, the top hole wider than the bottom one, so that the hub's boundary
     loops enclose a vector area pointing down (a rule "open pieces face up" would turn it inside
-    out), and three blades through it."""
+    out), and three blades around it, 3 mm off the hub."""
     from meshmill.geometry.shapes import box, revolve
 
     hub = revolve([0, 2, 8, 8, 3, 0], [0, 0, 0, 12, 12, 12], segments=48)
@@ -97,8 +97,24 @@ def propeller_like():
     parts_v, parts_f = [hub.vertices], [hub.faces[~np.isin(hub.faces, on_axis).any(axis=1)]]  # both fans: holes
     for k in range(3):
         a = 2 * np.pi * k / 3
-        blade = box([6, -0.8, 3], [22, 0.8, 9])
+        blade = box([11, -0.8, 3], [22, 0.8, 9])
         rot = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
         parts_f.append(blade.faces + sum(len(p) for p in parts_v))
         parts_v.append(blade.vertices @ rot.T)
     return np.vstack(parts_v), np.vstack(parts_f)
+
+
+def winding_number(points, vertices, faces, chunk=256):
+    """Independent reference: the generalised winding number ``(k,)`` of a closed mesh around each
+    of ``points (k, 3)`` (1 inside, 0 outside), from the solid angles of its triangles."""
+    tri = vertices[faces]
+    out = []
+    for i in range(0, len(points), chunk):
+        d = tri[None] - points[i:i + chunk, None, None, :]  # (p, m, 3, 3)
+        a, b, c = d[:, :, 0], d[:, :, 1], d[:, :, 2]
+        la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
+        num = np.einsum("pmi,pmi->pm", a, np.cross(b, c))
+        den = (la * lb * lc + np.einsum("pmi,pmi->pm", a, b) * lc + np.einsum("pmi,pmi->pm", b, c) * la
+               + np.einsum("pmi,pmi->pm", c, a) * lb)
+        out.append(2.0 * np.arctan2(num, den).sum(axis=1) / (4.0 * np.pi))
+    return np.concatenate(out)

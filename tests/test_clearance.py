@@ -107,9 +107,11 @@ def test_points_inside_a_closed_solid_a_void_and_under_a_sheet():
     k = solid_kernels(hollow)
     pts = np.array([[1, 1, 1], [5, 5, 5], [5, 5, 8], [5, 5, 11], [-1, 5, 5], [5, 5, 2]], float)
     assert k.points_inside(pts).tolist() == [True, False, True, False, False, True]
-    # a sheet: a tilted quad; the material is below it, down to its lowest point
+    # a sheet: a tilted quad; the material is below it
     sheet = mesh_from_arrays(np.array([[0, 0, 0], [10, 0, 2], [10, 10, 2], [0, 10, 0]], float),
                              np.array([[0, 1, 2], [0, 2, 3]]), "sheet")
     k = solid_kernels(sheet)
-    pts = np.array([[5, 5, 0.5], [5, 5, 1.5], [5, 5, -0.5], [11, 5, 0.5], [0, 5, 0.0], [5, 5, 1.0]], float)
-    assert k.points_inside(pts).tolist() == [True, False, False, False, False, False]
+    # (down to the floor: as deep again below the sheet's lowest point as it is tall, at least 10 mm)
+    pts = np.array([[5, 5, 0.5], [5, 5, 1.5], [5, 5, -0.5], [5, 5, -10.5], [11, 5, 0.5], [5, 5, 1.0]], float)
+    assert sheet.solid().floor == -10.0
+    assert k.points_inside(pts).tolist() == [True, False, True, False, False, False]

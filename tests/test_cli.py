@@ -99,3 +99,43 @@ def test_latin1_ascii_stl(tmp_path):
         for a, b, c in [("0 0 0", "1 0 0", "0 1 0"), ("1 0 0", "1 1 0", "0 1 0")]) + "endsolid caf\xe9\n"
     (tmp_path / "l.stl").write_bytes(body.encode("latin-1"))
     assert len(load_mesh(tmp_path / "l.stl").faces) == 2
+
+
+def test_a_failed_run_leaves_no_result_behind(tmp_path, part, tools_file, capsys, monkeypatch):
+    out = tmp_path / "out"
+    args = ["raster", str(part), "--tools", str(tools_file), "--tool", "B6", "--stepover", "3", "--out", str(out),
+            "--quiet"]
+    assert main(args) == 0 and (out / "summary.json").exists() and (out / "toolpath.cl").exists()
+    # a bad value, then a usage error: the earlier run's files must not pass for this run's
+    assert main(args[:-3] + ["--sample", "-1", "--out", str(out)]) == 2
+    assert not (out / "summary.json").exists() and not (out / "toolpath.cl").exists()
+    assert main(args) == 0
+    assert main(args[:-3] + ["--sample", "abc", "--out", str(out)]) == 2
+    assert not (out / "summary.json").exists() and not (out / "toolpath.cl").exists()
+    # interrupted while writing: nothing final, nothing partial
+    assert main(args) == 0
+    import meshmill.toolpath.cldata as cldata
+
+    def half_written(path, *a, **k):
+        with open(path, "w") as fh:
+            fh.write("PARTNO/x\nGOTO/1")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cldata, "write_apt", half_written)
+    assert main(args) == 130
+    assert sorted(p.name for p in out.iterdir()) == []
+    capsys.readouterr()
+
+
+def test_verify_with_an_allowance_and_a_stock(tmp_path, part, tools_file, capsys):
+    # a rapid 0.3 mm over the column's top: clear of the part, not of a 0.5 mm allowance
+    top = trimesh.load(part).bounds[1, 2]
+    (tmp_path / "p.cl").write_text(f"LOADTL/3\nRAPID\nGOTO/-30, 0, {top + 0.3}\nRAPID\nGOTO/30, 0, {top + 0.3}\nFINI\n")
+    base = ["verify", str(part), str(tmp_path / "p.cl"), "--tools", str(tools_file)]
+    assert main(base) == 0
+    assert main(base + ["--allowance", "0.5"]) == 1
+    assert "rapid into the stock" in capsys.readouterr().out
+    blank = trimesh.creation.box(bounds=[[-40, -40, -5], [40, 40, top + 10]])
+    blank.export(tmp_path / "blank.stl")
+    assert main(base + ["--stock", str(tmp_path / "blank.stl")]) == 1
+    assert one_line_error(capsys, base + ["--allowance", "-1"]).endswith("got -1.0")

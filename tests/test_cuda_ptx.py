@@ -60,8 +60,11 @@ SCRIPT = textwrap.dedent("""
     mod.largest_ball(p, p, np.array([3.0, 1.0]), 0.01, b)
     mod.axis_search(p, p, p, np.zeros(k, np.int64), np.zeros((3, 2)), np.zeros(3), 0.1, np.ones(2), body,
                     np.array([0, 4, 8]), b)
-    mod.pose_penetration(p, p, np.zeros(k, np.int32), (np.zeros(2), np.zeros(2), np.ones(2), np.ones(2, np.int64)),
-                         body, b)
+    rings = (np.zeros(2), np.zeros(2), np.ones(2), np.ones(2, np.int64))
+    inside = mod.inside_to_device((*build_bvh(m.vertices, m.faces).arrays, np.ones(len(m.faces), np.int8), -5.0))
+    mod.pose_penetration(p, p, np.zeros(k, np.int32), np.zeros(k), rings, body, body[0], b, inside)
+    mod.intervals_clear(p, p, p, p, np.zeros(k, np.int32), np.zeros(k), np.ones(k), rings, body, body[0], b)
+    mod.points_inside(p, inside)
     mod.drop_cutter(p[:, :2], 3.0, 1.0, -5.0, b, (np.ones(2), np.ones(2)))
     mod.touch_points(p[:, :2], p[:, :2], np.ones(k), -np.ones(k), 1.0, 3.0, 1.0, -5.0, b)
     mod.rays_blocked(p, np.array([0, 0, 1.0]), 1e-6, b)
@@ -84,4 +87,4 @@ def test_every_cuda_kernel_compiles_for_a_gpu():
     if "nvvm" in r.stderr.lower() and "not found" in r.stderr.lower():
         pytest.skip("NVIDIA's NVVM library is not installed")
     assert r.returncode == 0, r.stderr[-3000:]
-    assert "compiled 11 kernels" in r.stdout, r.stdout
+    assert "compiled 13 kernels" in r.stdout, r.stdout

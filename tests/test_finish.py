@@ -129,3 +129,91 @@ def test_no_ball_tool(tools):
     flat = [tool_from_entry(dict(name="F6", type="flat", diameter=6, flute_length=10, gauge_length=30), 1, "t")]
     with pytest.raises(InputError, match="no ball tool"):
         finish(sphere(10.0, 8, 16), flat, FinishParams(step_down=2))
+
+
+def _ball_centres(tp, tools):
+    """Ball centres ``(k, 3)`` and radii ``(k,)`` of the feed moves' points."""
+    feed = ~tp.rapid
+    R = np.array([tools[t].radius for t in tp.tool[feed]])
+    return tp.tip[feed] + R[:, None] * tp.axis[feed], R
+
+
+def test_a_wound_open_propeller_keeps_every_ball_centre_outside_its_solid(tools):
+    from conftest import propeller_like, winding_number
+    from meshmill.geometry.bvh import build_bvh
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.geometry.shapes import box
+    from meshmill.kernels import cpu
+
+    v, f = propeller_like()
+    part = mesh_from_arrays(v, f, "propeller")
+    assert not part.flipped and part.turned_faces == 0
+    tp, s, d = finish(part, tools, FinishParams(step_down=3.0, sample=1.0, tilt_step=10))
+    assert s["verify"]["ok"] and s["points_cut"] > 200
+    centre, R = _ball_centres(tp, tools)
+    # independent: the closed bodies the part is made of (the hub with its ends closed): winding
+    # numbers from solid angles, and distances to each body
+    hub = revolve([0, 2, 8, 8, 3, 0], [0, 0, 0, 12, 12, 12], segments=48)
+    bodies = [hub]
+    for k in range(3):
+        a = 2 * np.pi * k / 3
+        b = box([11, -0.8, 3], [22, 0.8, 9])
+        rot = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+        bodies.append(mesh_from_arrays(b.vertices @ rot.T, b.faces, "blade"))
+    for body in bodies:
+        assert (winding_number(centre, body.vertices, body.faces) < 0.5).all()
+        gap = cpu.mesh_distances(centre, build_bvh(body.vertices, body.faces).arrays)
+        assert (gap >= R - s["tolerance"] - 1e-6).all()
+
+
+def _dome(radius=20.0, rings=16, segments=48):
+    """An open hemispherical sheet (a skull cap), facing out, its rim at z = 0."""
+    t = np.linspace(0.0, 0.5 * np.pi, rings + 1)
+    cap = revolve(np.r_[0.0, radius * np.cos(t[:-1]), 0.0], np.r_[0.0, radius * np.sin(t[:-1]), radius], segments)
+    bottom = np.isclose(cap.vertices[cap.faces][:, :, 2], 0.0).all(axis=1)
+    from meshmill.geometry.mesh import mesh_from_arrays
+
+    return mesh_from_arrays(cap.vertices, cap.faces[~bottom], "dome")
+
+
+def test_an_open_sheet_is_finished_without_dipping_under_its_edge(tools):
+    from conftest import winding_number
+    from meshmill.ops.simulate import simulate
+
+    dome = _dome()
+    assert dome.summary()["pieces"]["sheets"] == 1
+    tp, s, d = finish(dome, tools, FinishParams(step_down=4.0, sample=1.0, tilt_step=10))
+    assert s["verify"]["ok"] and s["points_cut"] > 100
+    # independent: the solid the sheet bounds from below, built as a closed mesh (the dome on a
+    # cylinder down to the floor), simulated with dexels from a 0.5 mm allowance
+    floor = dome.solid().floor
+    t = np.linspace(0.0, 0.5 * np.pi, 17)
+    block = revolve(np.r_[0.0, 20.0, 20.0 * np.cos(t[1:-1]), 0.0], np.r_[floor, floor, 20.0 * np.sin(t[1:-1]), 20.0],
+                    48)
+    centre, R = _ball_centres(tp, tools)
+    assert (winding_number(centre, block.vertices, block.faces) < 0.5).all()
+    dev, summary, *_ = simulate(block, tp, tools, 0.5, allowance=0.5)
+    assert dev["gouge_max"] < 0.05 and summary["rapid_moves_cutting"] == 0 and summary["colliding_moves"] == 0
+
+
+def test_rapids_keep_clear_of_the_stock_the_finish_starts_from(tools):
+    from meshmill.ops.simulate import simulate
+
+    m = overhang_column()
+    tp, s, d = finish(m, tools, FinishParams(step_down=2.0))
+    assert s["verify"]["ok"] and s["stock"] == {"allowance": 0.5, "mesh": False, "clearance": 0.5}
+    # independent: the dexel simulation from the stock the finish assumes (0.5 mm on the part)
+    dev, summary, *_ = simulate(m, tp, tools, 0.25, allowance=0.5)
+    assert summary["rapid_moves_cutting"] == 0 and summary["colliding_moves"] == 0
+    # and every rapid keeps the ball's centre the radius, the allowance and the clearance off the part
+    rapid = np.nonzero(tp.rapid)[0]
+    f = np.linspace(0, 1, 41)[:, None]
+    pts, radii = [], []
+    for i in rapid[rapid > 0]:
+        R = tools[tp.tool[i]].radius
+        a = tp.tip[i - 1] + R * tp.axis[i - 1]
+        b = tp.tip[i] + R * tp.axis[i]
+        pts.append(a + f * (b - a))
+        radii.append(np.full(len(f), R))
+    gap = d["kern"].mesh_distances(np.concatenate(pts)) - np.concatenate(radii)
+    assert gap.min() >= 1.0 - 1e-6

@@ -144,6 +144,11 @@ def test_tool_selection_errors(tmp_path, tools, body, kw, message):
     ("G0 X0 Y0 Z0\nG2 X0 Y0 R1\n", "p.nc:3: an R arc cannot be a full circle"),
     ("G0 X0 Y0 Z0\nG2 X5 Y0\n", "p.nc:3: an arc needs I/J or R"),
     ("G0 X0 Y0 Z0 A90\n", "p.nc:2: unsupported word A90"),
+    # words of cycles and calls on a move: refused like other unsupported words
+    ("G0 X0 Y0 Z0\nG1 X5 Q2\n", "p.nc:3: unsupported word Q2"),
+    ("G0 X0 Y0 Z0\nG1 X5 P1\n", "p.nc:3: unsupported word P1"),
+    ("G0 X0 Y0 Z0\nG1 X5 K1\n", "p.nc:3: unsupported word K1"),
+    ("G0 X0 Y0 Z0\nM98 P100\n", "p.nc:3: unsupported word P100"),
     ("G0 X0 X1 Y0 Z0\n", "p.nc:2: X given twice"),
     ("G0 G1 X0 Y0 Z0\n", "p.nc:2: two motion codes"),
     ("G0 X0 Y0 Z0 (open\n", "p.nc:2: unbalanced parenthesis"),

@@ -26,8 +26,8 @@ def stepped_block():
 
 
 def plunges(tp):
-    """(x, y, z) of every plunge bottom (the feed moves)."""
-    return tp.tip[~tp.rapid]
+    """(x, y, z) of every plunge bottom (a feed move followed by the feed back up)."""
+    return tp.tip[:-1][~tp.rapid[:-1] & ~tp.rapid[1:]]
 
 
 @pytest.mark.parametrize("allowance", [0.0, 0.5])
@@ -44,8 +44,10 @@ def test_depths_on_a_stepped_block_equal_the_steps(allowance):
     np.testing.assert_allclose(bottoms[over_b, 2], 20 + allowance, atol=1e-9)
     assert (x >= 20 - reach - 1e-9).all()  # over the top step nothing is removed: skipped
     assert s["verify"]["ok"] and s["valid_plunges"] == len(bottoms) < s["plunges"]
-    # every plunge: rapid down to the clearance plane, feed, rapid up
-    assert (tp.tip[tp.rapid][:, 2] == 35.0).all() and len(tp) == 3 * len(bottoms)
+    # every plunge: rapid on the clearance plane, rapid down to where the tool clears the stock by
+    # the holder clearance, feed down, feed back up there, rapid up to the plane
+    assert set(np.round(tp.tip[tp.rapid][:, 2], 9)) == {35.0, 30.5} and len(tp) == 5 * len(bottoms)
+    assert s["plunges_short_of_the_part"] == 0 and s["layers_max"] == 1
 
 
 def tool_points(tip, R, n_ring=720, spacing=0.1, height=10.0):
@@ -64,7 +66,10 @@ def test_no_plunge_comes_closer_than_the_allowance():
     allowance = 1.0
     tp, s = plunge3(m, [FLAT], "F6", PlungeParams(radial_step=4.0, engagement=4.0, allowance=allowance))
     bvh = build_bvh(m.vertices, m.faces).arrays
-    floor = m.bounds[0, 2]
+    # the shank (as wide as the cutter) keeps 0.5 mm above the stock: no plunge deeper than the
+    # flutes less that, and those are no nearer the part than the allowance
+    floor = max(m.bounds[0, 2], m.bounds[1, 2] - (FLAT.flute_length - 0.5))
+    assert s["plunges_short_of_the_part"] > 0 and plunges(tp)[:, 2].min() >= floor - 1e-6
     for tip in plunges(tp):
         d = mesh_distances(tool_points(tip, FLAT.radius), bvh).min()
         assert d >= allowance - 1e-6
@@ -141,14 +146,14 @@ def test_five_axis_plunges_keep_the_allowance():
                                                    delta_step=60))
     assert s["plunges"] == 1 + 3 * 6 and 0 < s["valid_plunges"] <= s["plunges"] and s["verify"]["ok"]
     bvh = build_bvh(m.vertices, m.faces).arrays
-    feed = ~tp.rapid
-    for tip, u in zip(tp.tip[feed], tp.axis[feed]):
+    bottom = ~tp.rapid[:-1] & ~tp.rapid[1:]
+    for tip, u in zip(tp.tip[:-1][bottom], tp.axis[:-1][bottom]):
         d = mesh_distances(tool_points_along(tip, u, FLAT.radius), bvh).min()
         assert allowance - 1e-6 <= d <= allowance + 0.05  # a sphere always stops the tool
-    # linking moves stay outside the stock box
+    # rapid moves stay out of the stock box by the holder clearance
     lo, hi = m.bounds
     rap = tp.tip[tp.rapid]
-    assert (np.any(rap < lo - 1, axis=1) | np.any(rap > hi + 1, axis=1)).all()
+    assert (np.linalg.norm(np.maximum(np.maximum(lo - rap, rap - hi), 0.0), axis=1) >= 0.5 - 1e-6).all()
 
 
 def test_region_mode_reaches_under_an_overhang_and_removes_more():
@@ -163,7 +168,7 @@ def test_region_mode_reaches_under_an_overhang_and_removes_more():
     tp_s, s_s = plunge5(m, [FLAT], "F6", PlungeParams(**base))
     assert s_r["verify"]["ok"] and s_r["regions"] == 6 and s_r["valid_plunges"] > s_s["valid_plunges"]
     bvh = build_bvh(m.vertices, m.faces).arrays
-    feed = ~tp_r.rapid
+    feed = np.r_[~tp_r.rapid[:-1] & ~tp_r.rapid[1:], False]  # the plunges' bottoms
     for tip, u in zip(tp_r.tip[feed], tp_r.axis[feed]):
         assert mesh_distances(tool_points_along(tip, u, FLAT.radius, height=6.0), bvh).min() >= allowance - 1e-6
     # some plunge ends under the cap (r < 14, below z 25), which no vertical plunge can reach
@@ -175,3 +180,54 @@ def test_region_mode_reaches_under_an_overhang_and_removes_more():
         left[name] = dev["remaining_volume"]
         assert dev["gouge_max"] < 0.05
     assert left["regions"] < left["seed"]
+
+
+def tower():
+    """A 20 x 20 tower 60 mm tall on a 60 x 60 x 5 plate: plunges around it go 60 mm deep."""
+    parts = [box((0, 0, 0), (60, 60, 5)), box((20, 20, 5), (40, 40, 65))]
+    v = np.concatenate([p.vertices for p in parts])
+    f = np.concatenate([p.faces + 8 * i for i, p in enumerate(parts)])
+    return mesh_from_arrays(v, f, "tower")
+
+
+def test_plunges_cut_with_their_flutes_only():
+    from meshmill.ops.simulate import simulate
+
+    m = tower()
+    short = Tool("F10", "flat", 10.0, 0.0, 20.0, 40.0, 10.0, 32.0, 40.0)  # shank as wide as the cutter
+    tp, s = plunge3(m, [short], "F10", PlungeParams(radial_step=6.0, engagement=8.0, allowance=0.5))
+    bottoms = plunges(tp)
+    assert s["verify"]["ok"] and len(bottoms) > 20
+    # the shank keeps 0.5 mm above the stock: no plunge deeper than the flutes less that
+    assert bottoms[:, 2].min() == pytest.approx(65 - 19.5, abs=1e-6)
+    assert s["plunges_short_of_the_part"] > 0 and s["left_by_shank_and_holder_mm"] > 30
+    # independent: the dexel simulation checks shank and holder against the stock as it is cut
+    dev, sim, *_ = simulate(m, tp, [short], 1.0, stock="box")
+    assert sim["colliding_moves"] == 0 and sim["rapid_moves_cutting"] == 0
+    # a necked tool (shank 6 mm, cutter 10): deeper, in layers of its flute length, down to where
+    # the holder keeps its clearance
+    necked = Tool("N10", "flat", 10.0, 0.0, 20.0, 50.0, 6.0, 32.0, 40.0)
+    tp, s = plunge3(m, [necked], "N10", PlungeParams(radial_step=6.0, engagement=8.0, allowance=0.5))
+    bottoms = plunges(tp)
+    assert s["verify"]["ok"] and s["layers_max"] == 3 and s["plunges_in_layers"] > 0
+    assert bottoms[:, 2].min() == pytest.approx(65 - 49.5, abs=1e-6)
+    x, y, z = bottoms.T
+    for px, py in set(zip(np.round(x, 6), np.round(y, 6))):
+        depth = np.sort(z[(np.round(x, 6) == px) & (np.round(y, 6) == py)])[::-1]
+        assert np.all(-np.diff(np.r_[65.0, depth]) <= 20.0 + 1e-9)  # each layer cuts at most the flutes
+    dev, sim, *_ = simulate(m, tp, [necked], 1.0, stock="box")
+    assert sim["colliding_moves"] == 0 and sim["rapid_moves_cutting"] == 0
+
+
+def test_simulate_reports_a_holder_in_the_stock():
+    from meshmill.ops.simulate import simulate
+    from meshmill.toolpath.model import Toolpath
+
+    m = tower()
+    short = Tool("F10", "flat", 10.0, 0.0, 20.0, 40.0, 10.0, 32.0, 40.0)
+    # one plunge 50 mm straight down beside the tower: the shank and then the holder enter the stock
+    tip = np.array([[5.0, 5, 70], [5.0, 5, 15], [5.0, 5, 70]])
+    tp = Toolpath(tip, np.tile([0, 0, 1.0], (3, 1)), np.array([True, False, True]), np.zeros(3, int))
+    dev, sim, *_ = simulate(m, tp, [short], 1.0, stock="box")
+    assert sim["colliding_moves"] == 2 and sim["colliding_points"] == [1, 2]  # down and back up
+    assert any("shank or holder" in e for e in sim["errors"])

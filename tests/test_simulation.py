@@ -147,18 +147,43 @@ def test_parallel_passes_leave_the_scallop_height(tmp_path):
     assert trimesh.Trimesh(v, f).is_watertight
 
 
-def test_a_dip_into_the_design_is_reported_where_it_is():
-    design = box((0, 0, 0), (40, 20, 10))
-    step = 0.1
+def _dip(design, step, depth):
+    """A ball pass along the middle of a 40 x 20 x 10 box's top that dips ``depth`` on a grid line
+    at its centre: the path and the dip's place."""
     ref = dexelize(design, step)
     x0 = grid_positions(ref, 0)[np.argmin(np.abs(grid_positions(ref, 0) - 20.0))]
     y0 = grid_positions(ref, 1)[np.argmin(np.abs(grid_positions(ref, 1) - 10.0))]
-    pts = np.array([[-5, y0, 10.0], [x0, y0, 9.8], [45, y0, 10.0]])
-    tp = Toolpath(pts, np.tile([0, 0, 1.0], (3, 1)), np.zeros(3, bool), np.zeros(3, int))
+    pts = np.array([[-5, y0, 10.0], [x0, y0, 10.0 - depth], [45, y0, 10.0]])
+    return Toolpath(pts, np.tile([0, 0, 1.0], (3, 1)), np.zeros(3, bool), np.zeros(3, int)), (x0, y0)
+
+
+def test_a_dip_into_the_design_is_reported_where_it_is():
+    design = box((0, 0, 0), (40, 20, 10))
+    step = 0.1
+    tp, (x0, y0) = _dip(design, step, 0.2)
     dev, *_ = simulate(design, tp, [BALL], step, allowance=0.5)
     assert dev["gouge_max"] == pytest.approx(0.2, abs=2e-3)
     np.testing.assert_allclose(dev["gouge_at"], [x0, y0, 9.8], atol=step)
     assert dev["excess_max"] == pytest.approx(0.5, abs=1e-6)  # the allowance left elsewhere
+
+
+def test_a_stock_short_of_the_design_is_not_a_gouge_of_the_path():
+    # a stock mesh 0.2 mm short of the design's top (as a machined.stl whose marching cubes cut a
+    # corner), and a path that dips 0.3 mm into one place of the top: only that is the path's
+    design = box((0, 0, 0), (40, 20, 10))
+    stock = box((-1, -1, -1), (41, 21, 9.8))
+    step = 0.1
+    tp, (x0, y0) = _dip(design, step, 0.3)
+    dev, summary, *_ = simulate(design, tp, [BALL], step, stock=stock)
+    assert dev["gouge_max"] == pytest.approx(0.3, abs=2e-3)  # the dip, not the stock's shortfall
+    np.testing.assert_allclose(dev["gouge_at"], [x0, y0, 9.7], atol=step)
+    assert dev["stock_short_max"] == pytest.approx(0.2, abs=1e-6) and dev["stock_short_ends"] > 1000
+    assert dev["Sv"] == pytest.approx(0.3, abs=2e-3)
+    assert any("short of the design" in w for w in summary["warnings"])
+    nothing = Toolpath(np.array([[-5, 10, 20.0], [45, 10, 20.0]]), np.tile([0, 0, 1.0], (2, 1)), np.ones(2, bool),
+                       np.zeros(2, int))
+    dev, summary, *_ = simulate(design, nothing, [BALL], step, stock=stock)
+    assert dev["gouge_max"] == 0.0 and dev["gouged_volume"] == pytest.approx(0.0, abs=1e-6)
 
 
 def test_rapid_move_through_material_is_reported():

@@ -66,6 +66,9 @@ def test_lowest_z_of_the_tool_is_its_lowest_surface_point(tools, index):
     ("[[tools]]\ntype='ball'\ndiameter='six'\nflute_length=10\ngauge_length=5\n", "number"),
     ("[[tools\n", "not a valid TOML"),
     ("[[tools]]\ntype='ball'\ndiameter=6\nflute_length=10\ngauge_length=20\nrpm=-5\n", "rpm"),
+    # a misspelt key would drop the holder: refused, with the key and the tool named
+    ("[[tools]]\nname='B6'\ntype='ball'\ndiameter=6\nflute_length=10\ngauge_length=20\nholder_diamter=32\n"
+     "holder_length=40\n", "tool 1 \\('B6'\\): unknown key 'holder_diamter'"),
 ])
 def test_bad_tool_tables(tmp_path, body, message):
     p = tmp_path / "t.toml"
@@ -109,8 +112,24 @@ def test_cl_from_another_cam_system(tmp_path, tools):
     ("LOADTL/1\nGOTO/1,2,nan\n", "NaN"),
     ("LOADTL/1\nGOTO/1,2,x\n", "expected numbers"),
     ("PARTNO/X\nFINI\n", "no GOTO"),
+    # what looks like a move but is not one, and statements that change the moves, are refused
+    ("LOADTL/1\nGOTO/0,0,50\nGOTO 0, 0, 15, 0, 0, 1\n", "bad.cl:3: cannot read 'GOTO 0, 0, 15"),
+    ("LOADTL/1\nGOTO/0,0,50\nG0TO/0,0,15\n", "bad.cl:3: unknown statement 'G0TO'"),
+    ("LOADTL/1\nGOTO/0,0,50\nhello there\n", "bad.cl:3: cannot read"),
+    ("LOADTL/1\nGOTO/0,0,50\nWHATEVER/1\n", "bad.cl:3: unknown statement 'WHATEVER'"),
+    ("LOADTL/1\nCIRCLE/0,0,0,0,0,1,5\nGOTO/5,0,0\n", "bad.cl:2: CIRCLE"),
+    ("LOADTL/1\nGODLTA/0,0,-5\n", "GODLTA"),
+    ("UNITS/FEET\nLOADTL/1\nGOTO/0,0,1\n", "UNITS/FEET"),
 ])
 def test_bad_cl_files(tmp_path, tools, body, message):
     (tmp_path / "bad.cl").write_text(body)
     with pytest.raises(InputError, match=message):
         read_apt(tmp_path / "bad.cl", tools)
+
+
+def test_cl_in_inches_is_read_in_mm(tmp_path, tools):
+    (tmp_path / "in.cl").write_text("UNITS/INCHES\nCUTTER/0.787402, 0.393701\nGOTO/1, 2, 0.5, 0, 0, 1\n"
+                                    "UNITS/MM\nGOTO/1, 2, 3\nFINI\n")
+    tp, _ = read_apt(tmp_path / "in.cl", tools)
+    np.testing.assert_allclose(tp.tip, [[25.4, 50.8, 12.7], [1, 2, 3]])
+    assert (tp.tool == 0).all()  # CUTTER/0.787402, 0.393701 (inches): the 20 mm ball

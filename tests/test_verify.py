@@ -1,5 +1,6 @@
 """verify: gouges, shank collisions and rapids into the part, with their depth and place."""
 import numpy as np
+import pytest
 
 from meshmill.geometry.shapes import box
 from meshmill.ops.verify import verify_toolpath
@@ -91,3 +92,79 @@ def test_move_after_a_tool_change_is_checked_along_its_way(tools):
                   np.array([0, 1]))
     r = verify_toolpath(bvh, tp, tools)
     assert r["gouging_moves"] == 1 and r["poses_checked"] > 50
+
+
+def _ridge():
+    """A sharp ridge along Y (apex at x = 0, z = 10, flanks at 45 degrees) on a block."""
+    from meshmill.geometry.mesh import mesh_from_arrays
+
+    v = np.array([[-10, -10, 0], [10, -10, 0], [0, -10, 10], [-10, 10, 0], [10, 10, 0], [0, 10, 10]], float)
+    f = np.array([[0, 2, 1], [3, 4, 5], [0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [2, 0, 3], [2, 3, 5]])
+    return mesh_from_arrays(v, f[:, ::-1], "ridge")
+
+
+def test_a_ball_crossing_a_sharp_apex_between_its_poses_is_found():
+    # a 1 mm ball crosses the apex in a 0.5 mm move, 0.05 mm too low: both ends are clear (the
+    # apex lies between them), so poses 0.5 mm apart see nothing; the certified check finds it
+    ball = tool_from_entry(dict(name="B1", type="ball", diameter=1, flute_length=4, gauge_length=30), 1, "t")
+    z = 10.0 - 0.05
+    tp = _path([[-0.25, 0, z], [0.25, 0, z]])
+    ends = verify_toolpath(_ridge(), _path([[-0.25, 0, z]]), [ball])
+    assert ends["ok"]
+    r = verify_toolpath(_ridge(), tp, [ball], step=0.5)
+    assert not r["ok"] and r["gouging_moves"] == 1
+    assert r["max_gouge"] == pytest.approx(0.05, abs=1e-3) and r["poses_refined"] > 0
+
+
+def test_a_shallow_dip_is_measured_at_its_depth_whatever_the_step():
+    # a 4 mm ball dipping 0.025 mm into a flat top between two 0.5 mm poses
+    ball = tool_from_entry(dict(name="B4", type="ball", diameter=4, flute_length=10, gauge_length=30), 1, "t")
+    tp = _path([[0, 0, 10.0], [0.25, 0, 10 - 0.025], [0.5, 0, 10.0]])
+    for step in (0.5, 2.0):
+        r = verify_toolpath(box([-10, -10, 0], [10, 10, 10]), tp, [ball], step=step)
+        assert not r["ok"] and r["max_gouge"] == pytest.approx(0.025, abs=1e-9)
+
+
+def test_a_tool_buried_in_the_part_is_a_gouge(tools):
+    # the B2 deep inside a block: no part of it crosses the surface
+    m = box([-50, -50, -50], [50, 50, 50])
+    r = verify_toolpath(m, _path([[0, 0, -30], [1, 0, -30]], tool=3), tools)
+    assert not r["ok"] and r["gouging_moves"] == 2 and r["max_gouge"] > 1.0
+
+
+def test_rapids_keep_clear_of_the_stock(tools):
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.ops.verify import StockCheck
+
+    part = box([0, 0, 0], [20, 20, 10])
+    # B10 passes at rapid 0.3 mm over the top: clear of the part, inside a 0.5 mm allowance
+    tp = _path([[-10, 10, 10.3], [30, 10, 10.3]], rapid=[True, True], tool=1)
+    assert verify_toolpath(part, tp, tools)["ok"]
+    r = verify_toolpath(part, tp, tools, stock=StockCheck(allowance=0.5))
+    assert r["rapid_moves_touching"] == 1 and "into the stock" in r["worst"][0]
+    assert "0.2000 mm" in r["worst"][0]
+    # a stock mesh: the rapid crosses a blank 5 mm above the part
+    blank = box([-5, -5, 0], [25, 25, 15])
+    r = verify_toolpath(part, tp, tools, stock=StockCheck(kern=solid_kernels(blank)))
+    assert r["rapid_moves_touching"] == 1
+    high = _path([[-10, 10, 16], [30, 10, 16]], rapid=[True, True], tool=1)
+    assert verify_toolpath(part, high, tools, stock=StockCheck(kern=solid_kernels(blank), clearance=0.5))["ok"]
+    assert not verify_toolpath(part, high, tools, stock=StockCheck(kern=solid_kernels(blank), clearance=1.5))["ok"]
+
+
+def test_an_open_sheet_has_material_below_it(tools):
+    from meshmill.geometry.mesh import mesh_from_arrays
+
+    # a flat sheet at z = 10 over [0, 20]^2, facing up; its lowest point is the floor
+    sheet = mesh_from_arrays(np.array([[0, 0, 10], [20, 0, 10], [20, 20, 10], [0, 20, 10.0]]),
+                             np.array([[0, 1, 2], [0, 2, 3]]), "sheet")
+    above = _path([[5, 5, 10], [15, 5, 10]], tool=1)
+    assert verify_toolpath(sheet, above, tools)["ok"]
+    # the B10 (R 5) beside the edge, its ball's centre level with the sheet: the tool dips under
+    # the sheet's edge (the curtain below it), which the sheet's triangles alone never see
+    side = _path([[24.9, 10, 5.0], [24.9, 12, 5.0]], tool=1)
+    r = verify_toolpath(sheet, side, tools)
+    assert not r["ok"] and r["max_gouge"] == pytest.approx(0.1, abs=1e-6)
+    # a tool under the sheet, clear of its triangles, is in the material (down to the floor, as
+    # deep again below the sheet as it is tall and at least 10 mm)
+    assert not verify_toolpath(sheet, _path([[10, 10, 2.0], [11, 10, 2.0]], tool=3), tools)["ok"]

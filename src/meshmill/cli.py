@@ -99,13 +99,39 @@ def _add_device(parser):
                              "auto: the GPU when a usable one is present (auto)")
 
 
-def _load_part(args, path):
+def _load_part(args, path, flip=None):
+    """The part ``path`` (its faces turned over with ``--flip``), its warnings said."""
     from .geometry.mesh import load_mesh
 
-    mesh = load_mesh(path)
+    mesh = load_mesh(path, flip=getattr(args, "flip", False) if flip is None else flip)
     for w in mesh.warnings:
         _say(args, f"warning: {w}")
     return mesh
+
+
+def _stock_mesh(args):
+    """The closed stock mesh of ``--stock FILE``, or None."""
+    path = getattr(args, "stock", None)
+    if path in (None, "box"):
+        return None
+    stock = _load_part(args, path, flip=False)
+    if not stock.closed:
+        raise InputError(f"{path}: the stock mesh is open (not watertight)")
+    return stock
+
+
+def _add_stock(parser, allowance_flag="--stock-allowance", default=None):
+    """``--stock FILE`` or ``--stock-allowance MM``: the material rapid moves must keep clear of."""
+    from .tolerances import STOCK_ALLOWANCE
+
+    g = parser.add_mutually_exclusive_group()
+    g.add_argument("--stock", default=None, metavar="FILE",
+                   help="closed mesh of the material the operation starts from (a machined.stl of simulate, a "
+                        "blank): rapid moves keep the clearance from it")
+    default = STOCK_ALLOWANCE if default is None else default
+    g.add_argument(allowance_flag, type=float, default=default, metavar="MM", dest="stock_allowance",
+                   help=f"instead of --stock: material earlier operations left on the part, mm ({default:g}); rapid "
+                        "moves keep the clearance from it")
 
 
 def _tools_beside(args):
@@ -138,9 +164,12 @@ def _results(paths) -> RunFiles:
 
 
 def _folder_results(command, out) -> tuple[str, RunFiles]:
-    """``(folder, RunFiles)`` of a command that writes :data:`FOLDER_OUTPUTS` into ``out``."""
-    run = _results([os.path.join(out, name) for name in FOLDER_OUTPUTS[command]])
-    return out, run
+    """``(folder, RunFiles)`` of a command that writes :data:`FOLDER_OUTPUTS` into ``out`` (made
+    once a run, by :func:`main` before the command checks its options)."""
+    paths = [os.path.abspath(os.path.join(out, name)) for name in FOLDER_OUTPUTS[command]]
+    if _run[0] is not None and _run[0].paths == paths:
+        return out, _run[0]
+    return out, _results(paths)
 
 
 def _clear_after_usage_error(argv):
@@ -176,10 +205,11 @@ def cmd_finish(args):
     load_s = time.perf_counter() - t0
     params = FinishParams(step_down=args.step_down, sample=args.sample, max_tilt=args.max_tilt,
                           tilt_step=args.tilt_step, order=args.order, safe_z=args.safe_z, tol=args.tolerance,
-                          clearance=args.clearance, lead=args.lead)
+                          clearance=args.clearance, lead=args.lead, stock_allowance=args.stock_allowance)
     params.check()
+    stock = _stock_mesh(args)
     device = _device(args)
-    tp, summary, detail = finish(mesh, tools, params, progress=_progress(args), device=device)
+    tp, summary, detail = finish(mesh, tools, params, progress=_progress(args), device=device, stock=stock)
     summary["device"] = device
     summary["tools_file"] = os.path.abspath(args.tools)
     con = detail["contours"]
@@ -238,20 +268,22 @@ def cmd_raster(args):
     from .ops.raster import RasterParams, raster
 
     params = RasterParams(stepover=args.stepover, scallop=args.scallop, angle=args.angle, sample=args.sample,
-                          tol=args.tolerance)
+                          tol=args.tolerance, stock_allowance=args.stock_allowance, clearance=args.clearance)
     params.check()
     return _three_axis(args, lambda mesh, tools, device: raster(mesh, tools, args.tool, params, progress=_progress(args),
-                                                                 device=device))
+                                                                 device=device, stock=_stock_mesh(args)))
 
 
 def cmd_waterline(args):
     from .ops.waterline import WaterlineParams, waterline
 
-    params = WaterlineParams(step_down=args.step_down, sample=args.sample, tol=args.tolerance)
+    params = WaterlineParams(step_down=args.step_down, sample=args.sample, tol=args.tolerance,
+                             stock_allowance=args.stock_allowance, clearance=args.clearance)
     params.check()
 
     def run(mesh, tools, device):
-        tp, summary, _ = waterline(mesh, tools, args.tool, params, progress=_progress(args), device=device)
+        tp, summary, _ = waterline(mesh, tools, args.tool, params, progress=_progress(args), device=device,
+                                   stock=_stock_mesh(args))
         return tp, summary
 
     return _three_axis(args, run)
@@ -290,7 +322,7 @@ def cmd_verify(args):
     from .kernels.backend import solid_kernels
     from .machine.config import load_machine
     from .ops.simulate import read_toolpath
-    from .ops.verify import verify_toolpath
+    from .ops.verify import StockCheck, verify_toolpath
     from .tools.table import load_tools
 
     run = _results([args.out]) if args.out else None
@@ -298,14 +330,21 @@ def cmd_verify(args):
         raise InputError(f"--step must be a finite number of at least 0.0001 mm, got {args.step}")
     if not (math.isfinite(args.tolerance) and args.tolerance >= 0):
         raise InputError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
+    if not (math.isfinite(args.stock_allowance) and args.stock_allowance >= 0):
+        raise InputError(f"--allowance must be a number of mm >= 0, got {args.stock_allowance}")
     tools = load_tools(args.tools)
     machine = load_machine(args.machine) if args.machine else None
     mesh = _load_part(args, args.part)
+    stock = _stock_mesh(args)
     tp, warnings = read_toolpath(args.toolpath, tools, machine=machine)
     for w in warnings:
         _say(args, f"warning: {w}")
     device = _device(args)
-    report = verify_toolpath(solid_kernels(mesh, device), tp, tools, args.tolerance, args.step, worst=args.worst)
+    floor = min(mesh.bounds[0, 2], stock.bounds[0, 2]) if stock is not None else None
+    check = StockCheck(allowance=0.0 if stock is not None else args.stock_allowance,
+                       kern=solid_kernels(stock, device) if stock is not None else None)
+    report = verify_toolpath(solid_kernels(mesh, device, floor), tp, tools, args.tolerance, args.step,
+                             worst=args.worst, stock=check)
     report.pop("problem_moves")
     if run:
         _write_json(run.tmp(args.out), report)
@@ -319,7 +358,7 @@ def cmd_verify(args):
     print(f"{report['moves']} moves" + (f" from {report['lines']} program lines" if pieces else "")
           + f", {report['poses_checked']} poses checked: "
           f"{count(report['gouging_moves'], 'gouge')} gouging, {count(report['colliding_moves'], 'collision')} colliding, "
-          f"{count(report['rapid_moves_touching'], 'rapid')} rapid into the part; max gouge {report['max_gouge']:.4f} mm, "
+          f"{count(report['rapid_moves_touching'], 'rapid')} rapid into the {'stock' if stock is not None or args.stock_allowance else 'part'}; max gouge {report['max_gouge']:.4f} mm, "
           f"max collision {report['max_collision']:.4f} mm (tolerance {report['tolerance']} mm; device {device})")
     for line in report["worst"]:
         print("  " + line)
@@ -380,7 +419,7 @@ def cmd_simulate(args):
     design = _load_part(args, args.design)
     stock = "box"
     if args.stock not in (None, "box"):
-        stock = _load_part(args, args.stock)
+        stock = _load_part(args, args.stock, flip=False)
         if not stock.closed:
             raise InputError(f"{args.stock}: the stock mesh is open (not watertight)")
     machine = load_machine(args.machine) if args.machine else None
@@ -418,7 +457,7 @@ def cmd_simulate(args):
     _say(args, f"wrote deviation.json, summary.json, machined.stl in {out} ({summary['seconds']['total']:.1f} s, "
                f"device {device})")
     _finish_json(args, summary)
-    return 1 if summary["rapid_moves_cutting"] else 0
+    return 1 if summary["rapid_moves_cutting"] or summary["colliding_moves"] else 0
 
 
 def cmd_analyze(args):
@@ -658,7 +697,7 @@ def cmd_choose(args):
     tools = tool_pair(args.tool_pair) if args.tool_pair else load_tools(args.tools)
     machine = load_machine(args.machine)
     device = _device(args)
-    surface = load_surface(args.surface, params)
+    surface = load_surface(args.surface, params, flip=args.flip)
     tp, summary, zones, chooser = choose(surface, tools, machine, params, progress=_progress(args), device=device)
     summary["tools_file"] = os.path.abspath(os.path.join(out, "tools.toml"))
     write_tools(run.tmp(os.path.join(out, "tools.toml")), chooser.tools)
@@ -715,8 +754,9 @@ def build_parser():
     f.add_argument("--safe-z", type=float, default=None, help="safe plane for rapid moves, mm (part top + 5 + ...)")
     f.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge tolerance, mm ({GOUGE_TOL})")
     f.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
-                   help=f"shank and holder clearance, mm ({HOLDER_CLEARANCE})")
+                   help=f"shank and holder clearance from the part, and rapids' from the stock, mm ({HOLDER_CLEARANCE})")
     f.add_argument("--lead", type=float, default=2.0, help="lead-in/out distance, mm (2)")
+    _add_stock(f)
     f.add_argument("--out", default="out", help="output folder (out)")
     _add_device(f)
     f.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -732,6 +772,9 @@ def build_parser():
     r.add_argument("--angle", type=float, default=0.0, help="machining direction from X, degrees (0)")
     r.add_argument("--sample", type=float, default=0.5, help="largest distance between CL points along a pass, mm (0.5)")
     r.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge and chord tolerance, mm ({GOUGE_TOL})")
+    r.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
+                   help=f"distance rapid moves keep from the stock, mm ({HOLDER_CLEARANCE})")
+    _add_stock(r)
     r.add_argument("--out", default="out", help="output folder (out)")
     _add_device(r)
     r.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -744,6 +787,9 @@ def build_parser():
     w.add_argument("--step-down", type=float, required=True, help="distance between Z levels, mm")
     w.add_argument("--sample", type=float, default=0.5, help="grid spacing of the loop search, mm (0.5)")
     w.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge and chord tolerance, mm ({GOUGE_TOL})")
+    w.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
+                   help=f"distance rapid moves keep from the stock, mm ({HOLDER_CLEARANCE})")
+    _add_stock(w)
     w.add_argument("--out", default="out", help="output folder (out)")
     _add_device(w)
     w.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -777,7 +823,10 @@ def build_parser():
     v.add_argument("--machine", default=None,
                    help="G-code's machine (TOML file or shipped name): 5-axis words are read through its kinematics")
     v.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge tolerance, mm ({GOUGE_TOL})")
-    v.add_argument("--step", type=float, default=0.5, help="largest distance between checked poses along a move, mm")
+    v.add_argument("--step", type=float, default=0.5,
+                   help="distance between the poses first measured along a move, mm (every interval between them is "
+                        "then certified or halved: the result does not depend on it, its speed does) (0.5)")
+    _add_stock(v, "--allowance", default=0.0)
     v.add_argument("--worst", type=int, default=10, help="how many worst cases to print (10)")
     v.add_argument("--out", default=None, help="write the report as JSON to this file")
     _add_device(v)
@@ -891,6 +940,10 @@ def build_parser():
     ch.add_argument("--quiet", action="store_true", help="print nothing but errors")
     _add_device(ch)
     ch.set_defaults(func=cmd_choose)
+    for sp in (f, r, w, pl, v, d, s, n, ch):
+        sp.add_argument("--flip", action="store_true",
+                        help="turn every face of the part over (reverse its normals): for a part wound inside out, "
+                             "or an open surface that faces away from the spindle")
     for sp in (f, r, w, pl, d, s, rp, tm, ch):
         sp.add_argument("--json", action="store_true", help="print the summary as JSON on stdout (and nothing on stderr)")
     return p
@@ -911,6 +964,8 @@ def main(argv=None) -> int:
         parser.print_help()
         return 2
     try:
+        if args.command in FOLDER_OUTPUTS:
+            _folder_results(args.command, args.out)  # earlier results go now, whatever fails next
         return args.func(args)
     except InputError as exc:
         _end_status()

@@ -83,7 +83,8 @@ def read_run(folder: str, meshes: dict | None = None) -> Run:
     if part_file and os.path.exists(part_file):
         meshes = {} if meshes is None else meshes
         if part_file not in meshes:
-            meshes[part_file] = load_mesh(part_file)
+            flipped = bool((s.get("part") or s.get("design") or s.get("surface") or {}).get("flipped"))
+            meshes[part_file] = load_mesh(part_file, flip=flipped)
         run.part = meshes[part_file]
     elif part_file:
         run.notes.append(f"the part {part_file} is gone: not shown")

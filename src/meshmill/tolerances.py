@@ -5,8 +5,13 @@
 # a ball sits against a concave crease of the facets.
 GOUGE_TOL = 0.01
 
-# Shank and holder keep at least this distance from the part when finish chooses a tool axis.
+# Shank and holder keep at least this distance from the part when finish chooses a tool axis; rapid
+# moves keep it from the stock.
 HOLDER_CLEARANCE = 0.5
+
+# Material (mm) a finishing operation takes earlier operations to have left on the part, unless told:
+# its rapids keep clear of it.
+STOCK_ALLOWANCE = 0.5
 
 # Triangles with an area below this (mm²) are degenerate and dropped on load.
 DEGENERATE_AREA = 1e-12

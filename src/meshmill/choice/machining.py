@@ -14,9 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..machine.timing import path_time
-from ..ops.dropcutter import SAFE_ABOVE, verified_path
+from ..ops.dropcutter import SAFE_ABOVE, StockClearance, verified_path
 from ..ops.raster import drop_refined
-from ..ops.verify import DEFAULT_STEP
+from ..ops.verify import DEFAULT_STEP, StockCheck
+from ..tolerances import HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import link_passes, simplify_polyline
 from ..toolpath.model import Toolpath
 from .zigzag import SurfaceSetup, frame_rotation
@@ -25,6 +26,8 @@ UP = (0.0, 0.0, 1.0)
 MIN_COVERAGE = 0.9  # a zone machined over less than this fraction of its cells is not machined
 KEEP_COVERAGE = 0.5  # ... and below this fraction its passes are left out of the tool path
 UNCOVERED_PENALTY = 10.0  # plans compare by their time raised by this times the share of cells not machined
+# what the zones' rapids keep clear of: the finishing allowance earlier operations left
+STOCK = StockCheck(allowance=STOCK_ALLOWANCE, clearance=HOLDER_CLEARANCE)
 
 
 @dataclass(frozen=True)
@@ -135,11 +138,16 @@ class Machinist:
             passes = [simplify_polyline(drop_refined(p[:, :2], st.drop, 0.5 * tol, self.sample / 64), 0.5 * tol)
                       for p in passes]
             tp, report, passes = verified_path(passes, plan.tool, self.tools, st.kern, st.top + SAFE_ABOVE, tol,
-                                               DEFAULT_STEP)
+                                               DEFAULT_STEP, STOCK)
             left_out = report["moves_left_out"]
+        elif passes:
+            left_out = 0
+            clear = StockClearance(self.tools[plan.tool], st.kern, st.floor, STOCK)
+            tp = link_passes(passes, plan.tool, st.top + SAFE_ABOVE, clear(np.array([p[0, :2] for p in passes])),
+                             clear(np.array([p[-1, :2] for p in passes])))
         else:
             left_out = 0
-            tp = link_passes(passes, plan.tool, st.top + SAFE_ABOVE) if passes else Toolpath.concatenate([])
+            tp = Toolpath.concatenate([])
         time = path_time(tp.tip, tp.rapid, self.machine)
         coverage = zp.coverage(self.samples.points[inside] @ st.rotation.T)
         # back to the part frame

@@ -28,6 +28,7 @@ CLOSED, HOLES, SHEET = 0, 1, 2  # kinds of connected pieces
 # least this share of its area (its vector area: zero for a closed piece, the projected area of a
 # flat sheet); below it, a solid with holes
 SHEET_SHARE = 0.2
+SHEET_DEPTH = 10.0  # mm: the material below a sheet reaches at least this far below its lowest point
 
 
 @dataclass
@@ -82,10 +83,12 @@ class Mesh:
 
     def solid(self, floor: float | None = None):
         """The :class:`~meshmill.geometry.solid.Solid` this mesh bounds, sheets down to ``floor``
-        (default: the mesh's lowest point, the floor of its box stock); built once per floor."""
+        (default: as deep again below the mesh's lowest point as the mesh is tall, and at least
+        ``SHEET_DEPTH``: a sheet is the top of a block whose bottom is not known); built once per floor."""
         from .solid import bounded_solid
 
-        floor = float(self.bounds[0, 2]) if floor is None else float(floor)
+        lo, hi = self.bounds[:, 2]
+        floor = float(lo - max(SHEET_DEPTH, hi - lo)) if floor is None else float(floor)
         if floor not in self._solids:
             self._solids[floor] = bounded_solid(self, floor)
         return self._solids[floor]

@@ -136,5 +136,38 @@ def build(jit, inline=None):
             return 0.0
         return subtract(iv, off, count, line, lo, hi)
 
+    @(inline or jit)
+    def touch_line(m, line, u0, v0, wlo, whi, iv, off, count, pa, pb, xa, xb, radius, corner, flutes, strips):
+        """The longest piece of material (mm) of line ``line`` at (u0, v0) inside the volume move m
+        sweeps; nothing is removed (a shank or holder: it collides, it does not cut)."""
+        n = count[line]
+        if n == 0:
+            return 0.0
+        base = off[line]
+        if iv[base, 0] >= whi or iv[base + n - 1, 1] <= wlo:
+            return 0.0
+        if not material_outside(iv, base, n, wlo, whi, 1.0, 0.0):
+            return 0.0
+        # first the capsule about the cylinder's axis (a ball-end of its radius standing R lower,
+        # swept in closed form): most lines near a shank or holder hold no material in it
+        # (grown by a quarter of its ruled surface's twist, which its strips may miss)
+        R = radius[m]
+        twist = 0.25 * (flutes[m] + 2.0 * R) * math.sqrt((xa[m, 0] - xb[m, 0]) ** 2 + (xa[m, 1] - xb[m, 1]) ** 2
+                                                           + (xa[m, 2] - xb[m, 2]) ** 2) / strips[m]
+        g = R + twist + 1e-9
+        qa = (pa[m, 0] - g * xa[m, 0], pa[m, 1] - g * xa[m, 1], pa[m, 2] - g * xa[m, 2])
+        qb = (pb[m, 0] - g * xb[m, 0], pb[m, 1] - g * xb[m, 1], pb[m, 2] - g * xb[m, 2])
+        lo, hi = tool_move(u0, v0, qa, qb, xa[m], xb[m], g, g, flutes[m] + 2.0 * g, strips[m])
+        if lo >= hi or not material_outside(iv, base, n, lo, hi, 1.0, 0.0):
+            return 0.0
+        lo, hi = tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], corner[m], flutes[m], strips[m])
+        best = 0.0
+        for k in range(base, base + n):
+            s = max(iv[k, 0], lo)
+            e = min(iv[k, 1], hi)
+            if e - s > best:
+                best = e - s
+        return best
+
     return SimpleNamespace(subtract=subtract, material_outside=material_outside, line_range=line_range,
-                           move_constants=move_constants, cut_line=cut_line)
+                           move_constants=move_constants, cut_line=cut_line, touch_line=touch_line)

@@ -98,6 +98,9 @@ material_outside = crv.material_outside
 _line_range = crv.line_range
 _move_constants = crv.move_constants
 _cut_line = crv.cut_line
+_touch_line = crv.touch_line
+RAPID = 1  # bits of a move's kind: a rapid (it must remove nothing)
+BODY = 2  # a shank or holder (it removes nothing; touching material is a collision)
 TILE = 16  # lines a side of the tiles that cutting runs in parallel over
 
 
@@ -147,14 +150,16 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
 
 @numba.njit(parallel=True, cache=True)
 def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
-              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, rapid, rapid_min, rapid_hit,
+              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit,
               overflow):
     """Cut the lines of the given ``tiles`` with their moves, in move order within each line.
 
-    Moves as in :mod:`meshmill.kernels.carve`, ``box (k, 6)`` their bounds. Sets ``rapid_hit[m]``
-    when a rapid move removes more than ``rapid_min`` mm of a dexel, and ``overflow[t]`` when a
-    line of tile t ran out of room: the tile stops there, so rerunning it after growing the line is
-    exact (removal is idempotent, and moves before the stop saw the material in path order)."""
+    Moves as in :mod:`meshmill.kernels.carve`, ``box (k, 6)`` their bounds, ``kind (k,)`` bits
+    :data:`RAPID` and :data:`BODY`. Sets ``hit[m]`` when a rapid move removes more than
+    ``hit_min`` mm of a dexel or a body move (shank, holder: it removes nothing) meets that much
+    material, and ``overflow[t]`` when a line of tile t ran out of room: the tile stops there, so
+    rerunning it after growing the line is exact (removal is idempotent, and moves before the stop
+    saw the material in path order)."""
     tv = (nv + TILE - 1) // TILE
     for q in prange(tiles.shape[0]):
         t = tiles[q]
@@ -173,10 +178,16 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
             for i in range(i0, i1 + 1):
                 u0 = lu + (i + 0.5) * step
                 for j in range(j0, j1 + 1):
+                    if kind[m] & BODY:
+                        if not hit[m] and _touch_line(m, i * nv + j, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5],
+                                                      iv, off, count, pa, pb, xa, xb, radius, corner, flutes,
+                                                      strips) > hit_min:
+                            hit[m] = 1
+                        continue
                     removed = _cut_line(m, i * nv + j, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5], iv, off, count,
                                         pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane)
                     if removed < 0.0:
                         overflow[t] = 1
                         break
-                    elif removed > rapid_min and rapid[m]:
-                        rapid_hit[m] = 1
+                    elif removed > hit_min and kind[m] & RAPID:
+                        hit[m] = 1

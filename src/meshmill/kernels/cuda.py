@@ -43,6 +43,7 @@ _ray_blocked = ray.ray_blocked
 _line_range = crv.line_range
 _constants = crv.move_constants
 _cut_line = crv.cut_line
+_touch_line = crv.touch_line
 THREADS = 128
 CHUNK = 4  # points of a drop-cutter batch run in order by one thread (fewer than the CPU's: more threads)
 TILE = 16  # as meshmill.kernels.cpu_dexel.TILE: one block of TILE x TILE threads per tile
@@ -292,7 +293,7 @@ def _move_constants(pa, pb, xa, xb, corner, flutes, chord, plane):
 
 @cuda.jit
 def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb, radius, corner,
-               flutes, strips, chord, plane, box, rapid, rapid_min, rapid_hit, overflow):
+               flutes, strips, chord, plane, box, kind, hit_min, hit, overflow):
     t = tiles[cuda.blockIdx.x]
     tv = (nv + TILE - 1) // TILE
     i = (t // tv) * TILE + cuda.threadIdx.x // TILE
@@ -307,13 +308,18 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_mov
         j0, j1 = _line_range(box[m, 2], box[m, 3], lv, step, nv)
         if i < i0 or i > i1 or j < j0 or j > j1:
             continue
+        if kind[m] & 2:  # BODY: a shank or holder meets material, it removes none
+            if _touch_line(m, i * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb, radius,
+                           corner, flutes, strips) > hit_min:
+                hit[m] = 1
+            continue
         removed = _cut_line(m, i * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb, radius,
                             corner, flutes, strips, chord, plane)
         if removed < 0.0:
             overflow[t] = 1
             return
-        if removed > rapid_min and rapid[m]:
-            rapid_hit[m] = 1
+        if removed > hit_min and kind[m] & 1:  # RAPID
+            hit[m] = 1
 
 
 def move_constants(pa, pb, xa, xb, corner, flutes):
@@ -326,7 +332,7 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
 
 
 def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
-              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, rapid, rapid_min, rapid_hit, overflow):
+              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, overflow):
     """As :func:`meshmill.kernels.cpu_dexel.cut_tiles` (host arrays updated in place): one block per
     tile, one thread per line, each line cut by the tile's moves in path order. A line that runs out
     of room stops and flags its tile; the others go on (removal is idempotent, so the rerun of
@@ -334,13 +340,13 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
     if len(tiles) == 0:
         return
     d_iv, d_count = _d(iv), _d(count, np.int64)
-    d_hit, d_over = _d(rapid_hit, np.uint8), _d(overflow, np.uint8)
+    d_hit, d_over = _d(hit, np.uint8), _d(overflow, np.uint8)
     _cut_tiles[len(tiles), TILE * TILE](float(lu), float(lv), float(step), int(nu), int(nv), d_iv,
                                         _d(off, np.int64), d_count, _d(tiles, np.int64), _d(tile_start, np.int64),
                                         _d(tile_moves, np.int64), _d(pa), _d(pb), _d(xa), _d(xb), _d(radius),
                                         _d(corner), _d(flutes), _d(strips, np.int64), _d(chord), _d(plane), _d(box),
-                                        _d(rapid, np.uint8), float(rapid_min), d_hit, d_over)
+                                        _d(kind, np.uint8), float(hit_min), d_hit, d_over)
     iv[...] = d_iv.copy_to_host()
     count[...] = d_count.copy_to_host()
-    rapid_hit[...] = d_hit.copy_to_host()
+    hit[...] = d_hit.copy_to_host()
     overflow[...] = d_over.copy_to_host()

@@ -358,11 +358,11 @@ def _tilt_deg(axis) -> float:
     return math.degrees(math.acos(max(-1.0, min(1.0, axis[2]))))
 
 
-def load_surface(path, params: ChooseParams):
-    """``(samples, surface mesh, description)`` of an STL/OBJ/PLY mesh (its top, seen from +Z) or
-    a patch (TOML file or a built-in name)."""
+def load_surface(path, params: ChooseParams, flip=False):
+    """``(samples, surface mesh, description)`` of an STL/OBJ/PLY mesh (its top, seen from +Z; its
+    faces turned over with ``flip``) or a patch (TOML file or a built-in name)."""
     if os.path.splitext(path)[1].lower() in SUPPORTED:
-        mesh = load_mesh(path)
+        mesh = load_mesh(path, flip=flip)
         return mesh_samples(mesh, params.grid, params.grid), mesh_surface(mesh), {"file": os.path.abspath(path),
                                                                                  **mesh.summary()}
     patch = load_patch(path)

@@ -1,19 +1,46 @@
 """The whole 3-axis tool dropped onto a mesh: cutter, shank and holder together."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..errors import InputError
 from ..kernels import cpu
 from ..kernels.backend import bind
 from ..toolpath.linking import link_passes
-from .verify import verify_toolpath
+from .verify import StockCheck, verify_toolpath
 
 SAFE_ABOVE = 5.0  # mm above the part's top for rapid moves of 3-axis paths
 TOUCH = 1e-6  # mm: a touch point's drop height is within this of its level ...
 WALL = 1e-4  # mm: ... or the level set is within this distance of it (so always at a vertical wall)
 TOUCH_ROUNDS = 80
 REPAIR_ROUNDS = 3
+
+
+def check_stock_params(params):
+    """Refuse a negative or non-finite ``stock_allowance`` or ``clearance`` of an operation's params."""
+    for name in ("stock_allowance", "clearance"):
+        v = getattr(params, name)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
+            raise InputError(f"--{name.replace('_', '-')} must be a number of mm >= 0, got {v}")
+
+
+def stock_check(stock, params, device) -> StockCheck:
+    """What the rapids of an operation keep clear of: the ``stock`` mesh if given (with the design
+    itself), else the design with ``params.stock_allowance`` on it; ``params.clearance`` away."""
+    from ..kernels.backend import solid_kernels
+
+    if stock is not None:
+        return StockCheck(allowance=0.0, kern=solid_kernels(stock, device), clearance=params.clearance)
+    return StockCheck(allowance=params.stock_allowance, clearance=params.clearance)
+
+
+def safe_height(mesh, stock, params) -> float:
+    """The plane of a 3-axis operation's rapids: ``SAFE_ABOVE`` over the part, and at least the
+    clearance and 1 mm over the stock."""
+    top = max(mesh.bounds[1, 2], stock.bounds[1, 2]) if stock is not None else mesh.bounds[1, 2] + params.stock_allowance
+    return float(max(mesh.bounds[1, 2] + SAFE_ABOVE, top + params.clearance + 1.0))
 
 
 def pick_tool(tools, name):
@@ -28,14 +55,30 @@ class ToolDrop:
     """Drop-cutter heights of a vertical tool over the mesh of ``bvh``, never below ``floor``:
     the cutter's exact contact, and the shank and holder as flat-bottomed cylinders above it, so
     that a 3-axis position that clears the drop height clears the whole tool. ``bvh``: a BVH (run
-    on ``device``) or :class:`~meshmill.kernels.backend.MeshKernels`."""
+    on ``device``) or :class:`~meshmill.kernels.backend.MeshKernels`.
 
-    def __init__(self, tool, bvh, floor: float, device: str = "cpu"):
-        self.radius, self.corner = tool.radius, tool.corner_radius
-        parts = [(0.5 * tool.shank_diameter, tool.flute_length)]
+    With ``grow`` the whole tool is grown by a ball of that radius (the Minkowski sum of a flat or
+    bull-nose cutter with a ball of radius g is a bull-nose of radius R + g and corner r + g whose
+    tip is g below the real one; shank and holder g wider): the heights are the real tip's, the
+    tool kept ``grow`` mm from the mesh. With ``square`` the cylinders are grown as verification
+    grows them (radius and both ends by g: a little more than the Minkowski sum): a flat end stays
+    flat, and the flutes above a rounded end start g below its equator."""
+
+    def __init__(self, tool, bvh, floor: float, device: str = "cpu", grow: float = 0.0, square: bool = False):
+        g = float(grow)
+        square_flat = square and tool.type == "flat"  # a flat end grown as a cylinder: a wider flat end
+        self.radius, self.corner, self.grow = tool.radius + g, tool.corner_radius + (0.0 if square_flat else g), g
+        parts = [(0.5 * tool.shank_diameter + g, tool.flute_length)]
         if tool.holder_diameter > 0:
-            parts.append((0.5 * tool.holder_diameter, tool.gauge_length))
+            parts.append((0.5 * tool.holder_diameter + g, tool.gauge_length))
         self.body = (np.array([p[0] for p in parts]), np.array([p[1] for p in parts]))
+        # flat disks (radius, height over the grown tip) the kernel's body cylinders cannot stand
+        # for (no wider than the cutter): the grown flutes, and a bull-nose's grown flat bottom
+        self.disks = []
+        if square and g > 0 and tool.type != "flat":
+            self.disks.append((tool.radius + g, tool.corner_radius))
+            if tool.type == "bull":
+                self.disks.append((tool.radius - tool.corner_radius + g, 0.0))
         self.kern, self.floor = bind(bvh, device), floor
 
     def __call__(self, xy: np.ndarray) -> np.ndarray:
@@ -44,10 +87,16 @@ class ToolDrop:
 
     def with_contacts(self, xy: np.ndarray):
         """Tip heights ``(k,)`` at ``xy (k, 2)`` and the mesh points touched ``(k, 3)`` (NaN: none)."""
-        return self.kern.drop_cutter(xy, self.radius, self.corner, self.floor, self.body)
+        z, contact = self.kern.drop_cutter(xy, self.radius, self.corner, self.floor - self.grow, self.body)
+        for radius, height in self.disks:
+            zd, cd = self.kern.drop_cutter(xy, radius, 0.0, self.floor - self.grow + height)
+            higher = zd - height > z
+            z = np.where(higher, zd - height, z)
+            contact[higher] = cd[higher]
+        return z + self.grow, contact
 
     def bounds(self, xy: np.ndarray, delta: float):
-        """Upper and lower bounds ``(k,), (k,)`` of the drop height anywhere within ``delta`` mm of
+        """(For ``grow`` 0.) Upper and lower bounds ``(k,), (k,)`` of the drop height anywhere within ``delta`` mm of
         each of ``xy (k, 2)``.
 
         Upper: the contact a point q offers the tool at p rises at most to what it offers a tool
@@ -67,29 +116,51 @@ class ToolDrop:
         return upper, lower
 
     def touch(self, inside_xy, outside_xy, f_inside, f_outside, z, inside_contacts=None) -> np.ndarray:
-        """Points ``(k, 2)`` between inside (height > z) and outside (<= z) points where the height
+        """(For ``grow`` 0.) Points ``(k, 2)`` between inside (height > z) and outside (<= z) points where the height
         reaches z from below (see :func:`meshmill.kernels.cpu.touch_points`)."""
         return self.kern.touch_points(inside_xy, outside_xy, f_inside, f_outside, z, self.radius, self.corner,
                                       self.floor, TOUCH, WALL, TOUCH_ROUNDS, self.body, inside_contacts)
 
 
-def verified_path(passes, tool_index, tools, kern, safe_z, tol, step):
-    """Link 3-axis ``passes`` (``(k, 3)`` tips each) into a tool path, verify it against the mesh of
-    ``kern`` (:class:`~meshmill.kernels.backend.MeshKernels`), and split passes at
-    the feed moves that fail (the tool lifts over them) until it verifies clean. Returns
-    ``(toolpath, report, passes)``; ``report["moves_left_out"]`` counts the moves given up."""
+class StockClearance:
+    """Where a vertical tool is clear of the stock: the height ``(k,)`` over ``xy (k, 2)`` above
+    which the whole tool keeps ``stock.clearance`` mm from the stock (the design grown by
+    ``stock.allowance``, and the stock mesh when given), never below ``floor``."""
+
+    def __init__(self, tool, kern, floor: float, stock: StockCheck):
+        self.drops = [ToolDrop(tool, kern, floor, grow=stock.allowance + stock.clearance, square=True)]
+        if stock.kern is not None:
+            self.drops.append(ToolDrop(tool, stock.kern, floor, grow=stock.clearance, square=True))
+
+    def __call__(self, xy: np.ndarray) -> np.ndarray:
+        xy = np.asarray(xy, np.float64).reshape(-1, 2)
+        return np.max([d(xy) for d in self.drops], axis=0)
+
+
+def verified_path(passes, tool_index, tools, kern, safe_z, tol, step, stock: StockCheck | None = None):
+    """Link 3-axis ``passes`` (``(k, 3)`` tips each) into a tool path, verify it against the solid
+    of ``kern`` (:class:`~meshmill.kernels.backend.MeshKernels`, :func:`solid_kernels`), and split
+    passes at the feed moves that fail (the tool lifts over them) until it verifies clean. Each
+    pass is entered and left vertically: rapid down to where the tool is clear of the stock
+    (:class:`StockClearance`), feed the rest, and back. Returns ``(toolpath, report, passes)``;
+    ``report["moves_left_out"]`` counts the moves given up."""
+    stock = stock or StockCheck()
+    clear = StockClearance(tools[tool_index], kern, float(kern.bvh.node_lo[0, 2]) - 1.0, stock)
     left_out = 0
     for rnd in range(REPAIR_ROUNDS + 1):
-        tp = link_passes(passes, tool_index, safe_z)
-        report = verify_toolpath(kern, tp, tools, tol, step)
+        ends = np.array([[p[0, 0], p[0, 1], p[-1, 0], p[-1, 1]] for p in passes]).reshape(-1, 4)
+        z_in = clear(ends[:, :2]) if len(passes) else None
+        z_out = clear(ends[:, 2:]) if len(passes) else None
+        tp = link_passes(passes, tool_index, safe_z, z_in, z_out)
+        report = verify_toolpath(kern, tp, tools, tol, step, stock=stock)
         bad = report.pop("problem_moves")
         if report["ok"] or rnd == REPAIR_ROUNDS:
             break
-        # move m of pass k's block [start, start + 2 + len(p) + 1): rapid, rapid, feed to p[0], ..., rapid
+        # move m of pass k's block: rapid, rapid, feed to p[0], ..., p[-1], feed up, rapid
         owner, point = [], []
         for k, p in enumerate(passes):
-            owner += [k] * (len(p) + 3)
-            point += [-1, -1] + list(range(len(p))) + [-1]
+            owner += [k] * (len(p) + 4)
+            point += [-1, -1] + list(range(len(p))) + [-1, -1]
         splits = {}
         for m in bad:
             if point[m] > 0:

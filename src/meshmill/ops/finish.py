@@ -28,15 +28,17 @@ from ..errors import InputError
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import slice_contours, z_levels
 from ..kernels.backend import solid_kernels
-from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE
+from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
-from .verify import DEFAULT_STEP, verify_toolpath
+from .verify import DEFAULT_STEP, StockCheck, verify_toolpath
 
 REPAIR_ROUNDS = 6
 # Ways into and out of a pass, tried in this order: (lead along the outward side, vertical retract
-# instead of one along the tool axis).
-LINKS = ((True, False), (True, True), (False, False), (False, True))
+# instead of one along the tool axis, feed all the way from and to the safe plane). The rapid of
+# the others ends (starts) the approach distance above the lead's end, where the tool is clear of
+# the stock; the approach itself is a feed.
+LINKS = ((True, False, False), (True, True, False), (False, False, False), (False, True, False), (False, True, True))
 NO_LEAD = 2
 MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
 
@@ -52,9 +54,11 @@ class FinishParams:
     tol: float = GOUGE_TOL
     clearance: float = HOLDER_CLEARANCE
     lead: float = 2.0  # mm, lead-in/out along the outward side
+    stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
 
     def check(self):
-        for name in ("step_down", "sample", "tilt_step", "max_tilt", "tol", "clearance", "lead", "safe_z"):
+        for name in ("step_down", "sample", "tilt_step", "max_tilt", "tol", "clearance", "lead", "safe_z",
+                     "stock_allowance"):
             v = getattr(self, name)
             if v is None and name == "safe_z":
                 continue
@@ -69,8 +73,8 @@ class FinishParams:
             raise InputError(f"--max-tilt must be in [0, 90) degrees, got {self.max_tilt}")
         if self.order not in ("contour", "tool"):
             raise InputError(f"--order must be 'contour' or 'tool', got {self.order!r}")
-        if self.tol < 0 or self.clearance < 0 or self.lead < 0:
-            raise InputError("--tolerance, --clearance and --lead must not be negative")
+        if self.tol < 0 or self.clearance < 0 or self.lead < 0 or self.stock_allowance < 0:
+            raise InputError("--tolerance, --clearance, --lead and --stock-allowance must not be negative")
 
 
 def tilt_candidates(max_tilt_deg: float, step_deg: float):
@@ -121,15 +125,22 @@ def _runs(ok: np.ndarray, closed: bool):
 
 
 class _PathBuilder:
-    """Turns passes into moves and maps verification problems back onto passes."""
+    """Turns passes into moves and maps verification problems back onto passes. ``approach``: the
+    distance (mm) above a lead's end where the rapid stops and the feed begins."""
 
-    def __init__(self, tip, axis, side, safe_z, lead):
+    def __init__(self, tip, axis, side, safe_z, lead, approach):
         self.tip, self.axis, self.side, self.safe_z, self.lead = tip, axis, side, safe_z, lead
+        self.approach = approach
 
     def _up(self, p, u, vertical):
         if vertical or u[2] < 1e-6:
             return np.array([p[0], p[1], self.safe_z])
         return p + (self.safe_z - p[2]) / u[2] * u
+
+    def _above(self, p, u, vertical):
+        """``approach`` mm up the way to the safe plane (never past it)."""
+        d = np.array([0.0, 0.0, 1.0]) if vertical or u[2] < 1e-6 else u
+        return p + min(self.approach, max(0.0, (self.safe_z - p[2]) / d[2])) * d
 
     def build(self, passes):
         tips, axes, rapid, tools, owner, role = [], [], [], [], [], []
@@ -146,19 +157,25 @@ class _PathBuilder:
             idx, tool = ps["idx"], ps["tool"]
             t0, u0 = self.tip[idx[0]], self.axis[idx[0]]
             t1, u1 = self.tip[idx[-1]], self.axis[idx[-1]]
-            lead_in, vertical_in = LINKS[ps["entry"]]
-            lead_out, vertical_out = LINKS[ps["exit"]]
+            lead_in, vertical_in, feed_in = LINKS[ps["entry"]]
+            lead_out, vertical_out, feed_out = LINKS[ps["exit"]]
             start = t0 + (self.lead * self.side[idx[0]] if lead_in else 0.0)
             end = t1 + (self.lead * self.side[idx[-1]] if lead_out else 0.0)
             add(self._up(start, u0, vertical_in), u0, True, tool, k, "link_in")
-            add(start, u0, True, tool, k, "link_in")
+            if not feed_in:
+                add(self._above(start, u0, vertical_in), u0, True, tool, k, "link_in")
+            add(start, u0, False, tool, k, "approach_in")
             if lead_in:
                 add(t0, u0, False, tool, k, "lead_in")
             for j in range(1, len(idx)):
                 add(self.tip[idx[j]], self.axis[idx[j]], False, tool, k, j)
             if lead_out:
                 add(end, u1, False, tool, k, "lead_out")
-            add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
+            if not feed_out:
+                add(self._above(end, u1, vertical_out), u1, False, tool, k, "approach_out")
+                add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
+            else:
+                add(self._up(end, u1, vertical_out), u1, False, tool, k, "approach_out")
         tp = Toolpath(np.array(tips).reshape(-1, 3), np.array(axes).reshape(-1, 3), np.array(rapid, bool),
                       np.array(tools, np.int64))
         return tp, owner, role
@@ -182,12 +199,12 @@ def _repair(passes, problem_moves, owner, role):
         ps = dict(ps)
         roles = fixes[k]
         if "lead_in" in roles:
-            ps["entry"] = NO_LEAD
-        elif "link_in" in roles:
+            ps["entry"] = max(ps["entry"] + 1, NO_LEAD)
+        elif "link_in" in roles or "approach_in" in roles:
             ps["entry"] += 1
         if "lead_out" in roles:
-            ps["exit"] = NO_LEAD
-        elif "link_out" in roles:
+            ps["exit"] = max(ps["exit"] + 1, NO_LEAD)
+        elif "link_out" in roles or "approach_out" in roles:
             ps["exit"] += 1
         if ps["entry"] >= len(LINKS) or ps["exit"] >= len(LINKS):
             dropped += 1
@@ -233,11 +250,13 @@ def _contour_tools(best, offsets, contour_of, points, centre_dir, radii, tol, ke
     return tool
 
 
-def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu"):
+def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", stock=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, detail)``.
 
     ``tools``: the whole tool table (ball tools are used); ``progress(stage)`` is called as each
-    stage starts. ``detail`` holds per-point arrays for reports and tests.
+    stage starts; ``stock``: a closed :class:`Mesh` of the material the finish starts from (else
+    the part with ``params.stock_allowance`` on it), which rapids keep ``params.clearance`` from.
+    ``detail`` holds per-point arrays for reports and tests.
     """
     params.check()
     say = progress or (lambda stage: None)
@@ -248,14 +267,15 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         raise InputError("the tool table has no ball tool: finish needs ball-end tools")
     radii = np.array([t.radius for t in balls])
     zmin, zmax = mesh.bounds[:, 2]
+    top = max(zmax, stock.bounds[1, 2]) if stock is not None else zmax + params.stock_allowance
     lowest_ball = radii.max() * (1.0 - math.cos(math.radians(params.max_tilt)))
     if params.safe_z is None:
-        safe_z = zmax + 5.0 + lowest_ball
+        safe_z = max(zmax + 5.0, top + params.clearance + 1.0) + lowest_ball
     else:
         safe_z = params.safe_z
-        if safe_z <= zmax + lowest_ball:
-            raise InputError(f"--safe-z {safe_z:g} is too low: it must be above {zmax + lowest_ball:.3f} mm "
-                             "(part top plus what a tilted ball hangs below its tip)")
+        if safe_z <= top + params.clearance + lowest_ball:
+            raise InputError(f"--safe-z {safe_z:g} is too low: it must be above {top + params.clearance + lowest_ball:.3f} "
+                             "mm (the stock's top, the clearance, and what a tilted ball hangs below its tip)")
     levels = z_levels(zmin, zmax, params.step_down)
     if len(levels) == 0:
         raise InputError(f"--step-down {params.step_down:g} is larger than the part height {zmax - zmin:g} mm: no contour")
@@ -263,6 +283,9 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     say("index")
     t = time.perf_counter()
     kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device for every stage
+    rapid_stock = StockCheck(allowance=0.0 if stock is not None else params.stock_allowance,
+                             kern=solid_kernels(stock, device) if stock is not None else None,
+                             clearance=params.clearance)
     seconds["index"] = time.perf_counter() - t
 
     say("contours")
@@ -317,7 +340,8 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
                          f"--max-tilt {params.max_tilt:g}; add smaller or longer tools")
     if params.order == "tool":
         passes.sort(key=lambda p: (p["rank"], p["contour"]))
-    builder = _PathBuilder(tip, axis, side, safe_z, params.lead)
+    builder = _PathBuilder(tip, axis, side, safe_z, params.lead,
+                           approach=rapid_stock.allowance + rapid_stock.clearance + params.tol)
     seconds["path"] = time.perf_counter() - t
 
     say("verify")
@@ -325,7 +349,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     dropped = 0
     for rnd in range(REPAIR_ROUNDS + 1):
         tp, owner, role = builder.build(passes)
-        report = verify_toolpath(kern, tp, tools, params.tol, min(DEFAULT_STEP, params.sample))
+        report = verify_toolpath(kern, tp, tools, params.tol, min(DEFAULT_STEP, params.sample), stock=rapid_stock)
         if report["ok"] or not passes:
             break
         if rnd == REPAIR_ROUNDS:  # give up on what still fails
@@ -333,7 +357,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
             dropped += len(bad)
             passes = [p for k, p in enumerate(passes) if k not in bad]
             tp, owner, role = builder.build(passes)
-            report = verify_toolpath(kern, tp, tools, params.tol, min(DEFAULT_STEP, params.sample))
+            report = verify_toolpath(kern, tp, tools, params.tol, min(DEFAULT_STEP, params.sample), stock=rapid_stock)
             break
         passes, lost = _repair(passes, report["problem_moves"], owner, role)
         dropped += lost
@@ -372,6 +396,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "safe_z": safe_z,
         "tolerance": params.tol,
         "clearance": params.clearance,
+        "stock": rapid_stock.summary(),
         "levels": int(len(levels)),
         "contours": int(len(con)),
         "machinable_contours": int(machinable.sum()),

@@ -19,10 +19,10 @@ import numpy as np
 from ..errors import InputError
 from ..kernels.backend import solid_kernels
 from ..geometry.mesh import Mesh
-from ..tolerances import GOUGE_TOL
+from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
 from ..choice.scallop import stepover
-from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool, verified_path
+from .dropcutter import ToolDrop, check_stock_params, pick_tool, safe_height, stock_check, verified_path
 from .verify import DEFAULT_STEP
 
 REFINE_ROUNDS = 6  # each halves the spacing where the chord leaves the surface
@@ -35,6 +35,8 @@ class RasterParams:
     angle: float = 0.0  # degrees from X
     sample: float = 0.5
     tol: float = GOUGE_TOL
+    stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
+    clearance: float = HOLDER_CLEARANCE  # mm rapids keep from the stock
 
     def check(self):
         if (self.stepover is None) == (self.scallop is None):
@@ -47,6 +49,7 @@ class RasterParams:
             raise InputError(f"--angle must be a finite number, got {self.angle}")
         if not (math.isfinite(self.tol) and self.tol > 0):
             raise InputError(f"--tolerance must be a positive number, got {self.tol}")
+        check_stock_params(self)
         if self.sample < 1e-3:
             raise InputError("--sample must be at least 0.001 mm")
 
@@ -116,8 +119,10 @@ def drop_refined(xy, drop: ToolDrop, chord_tol, min_step):
 
 
 def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=None,
-           device: str = "cpu"):
-    """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary)``."""
+           device: str = "cpu", stock=None):
+    """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary)``.
+    ``stock``: a closed :class:`Mesh` of the material it starts from (else the part with
+    ``params.stock_allowance`` on it), which rapids keep ``params.clearance`` from."""
     params.check()
     say = progress or (lambda stage: None)
     index, tool = pick_tool(tools, tool_name)
@@ -142,10 +147,11 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     dropped = len(tips)
     tips = simplify_polyline(tips, 0.5 * params.tol)
     seconds["drop"] = time.perf_counter() - t
-    safe_z = float(bounds[1, 2] + SAFE_ABOVE)
+    rapid_stock = stock_check(stock, params, device)
+    safe_z = safe_height(mesh, stock, params)
     say("verify")
     t = time.perf_counter()
-    tp, report, passes = verified_path([tips], index, tools, kern, safe_z, params.tol, DEFAULT_STEP)
+    tp, report, passes = verified_path([tips], index, tools, kern, safe_z, params.tol, DEFAULT_STEP, rapid_stock)
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
     summary = {
@@ -158,6 +164,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
         "sample": params.sample,
         "tolerance": params.tol,
         "safe_z": safe_z,
+        "stock": rapid_stock.summary(),
         "lines": n_lines,
         "cl_points_dropped": int(dropped),
         "cl_points": int(sum(len(p) for p in passes)),

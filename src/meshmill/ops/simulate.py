@@ -11,7 +11,7 @@ from ..errors import InputError
 from ..geometry import shapes
 from ..simulation import cut as cutting
 from ..simulation import partition
-from ..simulation.deviation import deviations, difference_volume, surface_parameters
+from ..simulation.deviation import deviations, difference_volume, surface_parameters, uncovered_ends, uncut_ends
 from ..simulation.dexel import MAX_PARTITIONS, DexelModel, dexelize, lattice
 from ..simulation.surface import machined_mesh
 
@@ -124,9 +124,12 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     stock_volume = start_model.volume
     outside = difference_volume(design_model, start_model)
     if outside > 1e-6 * max(design_model.volume, 1.0):
-        warnings.append(f"{outside:.3f} mm^3 of the design lies outside the stock; it counts as gouged")
+        warnings.append(f"{outside:.3f} mm^3 of the design lies outside the stock: the stock is short of the design "
+                        "there (not counted as gouged by the path)")
     build_s = time.perf_counter() - t0
     moves = cutting.toolpath_moves(toolpath, tools, mode)
+    if mode == "sweep":  # the shank and holder, checked against the stock they pass
+        moves = cutting.Moves.merge(moves, cutting.body_moves(toolpath, tools))
     say(f"cutting {len(moves):,} moves ({len(toolpath):,} points, mode {mode})")
     result = cutting.cut(st, moves, progress=say, device=device)
     machined = st.to_model()
@@ -136,9 +139,20 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     t1 = time.perf_counter()
     pts, e, cut_pts, cut_depth = deviations(machined, design_model, design, device)
     params = surface_parameters(pts, e, tolerance)
+    # the stock's own ends inside the design (a stock short of the design) are not the path's gouges
+    short = uncut_ends(machined, start_model) & (e < 0.0)
+    path = surface_parameters(pts[~short], e[~short], tolerance)
+    params.update(gouge_max=path["gouge_max"], gouge_at=path["gouge_at"], gouge_samples=path["gouge_samples"])
+    if len(cut_pts) and outside > 0.0:  # design ends the stock never held were not cut away by the path
+        never = uncovered_ends(design_model, start_model)[0]
+        if len(never):
+            from scipy.spatial import cKDTree
+
+            was = cKDTree(never).query(cut_pts)[0] < 1e-9
+            cut_pts, cut_depth = cut_pts[~was], cut_depth[~was]
     removed = stock_volume - machined.volume
     remaining = difference_volume(machined, design_model)
-    gouged = difference_volume(design_model, machined)
+    gouged = max(0.0, difference_volume(design_model, machined) - outside)
     deviation_s = time.perf_counter() - t1
     deviation = {k: params[k] for k in DEVIATION_KEYS if k in params}
     deviation.update(removed_volume=removed, remaining_volume=remaining)
@@ -146,14 +160,22 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     deep = int(np.argmax(cut_depth)) if len(cut_depth) else -1
     deviation.update(units="mm, mm^3", tolerance=tolerance, gouge_at=params["gouge_at"],
                      excess_at=params["excess_at"], gouged_volume=gouged, samples=params["samples"],
+                     stock_short_ends=int(short.sum()), stock_short_max=float(-e[short].min()) if short.any() else 0.0,
+                     stock_short_at=pts[short][int(np.argmin(e[short]))].round(6).tolist() if short.any() else None,
                      design_ends_cut_away=int(len(cut_depth)),
                      cut_away_depth_max=float(cut_depth[deep]) if deep >= 0 else 0.0,
                      cut_away_at=cut_pts[deep].round(6).tolist() if deep >= 0 else None)
+    if short.any() and -e[short].min() > tolerance:
+        warnings.append(f"the stock lies inside the design at {int(short.sum())} dexel end(s) the path does not cut, "
+                        f"up to {-e[short].min():.3f} mm at {deviation['stock_short_at']}: the stock is short of the "
+                        "design there (not a gouge of this path)")
     if deep >= 0 and cut_depth[deep] > max(tolerance, step):
         warnings.append(f"{len(cut_depth)} design dexel end(s) cut away, up to {cut_depth[deep]:.3f} mm deep at "
                         f"{cut_pts[deep].round(3).tolist()} (a bound; gouged volume {gouged:.3f} mm^3)")
     errors = [f"rapid move to point {i} (source line {int(toolpath.line[i])}) cuts material"
               for i in result["rapid_cuts"][:1000]]
+    errors += [f"move to point {i} (source line {int(toolpath.line[i])}): the shank or holder meets the stock"
+               for i in result["collisions"][:1000]]
     summary = {
         "operation": "simulate",
         "mode": mode,
@@ -163,6 +185,8 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
         "pieces_cut": len(moves),
         "rapid_moves_cutting": len(result["rapid_cuts"]),
         "rapid_cutting_points": result["rapid_cuts"][:1000],
+        "colliding_moves": len(result["collisions"]),
+        "colliding_points": result["collisions"][:1000],
         "errors": errors,
         "volumes_mm3": {"design": design_model.volume, "stock": stock_volume, "machined": machined.volume,
                         "removed": removed, "remaining": remaining, "gouged": gouged},

@@ -27,9 +27,9 @@ from ..errors import InputError
 from ..kernels.backend import solid_kernels
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import z_levels
-from ..tolerances import GOUGE_TOL
+from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
-from .dropcutter import SAFE_ABOVE, ToolDrop, pick_tool, verified_path
+from .dropcutter import ToolDrop, check_stock_params, pick_tool, safe_height, stock_check, verified_path
 from .dropgrid import DropGrid
 from .verify import DEFAULT_STEP
 
@@ -42,6 +42,8 @@ class WaterlineParams:
     step_down: float
     sample: float = 0.5
     tol: float = GOUGE_TOL
+    stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
+    clearance: float = HOLDER_CLEARANCE  # mm rapids keep from the stock
 
     def check(self):
         for name in ("step_down", "sample", "tol"):
@@ -50,6 +52,7 @@ class WaterlineParams:
                 raise InputError(f"--{name.replace('_', '-').replace('tol', 'tolerance')} must be a positive number, got {v}")
         if self.sample < 1e-3 or self.step_down < 1e-4:
             raise InputError("--sample must be at least 0.001 mm and --step-down at least 0.0001 mm")
+        check_stock_params(self)
 
 
 @numba.njit(cache=True)
@@ -205,10 +208,12 @@ def _refine_loop(loop, z, chord_tol, reach, drop: ToolDrop):
 
 
 def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progress=None,
-              device: str = "cpu"):
+              device: str = "cpu", stock=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, passes)`` with ``passes`` a list of
     ``(z, (k, 3) array)`` from the top level down: closed loops (first point repeated at the end),
-    or pieces of loops where a stretch could not be cut without gouging."""
+    or pieces of loops where a stretch could not be cut without gouging. ``stock``: a closed
+    :class:`Mesh` of the material it starts from (else the part with ``params.stock_allowance`` on
+    it), which rapids keep ``params.clearance`` from."""
     params.check()
     say = progress or (lambda stage: None)
     index, tool = pick_tool(tools, tool_name)
@@ -279,10 +284,12 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
             for piece in _refine_loop(loop[:, :2], z, 0.5 * params.tol, spacing, drop):
                 loops.append((float(z), np.column_stack([piece, np.full(len(piece), z)])))
     seconds["levels"] = time.perf_counter() - t_levels - seconds["grid"]
-    safe_z = float(bounds[1, 2] + SAFE_ABOVE)
+    rapid_stock = stock_check(stock, params, device)
+    safe_z = safe_height(mesh, stock, params)
     say("verify")
     t = time.perf_counter()
-    tp, report, kept = verified_path([p for _, p in loops], index, tools, kern, safe_z, params.tol, DEFAULT_STEP)
+    tp, report, kept = verified_path([p for _, p in loops], index, tools, kern, safe_z, params.tol, DEFAULT_STEP,
+                                     rapid_stock)
     loops = [(float(p[0, 2]), p) for p in kept]
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
@@ -294,6 +301,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
         "grid_spacing": spacing,
         "tolerance": params.tol,
         "safe_z": safe_z,
+        "stock": rapid_stock.summary(),
         "levels": int(len(levels)),
         "passes": len(loops),
         "closed_loops": int(sum(np.array_equal(p[0], p[-1]) for _, p in loops)),

@@ -1,6 +1,7 @@
 """Material removal: a stock held as triple dexels, cut by the volume each move of a tool path
 sweeps (exact per move, :mod:`meshmill.kernels.sweep`), or by the tool at the path's points only
-(the seed's mode, kept for comparison).
+(the seed's mode, kept for comparison). The shank and holder do not cut: where the volume they
+sweep meets material left in the stock at that point of the path, the move collides.
 
 A move goes from one CL point to the next, tip interpolated linearly and the tool axis by the
 normalised linear interpolation of the two axes (a 5-axis controller's interpolation of its
@@ -19,7 +20,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels.backend import implementation
-from ..kernels.cpu_dexel import TILE, bin_moves
+from ..kernels.cpu_dexel import BODY, RAPID, TILE, bin_moves
 from ..kernels.sweep import SEARCH_SAMPLES
 from .dexel import DexelModel, compact_lines
 
@@ -27,7 +28,7 @@ SWEEP_TOL = 1e-3  # mm: largest gap between the cut and the true swept volume of
 MAX_TURN = 0.05  # rad: largest turn of a piece of a flat or bull-nose move (searched over poses)
 SAME_AXIS = 1e-9  # rad: axes closer than this are one axis (the move is cut with a fixed axis)
 MAX_MOVE_TURN = 179.0  # degrees: a larger turn in one move has no interpolation (the axis passes 0)
-RAPID_CUT = 1e-3  # mm of a dexel a rapid move must remove to count as cutting
+RAPID_CUT = 1e-3  # mm of a dexel a rapid move must remove (or a shank or holder meet) to count as cutting
 SLACK = 2  # spare interval slots a line starts with
 
 
@@ -107,7 +108,8 @@ def _grow(stock: Stock, a: int, lines: np.ndarray) -> None:
 class Moves:
     """Linear moves of one cutter each: tips ``pa, pb (k, 3)``, unit axes ``xa, xb (k, 3)``,
     ``radius, corner, flutes (k,)`` mm, ``strips (k,)`` (see :func:`turn_pieces`), ``rapid (k,)
-    bool``, ``source (k,)`` index of the tool-path point each move ends at."""
+    bool``, ``source (k,)`` index of the tool-path point each move ends at; ``body (k,) bool``: a
+    shank or holder (a flat cylinder standing at the tip given), which removes nothing."""
 
     pa: np.ndarray
     pb: np.ndarray
@@ -119,9 +121,22 @@ class Moves:
     strips: np.ndarray
     rapid: np.ndarray
     source: np.ndarray
+    body: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.body is None:
+            self.body = np.zeros(len(self.pa), bool)
 
     def __len__(self):
         return len(self.pa)
+
+    @staticmethod
+    def merge(a: "Moves", b: "Moves") -> "Moves":
+        """``a`` and ``b`` in path order (by source point; for one point, a's first)."""
+        fields = ("pa", "pb", "xa", "xb", "radius", "corner", "flutes", "strips", "rapid", "source", "body")
+        cat = {f: np.concatenate([getattr(a, f), getattr(b, f)]) for f in fields}
+        order = np.lexsort((np.r_[np.zeros(len(a)), np.ones(len(b))], cat["source"]))
+        return Moves(**{f: v[order] for f, v in cat.items()})
 
 
 def toolpath_moves(toolpath, tools, mode="sweep") -> Moves:
@@ -171,6 +186,60 @@ def toolpath_moves(toolpath, tools, mode="sweep") -> Moves:
     return Moves(p0, p1, x0, x1, R[src], r[src], F[src], strips[src], toolpath.rapid[src].astype(bool), src)
 
 
+def body_moves(toolpath, tools) -> Moves:
+    """The shank and holder of every move of ``toolpath`` (each a flat cylinder, from its start up
+    the axis), split where the axis turns as a flat cutter reaching up to the cylinder's top would
+    be, so that their sweep stays within ``SWEEP_TOL`` of the true one."""
+    tip = np.asarray(toolpath.tip, float)
+    axis = np.asarray(toolpath.axis, float)
+    k = len(tip)
+    pa = np.vstack([tip[:1], tip[:-1]])
+    xa = np.vstack([axis[:1], axis[:-1]])
+    out = []
+    for t0, t1, rad, idx in _body_cylinders(toolpath.tool, tools):
+        if len(idx) == 0:
+            continue
+        R = np.full(len(idx), rad)
+        pieces, _ = turn_pieces(pa[idx], tip[idx], xa[idx], axis[idx], R, np.zeros(len(idx)), np.full(len(idx), t1))
+        src = np.repeat(idx, pieces)
+        first = np.repeat(np.cumsum(pieces) - pieces, pieces)
+        j = (np.arange(len(src)) - first)[:, None]
+        n = np.repeat(pieces, pieces)[:, None]
+
+        def at(f):
+            p = pa[src] + f * (tip[src] - pa[src])
+            x = xa[src] + f * (axis[src] - xa[src])
+            x /= np.linalg.norm(x, axis=1, keepdims=True)
+            return p + t0 * x, x
+
+        p0, x0 = at(j / n)
+        p1, x1 = at((j + 1) / n)
+        same = np.all(x0 == x1, axis=1) | (np.einsum("ij,ij->i", x0, x1) > math.cos(SAME_AXIS))
+        x1[same] = x0[same]
+        out.append(Moves(p0, p1, x0, x1, np.full(len(src), rad), np.zeros(len(src)), np.full(len(src), t1 - t0),
+                         np.ones(len(src), np.int64), toolpath.rapid[src].astype(bool), src, np.ones(len(src), bool)))
+    if not out:
+        e3 = np.empty((0, 3))
+        e = np.empty(0)
+        return Moves(e3, e3, e3, e3, e, e, e, np.empty(0, np.int64), np.empty(0, bool), np.empty(0, np.int64),
+                     np.empty(0, bool))
+    moves = out[0]
+    for m in out[1:]:
+        moves = Moves.merge(moves, m)
+    return moves
+
+
+def _body_cylinders(tool_of, tools):
+    """``(t0, t1, radius, moves)`` for each shank and holder cylinder of the tools in use, with the
+    indices of the moves ``(m,)`` made with that tool."""
+    tool_of = np.asarray(tool_of)
+    for t in np.unique(tool_of):
+        idx = np.nonzero(tool_of == t)[0]
+        for a, b, rad, cutting in tools[int(t)].cylinders():
+            if not cutting and b > a:
+                yield a, b, rad, idx
+
+
 def turn_pieces(pa, pb, xa, xb, R, r, F) -> tuple[np.ndarray, np.ndarray]:
     """How to split moves so that a turning tool's cut stays within ``SWEEP_TOL`` of its swept
     volume: ``(pieces (k,), strips (k,))``. Pieces bound the ball centre's arc against its chord
@@ -208,13 +277,14 @@ def _boxes(m: Moves) -> np.ndarray:
 
 def cut(stock: Stock, moves: Moves, progress=None, device="cpu") -> dict:
     """Remove every move's swept volume from ``stock`` (in place) on ``device`` (``"cpu"`` or
-    ``"cuda"``). Returns ``{"rapid_cuts": sorted tool-path point indices whose rapid move cut
-    material, "seconds": ...}``."""
+    ``"cuda"``); body moves (shank, holder) remove nothing. Returns ``{"rapid_cuts": sorted
+    tool-path point indices whose rapid move cut material, "collisions": those whose shank or
+    holder met material, "seconds": ...}``."""
     t0 = time.perf_counter()
     kern = implementation(device)
     boxes = _boxes(moves)
-    rapid_hit = np.zeros(len(moves), np.uint8)
-    rapid = moves.rapid.astype(np.uint8)
+    hit = np.zeros(len(moves), np.uint8)
+    kind = (moves.rapid.astype(np.uint8) * RAPID) | (moves.body.astype(np.uint8) * BODY)
     for a in range(3):
         u, v = (a + 1) % 3, (a + 2) % 3
         perm = [u, v, a]
@@ -233,8 +303,7 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu") -> dict:
             overflow = np.zeros(len(tile_start) - 1, np.uint8)
             kern.cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, tile_start,
                       tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips, chord, plane, box,
-                      rapid,
-                      RAPID_CUT, rapid_hit, overflow)
+                      kind, RAPID_CUT, hit, overflow)
             tiles = np.nonzero(overflow)[0]
             if len(tiles):
                 full = np.nonzero(stock.count[a] == np.diff(stock.off[a]))[0]
@@ -242,5 +311,7 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu") -> dict:
                 _grow(stock, a, full[overflow[ti * tv + tj] == 1])
         if progress:
             progress(f"cut lines along {'XYZ'[a]}")
-    hits = np.unique(moves.source[rapid_hit == 1])
-    return {"rapid_cuts": [int(i) for i in hits], "seconds": round(time.perf_counter() - t0, 4)}
+    rapid_cuts = np.unique(moves.source[(hit == 1) & ~moves.body])
+    collisions = np.unique(moves.source[(hit == 1) & moves.body])
+    return {"rapid_cuts": [int(i) for i in rapid_cuts], "collisions": [int(i) for i in collisions],
+            "seconds": round(time.perf_counter() - t0, 4)}

@@ -15,6 +15,11 @@ short design dexel whole, and the bound is then up to about a lattice step.
 ISO 25178-2 amplitude parameters of the deviations e: ``Sa`` mean |e|, ``Sq`` RMS, ``Sp`` highest
 peak, ``Sv`` depth of the deepest pit as a positive number (0 without pits), ``Sz = Sp + Sv``. The
 seed used a signed Sv and so Sz = max + min; the standard's values are used here.
+
+A stock given as a mesh (say the ``machined.stl`` of an earlier simulation, whose marching-cubes
+surface cuts the corners of convex edges by up to about half a lattice step) may lie inside the
+design where the path never cuts. Such dexel ends are the stock's, not a gouge of the path: the
+ends left exactly where the stock had them are told apart (:func:`uncut_ends`).
 """
 from __future__ import annotations
 
@@ -93,6 +98,31 @@ def _difference_length(astart, aiv, bstart, biv):
     return total
 
 
+@numba.njit(cache=True)
+def _same_end(start, iv, sstart, siv, out):
+    """For every interval end of (start, iv), whether the stock (sstart, siv) has an end at exactly
+    that coordinate on the same line (the cut left it where it was)."""
+    for line in range(start.shape[0] - 1):
+        for k in range(start[line], start[line + 1]):
+            for e in range(2):
+                w = iv[k, e]
+                for q in range(sstart[line], sstart[line + 1]):
+                    if siv[q, 0] == w or siv[q, 1] == w:
+                        out[2 * k + e] = True
+                        break
+
+
+def uncut_ends(machined: DexelModel, stock: DexelModel) -> np.ndarray:
+    """``(k,) bool`` over the dexel ends of ``machined`` in the order of :func:`deviations`: those
+    the cut left exactly where the ``stock`` (same lattice) had them."""
+    out = []
+    for a in range(3):
+        same = np.zeros(2 * len(machined.iv[a]), np.bool_)
+        _same_end(machined.start[a], machined.iv[a], stock.start[a], stock.iv[a], same)
+        out.append(same)
+    return np.concatenate(out)
+
+
 def difference_volume(a: DexelModel, b: DexelModel) -> float:
     """Volume of ``a`` minus ``b`` (same lattice), mean of the three directions, mm^3."""
     vols = [_difference_length(a.start[k], a.iv[k], b.start[k], b.iv[k]) * a.step ** 2 for k in range(3)]
@@ -127,19 +157,27 @@ def deviations(machined: DexelModel, design_model: DexelModel, design_mesh, devi
         d = kern.mesh_distances(p)
         pts.append(p)
         devs.append(np.where(inside, -d, d))
-        # design surface points cut away (a wall cut through leaves no machined end to measure)
-        q = end_points(design_model, a)
-        depth = np.full(len(q), np.nan)
-        _cut_away(design_model.start[a], design_model.iv[a], machined.start[a], machined.iv[a], depth)
-        gone = ~np.isnan(depth)
-        gone_pts.append(q[gone])
-        gone_depth.append(depth[gone])
     machined_pts = np.concatenate(pts)
-    gone_pts, gone_depth = np.concatenate(gone_pts), np.concatenate(gone_depth)
+    gone_pts, gone_depth = uncovered_ends(design_model, machined)
     if len(gone_pts) and len(machined_pts):
         # nearer than the material along the line: the nearest machined dexel end (on its surface)
         gone_depth = np.minimum(gone_depth, cKDTree(machined_pts).query(gone_pts)[0])
     return machined_pts, np.concatenate(devs), gone_pts, gone_depth
+
+
+def uncovered_ends(design_model: DexelModel, model: DexelModel):
+    """``(points (j, 3), depth (j,))``: the design's dexel ends that no interval of ``model`` (same
+    lattice) holds, and how far along the line the nearest material of ``model`` is (a wall cut
+    through leaves no machined end to measure)."""
+    pts, depths = [], []
+    for a in range(3):
+        q = end_points(design_model, a)
+        depth = np.full(len(q), np.nan)
+        _cut_away(design_model.start[a], design_model.iv[a], model.start[a], model.iv[a], depth)
+        gone = ~np.isnan(depth)
+        pts.append(q[gone])
+        depths.append(depth[gone])
+    return np.concatenate(pts), np.concatenate(depths)
 
 
 def surface_parameters(points: np.ndarray, e: np.ndarray, tolerance: float) -> dict:

@@ -127,8 +127,8 @@ def _numbers(args, where, scale=1.0):
 def _tool_for_cutter(values, tools, where):
     d = values[0]
     r = values[1] if len(values) > 1 else 0.0
-    for i, tool in enumerate(tools):
-        if abs(tool.diameter - d) <= 1e-6 and abs(tool.corner_radius - r) <= 1e-6:
+    for i, tool in enumerate(tools):  # within 0.1 µm: a size written in inches to 6 decimals matches
+        if abs(tool.diameter - d) <= 1e-4 and abs(tool.corner_radius - r) <= 1e-4:
             return i
     raise InputError(f"{where}: CUTTER/{d:g}, {r:g} matches no tool in the table")
 

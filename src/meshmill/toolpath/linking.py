@@ -47,19 +47,24 @@ def simplify_polyline(points: np.ndarray, tol: float) -> np.ndarray:
     return points[_simplify(points, float(tol))]
 
 
-def link_passes(passes, tool: int, safe_z: float, approach: float = 1.0) -> Toolpath:
+def link_passes(passes, tool: int, safe_z: float, clear_in=None, clear_out=None) -> Toolpath:
     """Join 3-axis passes (each ``(k, 3)`` tool tips, mm) into one tool path: a rapid to the safe
-    plane above each pass, a rapid down to ``approach`` mm above its first point, a feed down to it,
-    the pass at feed, and a rapid back up to the safe plane. The tool axis is +Z throughout."""
+    plane above each pass, a rapid down to the height ``clear_in[k]`` above its first point (where
+    the tool is clear of the stock), a feed down to the pass, the pass at feed, a feed up to
+    ``clear_out[k]`` above its last point and a rapid back up to the safe plane. Heights at or
+    above the safe plane (or not given: the pass's own ends) make the whole way up and down a feed.
+    The tool axis is +Z throughout; every pass has ``len(p) + 4`` moves."""
     tips, rapid = [], []
-    for p in passes:
+    for k, p in enumerate(passes):
         first, last = p[0], p[-1]
-        tips += [[first[0], first[1], safe_z], [first[0], first[1], min(safe_z, first[2] + approach)]]
+        z_in = safe_z if clear_in is None else min(safe_z, max(float(clear_in[k]), first[2]))
+        z_out = safe_z if clear_out is None else min(safe_z, max(float(clear_out[k]), last[2]))
+        tips += [[first[0], first[1], safe_z], [first[0], first[1], z_in]]
         rapid += [True, True]
         tips += list(p)
         rapid += [False] * len(p)
-        tips.append([last[0], last[1], safe_z])
-        rapid.append(True)
+        tips += [[last[0], last[1], z_out], [last[0], last[1], safe_z]]
+        rapid += [False, True]
     tips = np.array(tips, np.float64).reshape(-1, 3)
     axis = np.zeros_like(tips)
     axis[:, 2] = 1.0
