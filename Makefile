@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DATA   := src/meshmill/data
 
-.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge bench-gpu bench-choice bench-post clean
+.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge bench-gpu bench-choice bench-post bench-safety clean
 
 venv: $(STAMP)
 
@@ -51,6 +51,9 @@ bench-choice: venv
 
 bench-post: venv
 	$(BIN)/python bench/post_programs.py
+
+bench-safety: venv
+	$(BIN)/python bench/safety.py
 
 clean:
 	rm -rf $(VENV) demo-out bench/out .pytest_cache

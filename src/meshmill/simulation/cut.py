@@ -275,6 +275,21 @@ def _boxes(m: Moves) -> np.ndarray:
     return np.stack([pts.min(axis=1) - ext, pts.max(axis=1) + ext], axis=1)
 
 
+def material_bounds(stock: Stock):
+    """``(lo (3,), hi (3,))``: the box of the stock's material, mm (from the dexels along each axis;
+    an empty stock gives lo > hi)."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for a in range(3):
+        counts = stock.count[a]
+        if counts.sum() == 0:
+            continue
+        first = stock.iv[a][stock.off[a][:-1][counts > 0]]
+        last = stock.iv[a][stock.off[a][:-1][counts > 0] + counts[counts > 0] - 1]
+        lo[a] = min(lo[a], first[:, 0].min())
+        hi[a] = max(hi[a], last[:, 1].max())
+    return lo, hi
+
+
 def cut(stock: Stock, moves: Moves, progress=None, device="cpu") -> dict:
     """Remove every move's swept volume from ``stock`` (in place) on ``device`` (``"cpu"`` or
     ``"cuda"``); body moves (shank, holder) remove nothing. Returns ``{"rapid_cuts": sorted
@@ -283,6 +298,14 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu") -> dict:
     t0 = time.perf_counter()
     kern = implementation(device)
     boxes = _boxes(moves)
+    # a shank or holder that never comes near the stock's material cannot meet it: left out
+    lo, hi = material_bounds(stock)
+    near = np.all((boxes[:, 0] <= hi) & (boxes[:, 1] >= lo), axis=1)
+    if (moves.body & ~near).any():
+        keep = ~moves.body | near
+        moves = Moves(**{f: getattr(moves, f)[keep] for f in ("pa", "pb", "xa", "xb", "radius", "corner", "flutes",
+                                                               "strips", "rapid", "source", "body")})
+        boxes = boxes[keep]
     hit = np.zeros(len(moves), np.uint8)
     kind = (moves.rapid.astype(np.uint8) * RAPID) | (moves.body.astype(np.uint8) * BODY)
     for a in range(3):
