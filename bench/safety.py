@@ -94,7 +94,7 @@ def _turn_x_up(v):
 # name: (file, scale to mm, turn, largest extent wanted or None)
 PARTS = {
     "vase": (os.path.join(ROOT, "src", "meshmill", "data", "vase.stl"), 1.0, None, None),
-    "ktoolcav": (os.path.join(SHARED, "ktoolcav.stl"), 1.0, None, None),
+    "ktoolcav": (os.path.join(SHARED, "ktoolcav.stl"), 25.4, None, None),  # inches
     "blade": (os.path.join(SHARED, "real", "blade_hpt_airfoil.stl"), 1000.0, None, None),
     "dolphin": (os.path.join(SHARED, "real", "mould_dolphin_tail_cavity.stl"), 1.0, _turn_x_up, None),
     "terrain": (os.path.join(SHARED, "real", "relief_terrain.stl"), 1.0, None, 150.0),
@@ -164,7 +164,7 @@ def measure(part_file, op, cl, tools, sim_step):
     tp, _ = read_toolpath(cl, tools)
     lo, hi = part.bounds
     if op == "plunge":
-        stock = StockCheck(kern=solid_kernels(box(lo, hi)), clearance=CLEARANCE)
+        stock = StockCheck(kern=solid_kernels(box(lo, hi)), clearance=CLEARANCE, feed_body=False)  # roughing
     else:
         stock = StockCheck(allowance=ALLOWANCE, clearance=CLEARANCE)
     t = time.perf_counter()
@@ -226,7 +226,9 @@ def main():
             rows.append(row)
             print(json.dumps(row), flush=True)
     result = {"date": datetime.date.today().isoformat(), "src": os.path.abspath(a.src), "rows": rows}
-    with open(a.out or os.path.join(a.work, "safety.json"), "w") as fh:
+    out = a.out or os.path.join(a.work, "safety.json")
+    os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
+    with open(out, "w") as fh:
         json.dump(result, fh, indent=1)
     keys = ["rapid_in_stock", "gouging", "colliding", "plunge_past_flutes", "sim_rapid_cuts", "sim_collisions"]
     print(f"\n{'part':<10}{'op':<11}{'rc':>3}{'s':>7}" + "".join(f"{k:>20}" for k in keys))

@@ -134,3 +134,24 @@ def test_equals_opencamlib_batch_drop_cutter(part):
         theirs = np.array([p.z for p in bdc.getCLPoints()])
         ours, _ = cpu.drop_cutter(xy, R, r, floor, b)
         assert np.abs(ours - theirs).max() < 1e-3, kind
+
+
+def test_a_wider_body_that_touches_nothing_keeps_the_cutters_contact():
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.ops.dropcutter import ToolDrop
+    from meshmill.tools.table import tool_from_entry
+
+    # a plane rising at 30 deg; the shank (grown wider than the ball) starts far above what it
+    # passes over: the floor it is dropped from, less its height, rounds above the tip at some
+    # points, which once wiped the ball's contact (NaN) though the height stayed the ball's
+    t = math.tan(math.radians(30))
+    plane = mesh_from_arrays(np.array([[0, 0, 0], [60, 0, 60 * t], [60, 40, 60 * t], [0, 40, 0.0]]),
+                             np.array([[0, 1, 2], [0, 2, 3]]), "plane")
+    ball = tool_from_entry(dict(name="B10", type="ball", diameter=10, flute_length=30, gauge_length=50), 1, "t")
+    xy = np.column_stack([np.linspace(0, 60, 601), np.full(601, 20.0)])
+    kern = solid_kernels(plane)
+    z0, c0 = ToolDrop(ball, kern, -1.0).with_contacts(xy)
+    z1, c1 = ToolDrop(ball, kern, -1.0, body_grow=0.5).with_contacts(xy)
+    assert np.array_equal(z0, z1) and np.isfinite(c0[:, 0]).all()
+    assert np.array_equal(c0, c1)

@@ -201,7 +201,7 @@ def test_rapids_keep_clear_of_the_stock_the_finish_starts_from(tools):
 
     m = overhang_column()
     tp, s, d = finish(m, tools, FinishParams(step_down=2.0))
-    assert s["verify"]["ok"] and s["stock"] == {"allowance": 0.5, "mesh": False, "clearance": 0.5}
+    assert s["verify"]["ok"] and s["stock"] == {"allowance": 0.5, "mesh": False, "clearance": 0.5, "shank_and_holder": True}
     # independent: the dexel simulation from the stock the finish assumes (0.5 mm on the part)
     dev, summary, *_ = simulate(m, tp, tools, 0.25, allowance=0.5)
     assert summary["rapid_moves_cutting"] == 0 and summary["colliding_moves"] == 0

@@ -146,3 +146,31 @@ def test_waterline_near_opencamlib(cutters, part, frac):
     d_theirs = cKDTree(ours).query(theirs)[0]
     # each of our points lies near their loops and theirs near ours, within the sampling distance
     assert np.percentile(d_ours, 99) < sampling and np.percentile(d_theirs, 99) < sampling
+
+
+def _box_distance_xy(xy, lo, hi):
+    """Horizontal distance from points ``(k, 2)`` to the box ``[lo, hi]`` (xy)."""
+    d = np.maximum(np.maximum(lo - xy, xy - hi), 0.0)
+    return np.hypot(d[:, 0], d[:, 1])
+
+
+def test_raster_keeps_the_holder_out_of_the_allowance(cutters):
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.ops.verify import StockCheck, verify_toolpath
+
+    # a plate with a tower much taller than R6's gauge length (holder radius 15 from 40 mm up)
+    plate, tower = box([0, 0, 0], [60, 40, 2]), box([25, 15, 0], [35, 25, 70])
+    m = mesh_from_arrays(np.vstack([plate.vertices, tower.vertices]),
+                         np.vstack([plate.faces, tower.faces + len(plate.vertices)]), "plate and tower")
+    lo, hi = np.array([25.0, 15.0]), np.array([35.0, 25.0])
+    near = {}
+    for allowance in (0.0, 0.5):
+        tp, s = raster(m, cutters, "R6", RasterParams(stepover=2.0, sample=0.25, stock_allowance=allowance))
+        assert s["verify"]["ok"]
+        low = tp.tip[~tp.rapid & (tp.tip[:, 2] < 70 - 40 - 1e-6)]
+        near[allowance] = _box_distance_xy(low[:, :2], lo, hi).min()
+        r = verify_toolpath(m, tp, cutters, stock=StockCheck(allowance=0.5, clearance=0.5))
+        assert (r["colliding_moves"] == 0) == (allowance == 0.5)
+        if allowance == 0.0:
+            assert "holder (in the stock)" in " ".join(r["worst"])
+    assert 15.0 - 1e-9 <= near[0.0] < 15.5 <= near[0.5] + 1e-9

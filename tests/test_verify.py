@@ -143,6 +143,10 @@ def test_rapids_keep_clear_of_the_stock(tools):
     r = verify_toolpath(part, tp, tools, stock=StockCheck(allowance=0.5))
     assert r["rapid_moves_touching"] == 1 and "into the stock" in r["worst"][0]
     assert "0.2000 mm" in r["worst"][0]
+    # 0.3 mm over the allowance: out of the stock, but not the clearance away
+    over = _path([[-10, 10, 10.8], [30, 10, 10.8]], rapid=[True, True], tool=1)
+    r = verify_toolpath(part, over, tools, stock=StockCheck(allowance=0.5, clearance=0.5))
+    assert r["rapid_moves_touching"] == 1 and "0.3000 mm from the stock (less than the clearance)" in r["worst"][0]
     # a stock mesh: the rapid crosses a blank 5 mm above the part
     blank = box([-5, -5, 0], [25, 25, 15])
     r = verify_toolpath(part, tp, tools, stock=StockCheck(kern=solid_kernels(blank)))
@@ -168,3 +172,25 @@ def test_an_open_sheet_has_material_below_it(tools):
     # a tool under the sheet, clear of its triangles, is in the material (down to the floor, as
     # deep again below the sheet as it is tall and at least 10 mm)
     assert not verify_toolpath(sheet, _path([[10, 10, 2.0], [11, 10, 2.0]], tool=3), tools)["ok"]
+
+
+def test_shank_and_holder_of_feed_moves_stay_out_of_the_stock(tools):
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.ops.verify import StockCheck
+
+    m = box([0, 0, 0], [10, 10, 100])
+    # B6's holder (radius 16 from 45 mm up) runs 0.3 mm from the wall x = 0, the ball far from it:
+    # clear of the design, 0.2 mm into a 0.5 mm allowance, between poses as much as at them
+    tp = _path([[-16.3, -20, 5], [-16.3, 30, 5]], tool=2)
+    assert verify_toolpath(m, tp, tools)["ok"]
+    for step in (0.5, 100.0):
+        r = verify_toolpath(m, tp, tools, step=step, stock=StockCheck(allowance=0.5))
+        assert r["colliding_moves"] == 1 and r["gouging_moves"] == 0
+        assert r["max_collision"] == pytest.approx(0.2, abs=1e-9)
+        assert "holder (in the stock) 0.2000 mm" in r["worst"][0]
+    # a stock mesh the holder enters at both points; the cutting end in it is what a cut is for
+    blank = box([-17, -30, 0], [20, 40, 60])
+    r = verify_toolpath(m, tp, tools, stock=StockCheck(kern=solid_kernels(blank)))
+    assert r["colliding_moves"] == 2 and r["gouging_moves"] == 0 and "holder (in the stock)" in r["worst"][0]
+    low = box([-30, -30, 0], [20, 40, 16])  # below the shank (12 mm over the tip): only the cutter in it
+    assert verify_toolpath(m, tp, tools, stock=StockCheck(kern=solid_kernels(low)))["ok"]

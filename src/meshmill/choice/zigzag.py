@@ -21,13 +21,14 @@ from scipy.spatial import cKDTree
 
 from ..kernels.backend import solid_kernels
 from ..ops.dropcutter import ToolDrop
+from ..tolerances import STOCK_ALLOWANCE
 from .clustering import wrap_axial
 from .scallop import stepover, stepover_exact
 from .surface import SurfaceMesh
 
 SMOOTH = math.radians(20.0)  # a contact whose normal is farther from its cell's is on an edge
-LINK_STEPOVERS = 4.0
-ON_SURFACE = 1e-6  # mm: a point this close to the triangles is on them  # pieces this many largest stepovers apart (or closer) are linked at feed
+LINK_STEPOVERS = 4.0  # pieces this many largest stepovers apart (or closer) are linked at feed
+ON_SURFACE = 1e-6  # mm: a point this close to the triangles is on them
 
 
 def frame_rotation(axis) -> np.ndarray:
@@ -81,7 +82,7 @@ class SurfaceSetup:
         self.kern = solid_kernels(turned, device, self.floor)  # the solid, sheets down to the floor
         verts = turned.vertices
         self.top = float(verts[:, 2].max())
-        self.drop = ToolDrop(tool, self.kern, self.floor)
+        self.drop = ToolDrop(tool, self.kern, self.floor, body_grow=STOCK_ALLOWANCE)  # shank, holder out of the stock
         self.smesh = smesh
         self.grid_shape = grid_shape
 

@@ -277,7 +277,8 @@ def build(jit):
             if body_r[k] > R:
                 z, px, py, pz = mesh_drop(x, y, body_r[k], 0.0, best + body_t[k], sx, sy, sz,
                                           node_lo, node_hi, node_child, node_range, tris, stack)
-                if z - body_t[k] > best:
+                # (nothing touched: z is the floor given, which less body_t may round above best)
+                if not math.isnan(px) and z - body_t[k] > best:
                     best = z - body_t[k]
                     cx, cy, cz = px, py, pz
         return best, cx, cy, cz

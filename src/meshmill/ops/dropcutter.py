@@ -36,6 +36,13 @@ def stock_check(stock, params, device) -> StockCheck:
     return StockCheck(allowance=params.stock_allowance, clearance=params.clearance)
 
 
+def body_grow(stock, params) -> float:
+    """How far a 3-axis operation's shank and holder keep from the design: out of the material
+    ``params.stock_allowance`` on it (a ``stock`` mesh is left to the check and repair of
+    :func:`verified_path`)."""
+    return 0.0 if stock is not None else float(params.stock_allowance)
+
+
 def safe_height(mesh, stock, params) -> float:
     """The plane of a 3-axis operation's rapids: ``SAFE_ABOVE`` over the part, and at least the
     clearance and 1 mm over the stock."""
@@ -62,15 +69,18 @@ class ToolDrop:
     tip is g below the real one; shank and holder g wider): the heights are the real tip's, the
     tool kept ``grow`` mm from the mesh. With ``square`` the cylinders are grown as verification
     grows them (radius and both ends by g: a little more than the Minkowski sum): a flat end stays
-    flat, and the flutes above a rounded end start g below its equator."""
+    flat, and the flutes above a rounded end start g below its equator. ``body_grow`` grows the
+    shank and holder alone (radius and bottom by b): the cutter may touch the mesh, the rest stays
+    out of the material ``b`` mm on it (the stock allowance an operation starts from)."""
 
-    def __init__(self, tool, bvh, floor: float, device: str = "cpu", grow: float = 0.0, square: bool = False):
-        g = float(grow)
+    def __init__(self, tool, bvh, floor: float, device: str = "cpu", grow: float = 0.0, square: bool = False,
+                 body_grow: float = 0.0):
+        g, b = float(grow), float(body_grow)
         square_flat = square and tool.type == "flat"  # a flat end grown as a cylinder: a wider flat end
         self.radius, self.corner, self.grow = tool.radius + g, tool.corner_radius + (0.0 if square_flat else g), g
-        parts = [(0.5 * tool.shank_diameter + g, tool.flute_length)]
+        parts = [(0.5 * tool.shank_diameter + g + b, max(0.0, tool.flute_length - b))]
         if tool.holder_diameter > 0:
-            parts.append((0.5 * tool.holder_diameter + g, tool.gauge_length))
+            parts.append((0.5 * tool.holder_diameter + g + b, max(0.0, tool.gauge_length - b)))
         self.body = (np.array([p[0] for p in parts]), np.array([p[1] for p in parts]))
         # flat disks (radius, height over the grown tip) the kernel's body cylinders cannot stand
         # for (no wider than the cutter): the grown flutes, and a bull-nose's grown flat bottom

@@ -33,12 +33,13 @@ from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
 from .verify import DEFAULT_STEP, StockCheck, verify_toolpath
 
-REPAIR_ROUNDS = 6
+REPAIR_ROUNDS = 7
 # Ways into and out of a pass, tried in this order: (lead along the outward side, vertical retract
 # instead of one along the tool axis, feed all the way from and to the safe plane). The rapid of
 # the others ends (starts) the approach distance above the lead's end, where the tool is clear of
 # the stock; the approach itself is a feed.
-LINKS = ((True, False, False), (True, True, False), (False, False, False), (False, True, False), (False, True, True))
+LINKS = ((True, False, False), (True, True, False), (False, False, False), (False, True, False), (False, False, True),
+         (False, True, True))
 NO_LEAD = 2
 MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
 
@@ -310,7 +311,8 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     side = np.cross(con.feed, [0.0, 0.0, 1.0])
     ce = con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir
     cand, cand_tilt = tilt_candidates(params.max_tilt, params.tilt_step)
-    body, _ = pack_cylinders(balls, params.tol, params.clearance)
+    # shank and holder keep the clearance from the part, and stay out of the allowance on it
+    body, _ = pack_cylinders(balls, params.tol, max(params.clearance, rapid_stock.allowance))
     choice = kern.axis_search(ce, con.feed, side, point_tool, cand, cand_tilt, math.radians(params.tilt_step) + 1e-9,
                               radii, body, con.offsets)
     has_axis = choice >= 0

@@ -230,7 +230,7 @@ def _verified(mesh, tools, index, tips, axes, rapid, say, device, stock: BoxStoc
                   np.full(len(tips), index, np.int64))
     say("verify")
     report = verify_toolpath(solid_kernels(mesh, device), tp, tools, GOUGE_TOL, DEFAULT_STEP,
-                             stock=StockCheck(kern=stock.kern))
+                             stock=StockCheck(kern=stock.kern, feed_body=False))  # layers make room for the shank
     report.pop("problem_moves")
     return tp, report
 

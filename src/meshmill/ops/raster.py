@@ -22,7 +22,7 @@ from ..geometry.mesh import Mesh
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
 from ..choice.scallop import stepover
-from .dropcutter import ToolDrop, check_stock_params, pick_tool, safe_height, stock_check, verified_path
+from .dropcutter import ToolDrop, body_grow, check_stock_params, pick_tool, safe_height, stock_check, verified_path
 from .verify import DEFAULT_STEP
 
 REFINE_ROUNDS = 6  # each halves the spacing where the chord leaves the surface
@@ -143,7 +143,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     t = time.perf_counter()
     pieces, n_lines, spacing = raster_lines(bounds, tool.radius, stepover, params.angle, params.sample)
     xy = np.concatenate(pieces)
-    tips = drop_refined(xy, ToolDrop(tool, kern, float(bounds[0, 2])), 0.5 * params.tol, params.sample / 64)
+    tips = drop_refined(xy, ToolDrop(tool, kern, float(bounds[0, 2]), body_grow=body_grow(stock, params)), 0.5 * params.tol, params.sample / 64)
     dropped = len(tips)
     tips = simplify_polyline(tips, 0.5 * params.tol)
     seconds["drop"] = time.perf_counter() - t

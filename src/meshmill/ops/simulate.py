@@ -128,8 +128,8 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
                         "there (not counted as gouged by the path)")
     build_s = time.perf_counter() - t0
     moves = cutting.toolpath_moves(toolpath, tools, mode)
-    if mode == "sweep":  # the shank and holder, checked against the stock they pass
-        moves = cutting.Moves.merge(moves, cutting.body_moves(toolpath, tools))
+    if mode == "sweep":  # the shank and holder, checked against the stock they pass (beyond the tolerance)
+        moves = cutting.Moves.merge(moves, cutting.body_moves(toolpath, tools, tolerance))
     say(f"cutting {len(moves):,} moves ({len(toolpath):,} points, mode {mode})")
     result = cutting.cut(st, moves, progress=say, device=device)
     machined = st.to_model()

@@ -14,7 +14,9 @@ part deeper than the tolerance anywhere along any feed move, and that no rapid m
 stock at all, whatever ``step`` was.
 
 A feed move **gouges** when the cutting part (end and flutes) enters the part by more than ``tol``;
-it **collides** when the shank or holder does. A **rapid** move must keep every part of the tool
+it **collides** when the shank or holder does, or enters the stock (the part grown by the
+stock's allowance, and a stock mesh when one is given: they must never rub on material the
+operation expects to find). A **rapid** move must keep every part of the tool
 out of the stock: the part grown by the stock's allowance (material the path expects to find on
 the design) plus the clearance a rapid keeps, and, when one is given, out of a stock mesh by the
 clearance. For an open surface the material is the solid below it (:mod:`meshmill.geometry.solid`).
@@ -47,23 +49,30 @@ class Problem:
     def describe(self) -> str:
         where = f"line {self.line}" if self.line else f"move {self.move + 1}"
         x, y, z = self.tip
-        into = " into the stock" if self.kind == "rapid" else ""
-        return (f"{self.kind}: {self.part} {self.depth:.4f} mm{into} deep at {where}, "
-                f"tip ({x:.3f}, {y:.3f}, {z:.3f})")
+        if self.kind == "rapid" and self.depth < 0:  # clear of the stock, but within the clearance
+            depth = f"{-self.depth:.4f} mm from the stock (less than the clearance)"
+        else:
+            depth = f"{self.depth:.4f} mm{' into the stock' if self.kind == 'rapid' else ''} deep"
+        return f"{self.kind}: {self.part} {depth} at {where}, tip ({x:.3f}, {y:.3f}, {z:.3f})"
 
 
 @dataclass
 class StockCheck:
-    """What rapid moves must keep clear of besides the design: ``allowance`` mm of material on the
-    design (every part grown by it), a stock mesh's kernels (``kern``, or None), and the
-    ``clearance`` mm a rapid keeps from both."""
+    """The material a path starts from besides the design: ``allowance`` mm of material on the
+    design (every part grown by it), a stock mesh's kernels (``kern``, or None). Rapid moves keep
+    the ``clearance`` mm from both; the shank and holder of feed moves stay out of both (unless
+    ``feed_body`` is False)."""
 
     allowance: float = 0.0
     kern: MeshKernels | None = None
     clearance: float = 0.0
+    # False for roughing, whose own cuts make room for its shank: simulate checks that shank and
+    # holder against the stock as it is cut
+    feed_body: bool = True
 
     def summary(self) -> dict:
-        return {"allowance": float(self.allowance), "mesh": self.kern is not None, "clearance": float(self.clearance)}
+        return {"allowance": float(self.allowance), "mesh": self.kern is not None, "clearance": float(self.clearance),
+                "shank_and_holder": bool(self.feed_body)}
 
 
 def sample_moves(tp: Toolpath, tools, step: float):
@@ -127,14 +136,42 @@ class _Measure:
         self.rings = pack_rings(tools)
         self.reach = np.array([t.reach for t in tools])
         self.kern, self.tol, self.stock = kern, tol, stock
+        # shank and holder alone (no end, no flutes), for feed moves against the stock: ``body_col``
+        # (T, Kb) is the column of each of their cylinders in the full packing
+        cols = [np.nonzero(~self.cutting[i] & (r[i] > 0))[0] for i in range(len(tools))]
+        kb = max([1] + [len(c) for c in cols])
+        packed = [np.zeros((len(tools), kb)) for _ in range(3)]
+        self.body_col = np.zeros((len(tools), kb), np.int64)
+        for i, c in enumerate(cols):
+            for a, src in zip(packed, (t0, t1, r)):
+                a[i, :len(c)] = src[i, c]
+            self.body_col[i, :len(c)] = c
+        self.body_segs = tuple(packed)
+        self.no_rings = self.rings[:2] + (np.zeros_like(self.rings[2]), self.rings[3])
+        self.body_in_stock = stock.feed_body and (stock.allowance > 0 or stock.kern is not None)
 
     def _grow(self, rapid, on_stock):
         c = self.stock.clearance
         return np.where(rapid, c if on_stock else self.stock.allowance + c, 0.0)
 
+    def _body_stock_depth(self, tip, axis, tool):
+        """``(f, Kb)``: how deep the shank and holder of feed poses enter the stock (the design
+        grown by the allowance, and the stock mesh)."""
+        depth = np.zeros((len(tip), self.body_col.shape[1]))
+        if self.stock.allowance > 0:
+            grow = np.full(len(tip), float(self.stock.allowance))
+            depth = self.kern.pose_penetration(tip, axis, tool, grow, self.no_rings, self.body_segs,
+                                               self.body_segs[0])[1]
+        if self.stock.kern is not None:
+            depth = np.maximum(depth, self.stock.kern.pose_penetration(tip, axis, tool, np.zeros(len(tip)),
+                                                                       self.no_rings, self.body_segs,
+                                                                       self.body_segs[0])[1])
+        return depth
+
     def depths(self, tip, axis, tool, rapid):
-        """``(end (s,), body (s,), ring (s,), segs (s, K))``: how deep each pose enters; rapid poses
-        are measured against the stock (grown) and reported as depth into it."""
+        """``(end (s,), body (s,), ring (s,), segs (s, K), stock (s,))``: how deep each pose enters;
+        rapid poses are measured against the stock (grown) and reported as depth into it; the
+        shank and holder of feed poses also against the stock (``stock``: that depth alone)."""
         ring, segs = self.kern.pose_penetration(tip, axis, tool, self._grow(rapid, False), self.rings, self.segs,
                                                 self.base)
         if self.stock.kern is not None and rapid.any():
@@ -143,13 +180,24 @@ class _Measure:
                                                       self.base)
             ring[rapid] = np.maximum(ring[rapid], r2)
             segs[rapid] = np.maximum(segs[rapid], s2)
+        in_stock = np.zeros(len(tip))
+        feed = np.nonzero(~rapid)[0]
+        if self.body_in_stock and len(feed):
+            sb = self._body_stock_depth(tip[feed], axis[feed], tool[feed])
+            in_stock[feed] = sb.max(axis=1)
+            cols = self.body_col[tool[feed]]
+            used = self.body_segs[2][tool[feed]] > 0
+            for j in range(sb.shape[1]):
+                rows, c = feed[used[:, j]], cols[used[:, j], j]
+                segs[rows, c] = np.maximum(segs[rows, c], sb[used[:, j], j])
         cut = self.cutting[tool]
         end = np.maximum(ring, np.where(cut, segs, 0.0).max(axis=1))
         body = np.where(~cut, segs, 0.0).max(axis=1)
-        return end, body, ring, segs
+        return end, body, ring, segs, in_stock
 
     def clear(self, ta, xa, tb, xb, tool, rapid):
-        """``(k,) bool``: intervals certified within the tolerance (rapids: out of the stock)."""
+        """``(k,) bool``: intervals certified within the tolerance (rapids: out of the stock; the
+        shank and holder of feed moves: out of the stock too)."""
         lim = np.full(len(ta), self.tol)
         ok = self.kern.intervals_clear(ta, xa, tb, xb, tool, self._grow(rapid, False), lim, self.rings, self.segs,
                                        self.base)
@@ -158,6 +206,14 @@ class _Measure:
             ok[sel] = self.stock.kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel],
                                                       self._grow(rapid[sel], True), lim[sel], self.rings, self.segs,
                                                       self.base)
+        if self.body_in_stock:
+            for kern, grow in ((self.kern, self.stock.allowance), (self.stock.kern, 0.0)):
+                sel = np.nonzero(ok & ~rapid)[0]
+                if kern is None or len(sel) == 0 or (kern is self.kern and grow <= 0):
+                    continue
+                ok[sel] = kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel],
+                                               np.full(len(sel), float(grow)), lim[sel], self.no_rings,
+                                               self.body_segs, self.body_segs[0])
         return ok
 
 
@@ -180,8 +236,8 @@ def verify_toolpath(kern, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: flo
                 "unresolved_moves": 0, "ok": True, "worst": [], "problem_moves": [], "lines": 0,
                 "problem_lines": {"gouge": 0, "collision": 0, "rapid": 0}}
     meas = _Measure(kern, tools, tol, stock)
-    end, body, ring, segs = meas.depths(tip, axis, tool, rapid)
-    poses = [(tip, tool, move, rapid, end, body, ring, segs)]
+    end, body, ring, segs, in_stock = meas.depths(tip, axis, tool, rapid)
+    poses = [(tip, tool, move, rapid, end, body, ring, segs, in_stock)]
     bad_move = np.zeros(len(tp), bool)
     bad_move[move[(end > tol) | (body > tol)]] = True
     # the intervals between neighbouring poses of each move (the first pose of a move starts at the
@@ -215,9 +271,9 @@ def verify_toolpath(kern, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: flo
         ta, xa, fa, tb, xb, fb, im, it, ir = (a[live] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
         fm = 0.5 * (fa + fb)
         tm, xm = move_poses(tp, im, fm)
-        e2, b2, r2, s2 = meas.depths(tm, xm, it, ir)
+        e2, b2, r2, s2, k2 = meas.depths(tm, xm, it, ir)
         refined += len(im)
-        poses.append((tm, it, im, ir, e2, b2, r2, s2))
+        poses.append((tm, it, im, ir, e2, b2, r2, s2, k2))
         bad_move[im[(e2 > tol) | (b2 > tol)]] = True
         ta, xa, fa, tb, xb, fb, im, it, ir = (np.concatenate([a, b]) for a, b in
                                               ((ta, tm), (xa, xm), (fa, fm), (tm, tb), (xm, xb), (fm, fb),
@@ -225,13 +281,13 @@ def verify_toolpath(kern, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: flo
     else:
         for k in range(len(im)):
             unresolved.append((int(im[k]), ta[k], float(np.linalg.norm(tb[k] - ta[k]))))
-    tip, tool, move, rapid, end, body, ring, segs = (np.concatenate(a) for a in zip(*poses))
-    return _report(tp, tools, tip, tool, move, rapid, end, body, ring, segs, meas, unresolved, certified, refined,
-                   worst, base)
+    tip, tool, move, rapid, end, body, ring, segs, in_stock = (np.concatenate(a) for a in zip(*poses))
+    return _report(tp, tools, tip, tool, move, rapid, end, body, ring, segs, in_stock, meas, unresolved, certified,
+                   refined, worst, base)
 
 
-def _report(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth, seg_depth, meas, unresolved,
-            certified, refined, worst, base):
+def _report(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth, seg_depth, stock_depth, meas,
+            unresolved, certified, refined, worst, base):
     tol = meas.tol
     cut_mask = meas.cutting[tool]
     seg_cut = np.where(cut_mask, seg_depth, 0.0)
@@ -259,7 +315,8 @@ def _report(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth
         return names[tool[i]][int(np.argmax(seg_cut[i]))]
 
     def body_part(i):
-        return names[tool[i]][int(np.argmax(seg_body[i]))]
+        where = " (in the stock)" if stock_depth[i] >= body_depth[i] > 0.0 else ""
+        return names[tool[i]][int(np.argmax(seg_body[i]))] + where
 
     def any_part(i):
         return end_part(i) if end_depth[i] >= body_depth[i] else body_part(i)

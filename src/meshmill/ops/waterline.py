@@ -29,7 +29,7 @@ from ..geometry.mesh import Mesh
 from ..geometry.slicing import z_levels
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
-from .dropcutter import ToolDrop, check_stock_params, pick_tool, safe_height, stock_check, verified_path
+from .dropcutter import ToolDrop, body_grow, check_stock_params, pick_tool, safe_height, stock_check, verified_path
 from .dropgrid import DropGrid
 from .verify import DEFAULT_STEP
 
@@ -240,7 +240,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     t = time.perf_counter()
     xs = lo[0] + (hi[0] - lo[0]) * np.arange(nx) / (nx - 1)
     ys = lo[1] + (hi[1] - lo[1]) * np.arange(ny) / (ny - 1)
-    drop = ToolDrop(tool, kern, float(bounds[0, 2]) - 1.0)
+    drop = ToolDrop(tool, kern, float(bounds[0, 2]) - 1.0, body_grow=body_grow(stock, params))
     grid = DropGrid(drop, xs, ys)
     cx = 0.5 * (xs[:-1] + xs[1:])
     cy = 0.5 * (ys[:-1] + ys[1:])

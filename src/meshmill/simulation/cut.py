@@ -186,10 +186,12 @@ def toolpath_moves(toolpath, tools, mode="sweep") -> Moves:
     return Moves(p0, p1, x0, x1, R[src], r[src], F[src], strips[src], toolpath.rapid[src].astype(bool), src)
 
 
-def body_moves(toolpath, tools) -> Moves:
+def body_moves(toolpath, tools, shrink: float = 0.0) -> Moves:
     """The shank and holder of every move of ``toolpath`` (each a flat cylinder, from its start up
     the axis), split where the axis turns as a flat cutter reaching up to the cylinder's top would
-    be, so that their sweep stays within ``SWEEP_TOL`` of the true one."""
+    be, so that their sweep stays within ``SWEEP_TOL`` of the true one. ``shrink`` (mm): each
+    cylinder thinner by it and starting that much higher (what meets the stock is then deeper in
+    it than ``shrink``, as verification counts a collision beyond its tolerance)."""
     tip = np.asarray(toolpath.tip, float)
     axis = np.asarray(toolpath.axis, float)
     k = len(tip)
@@ -197,7 +199,8 @@ def body_moves(toolpath, tools) -> Moves:
     xa = np.vstack([axis[:1], axis[:-1]])
     out = []
     for t0, t1, rad, idx in _body_cylinders(toolpath.tool, tools):
-        if len(idx) == 0:
+        t0, rad = t0 + shrink, rad - shrink
+        if len(idx) == 0 or rad <= 0 or t1 <= t0:
             continue
         R = np.full(len(idx), rad)
         pieces, _ = turn_pieces(pa[idx], tip[idx], xa[idx], axis[idx], R, np.zeros(len(idx)), np.full(len(idx), t1))
