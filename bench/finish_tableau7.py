@@ -94,7 +94,7 @@ def parse_rows(text):
 
 
 def params_for(step_down):
-    return FinishParams(step_down=step_down, tilt_step=TILT_STEP, max_tilt=MAX_TILT)
+    return FinishParams(step_down=step_down, tilt_step=TILT_STEP, max_tilt=MAX_TILT, whole_contours=True)  # the seed's rule
 
 
 def git_commit():

@@ -152,3 +152,22 @@ def test_inward_wound_part_with_a_slit_is_refused_then_turned_by_flip():
     assert m.dropped_degenerate == 1 and m.flipped
     top = m.vertices[m.faces][:, :, 2].min(axis=1) > m.bounds[1, 2] - 1.0
     assert (m.face_normals[top, 2] > 0).mean() > 0.95
+
+
+def test_stray_fragments_and_non_manifold_edges_are_said_and_handled():
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.geometry.shapes import box
+
+    # two blocks touching along an edge (four faces on it), and a 0.05 mm chip floating beside them
+    a, b, chip = box([0, 0, 0], [10, 10, 10]), box([10, 10, 0], [20, 20, 10]), box([30, 30, 30], [30.05, 30.05, 30.05])
+    v = np.vstack([a.vertices, b.vertices, chip.vertices])
+    f = np.vstack([a.faces, b.faces + 8, chip.faces + 16])
+    m = mesh_from_arrays(v, f, "parts")
+    assert len(m.faces) == 24 and m.bounds[1].tolist() == [20, 20, 10]
+    assert m.closed and m.summary()["pieces"] == {"closed": 2, "with_holes": 0, "sheets": 0}
+    said = " ".join(m.warnings)
+    assert "dropped 1 stray fragment(s) (12 triangle(s)" in said and "1 non-manifold edge(s)" in said
+    # the same chip next to a part of its own size is no stray
+    small = mesh_from_arrays(np.vstack([chip.vertices, chip.vertices + 0.1]), np.vstack([chip.faces, chip.faces + 8]),
+                             "chips")
+    assert len(small.faces) == 24

@@ -27,10 +27,10 @@ _run = [None]  # the result files of the command running (RunFiles), committed w
 
 # the files each command writes into its --out folder, the summary last
 FOLDER_OUTPUTS = {
-    "finish": ("contours.npz", "toolpath.cl", "summary.json"),
-    "raster": ("toolpath.cl", "summary.json"),
-    "waterline": ("toolpath.cl", "summary.json"),
-    "plunge": ("toolpath.cl", "summary.json"),
+    "finish": ("contours.npz", "toolpath.cl", "part.stl", "summary.json"),
+    "raster": ("toolpath.cl", "part.stl", "summary.json"),
+    "waterline": ("toolpath.cl", "part.stl", "summary.json"),
+    "plunge": ("toolpath.cl", "part.stl", "summary.json"),
     "simulate": ("deviation.npz", "machined.stl", "deviation.json", "summary.json"),
     "analyze": ("analysis.npz", "summary.json"),
     "choose": ("tools.toml", "toolpath.cl", "zones.npz", "summary.json"),
@@ -93,20 +93,54 @@ def _device(args):
     return resolve(args.device)
 
 
+def _add_setup(parser):
+    """``--units``, ``--up``, ``--origin``: how the part file is set up on the machine."""
+    from .geometry.placement import ORIGINS, UNITS
+
+    g = parser.add_argument_group("set-up (the part file into the work frame: mm, +Z to the spindle)")
+    g.add_argument("--units", choices=tuple(UNITS), default="mm", help="units of the part file (mm)")
+    g.add_argument("--up", default="+Z",
+                   help="the part's axis that points to the spindle (+X, -Y, ...), or a rotation: RX,RY,RZ degrees "
+                        "about X, then Y, then Z, or nine numbers, a matrix by rows (+Z)")
+    g.add_argument("--origin", default="file",
+                   help=f"the work zero: {', '.join(ORIGINS)} (of the part's box, after --up) or a point X,Y,Z "
+                        "in the file's coordinates (file: the file's own zero)")
+
+
 def _add_device(parser):
     parser.add_argument("--device", choices=("cpu", "cuda", "auto"), default="auto",
                         help="run the heavy kernels on the CPU or an NVIDIA GPU (needs meshmill[cuda]); "
                              "auto: the GPU when a usable one is present (auto)")
 
 
-def _load_part(args, path, flip=None):
-    """The part ``path`` (its faces turned over with ``--flip``), its warnings said."""
+def _setup(args):
+    """The :class:`~meshmill.geometry.placement.Setup` of ``--units``, ``--up`` and ``--origin``."""
+    from .geometry.placement import Setup
+
+    setup = Setup(units=getattr(args, "units", "mm"), up=getattr(args, "up", "+Z"),
+                  origin=getattr(args, "origin", "file"))
+    setup.check()
+    return setup
+
+
+def _load_part(args, path, flip=None, placed=True):
+    """The part ``path`` (its faces turned over with ``--flip``) placed into the work frame by
+    ``--units``, ``--up`` and ``--origin`` (``placed=False``: a file already in the work frame, a
+    stock), its warnings said."""
     from .geometry.mesh import load_mesh
 
-    mesh = load_mesh(path, flip=getattr(args, "flip", False) if flip is None else flip)
+    mesh = load_mesh(path, flip=getattr(args, "flip", False) if flip is None else flip,
+                     setup=_setup(args) if placed else None)
     for w in mesh.warnings:
         _say(args, f"warning: {w}")
     return mesh
+
+
+def _write_part(path, mesh):
+    """The placed part as a binary STL (mm, work frame), for any program to check a path against."""
+    import trimesh
+
+    trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(path, file_type="stl")
 
 
 def _stock_mesh(args):
@@ -114,7 +148,7 @@ def _stock_mesh(args):
     path = getattr(args, "stock", None)
     if path in (None, "box"):
         return None
-    stock = _load_part(args, path, flip=False)
+    stock = _load_part(args, path, flip=False, placed=False)
     if not stock.closed:
         raise InputError(f"{path}: the stock mesh is open (not watertight)")
     return stock
@@ -205,7 +239,8 @@ def cmd_finish(args):
     load_s = time.perf_counter() - t0
     params = FinishParams(step_down=args.step_down, sample=args.sample, max_tilt=args.max_tilt,
                           tilt_step=args.tilt_step, order=args.order, safe_z=args.safe_z, tol=args.tolerance,
-                          clearance=args.clearance, lead=args.lead, stock_allowance=args.stock_allowance)
+                          clearance=args.clearance, lead=args.lead, stock_allowance=args.stock_allowance,
+                          min_run=args.min_run, whole_contours=args.whole_contours)
     params.check()
     stock = _stock_mesh(args)
     device = _device(args)
@@ -219,6 +254,7 @@ def cmd_finish(args):
     summary["seconds"]["load"] = round(load_s, 4)
     summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
     write_apt(run.tmp(os.path.join(out, "toolpath.cl")), tp, tools, partno=os.path.basename(args.part))
+    _write_part(run.tmp(os.path.join(out, "part.stl")), mesh)
     _write_json(run.tmp(os.path.join(out, "summary.json")), summary)
     run.commit()
     v = summary["verify"]
@@ -253,6 +289,7 @@ def _three_axis(args, run):
     summary["seconds"]["load"] = round(load_s, 4)
     summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
     write_apt(files.tmp(os.path.join(out, "toolpath.cl")), tp, tools, partno=os.path.basename(args.part))
+    _write_part(files.tmp(os.path.join(out, "part.stl")), mesh)
     _write_json(files.tmp(os.path.join(out, "summary.json")), summary)
     files.commit()
     v = summary["verify"]
@@ -419,7 +456,7 @@ def cmd_simulate(args):
     design = _load_part(args, args.design)
     stock = "box"
     if args.stock not in (None, "box"):
-        stock = _load_part(args, args.stock, flip=False)
+        stock = _load_part(args, args.stock, flip=False, placed=False)
         if not stock.closed:
             raise InputError(f"{args.stock}: the stock mesh is open (not watertight)")
     machine = load_machine(args.machine) if args.machine else None
@@ -756,6 +793,11 @@ def build_parser():
     f.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
                    help=f"shank and holder clearance from the part, and rapids' from the stock, mm ({HOLDER_CLEARANCE})")
     f.add_argument("--lead", type=float, default=2.0, help="lead-in/out distance, mm (2)")
+    f.add_argument("--min-run", type=float, default=1.0,
+                   help="a stretch of a contour that a ball fits, shorter than this, is left out, mm (1)")
+    f.add_argument("--whole-contours", action="store_true",
+                   help="seed 004's rule: one ball per contour, and a contour with a point that no ball fits is not "
+                        "cut (default: every run of a contour that a ball fits is cut, with its own ball)")
     _add_stock(f)
     f.add_argument("--out", default="out", help="output folder (out)")
     _add_device(f)
@@ -944,6 +986,8 @@ def build_parser():
         sp.add_argument("--flip", action="store_true",
                         help="turn every face of the part over (reverse its normals): for a part wound inside out, "
                              "or an open surface that faces away from the spindle")
+    for sp in (f, r, w, pl, v, d, s, n):
+        _add_setup(sp)
     for sp in (f, r, w, pl, d, s, rp, tm, ch):
         sp.add_argument("--json", action="store_true", help="print the summary as JSON on stdout (and nothing on stderr)")
     return p

@@ -68,6 +68,7 @@ def read_run(folder: str, meshes: dict | None = None) -> Run:
     """Read a run folder (raises :class:`InputError` when it is not one); ``meshes`` keeps the
     parts already loaded, by file, for runs on the same part."""
     from .geometry.mesh import SUPPORTED, load_mesh
+    from .geometry.placement import Setup
     from .tools.table import load_tools
     from .toolpath.cldata import read_apt
 
@@ -82,10 +83,18 @@ def read_run(folder: str, meshes: dict | None = None) -> Run:
         part_file = None  # a patch (choose): its sampled cells stand for it
     if part_file and os.path.exists(part_file):
         meshes = {} if meshes is None else meshes
-        if part_file not in meshes:
-            flipped = bool((s.get("part") or s.get("design") or s.get("surface") or {}).get("flipped"))
-            meshes[part_file] = load_mesh(part_file, flip=flipped)
-        run.part = meshes[part_file]
+        placed = os.path.join(folder, "part.stl")  # the part as the run placed it (work frame)
+        key = placed if os.path.exists(placed) else part_file
+        if key not in meshes:
+            entry = s.get("part") or s.get("design") or s.get("surface") or {}
+            if key == placed:
+                meshes[key] = load_mesh(placed)
+            else:  # set up as the run did
+                setup = entry.get("setup") or {}
+                meshes[key] = load_mesh(part_file, flip=bool(entry.get("flipped")),
+                                        setup=Setup(setup.get("units", "mm"), setup.get("up", "+Z"),
+                                                    setup.get("origin", "file")))
+        run.part = meshes[key]
     elif part_file:
         run.notes.append(f"the part {part_file} is gone: not shown")
     if s.get("tools_file") and os.path.exists(s["tools_file"]):

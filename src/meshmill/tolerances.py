@@ -13,6 +13,11 @@ HOLDER_CLEARANCE = 0.5
 # its rapids keep clear of it.
 STOCK_ALLOWANCE = 0.5
 
+# A STEP or IGES part is tessellated with at most this chordal deviation (mm): half the gouge
+# tolerance, so that the mesh's own error stays within what finishing allows.
+TESSELLATION_TOL = 0.005
+TESSELLATION_ANGLE = 0.2  # rad between the normals of neighbouring facets at most
+
 # Triangles with an area below this (mm²) are degenerate and dropped on load.
 DEGENERATE_AREA = 1e-12
 

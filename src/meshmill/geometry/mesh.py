@@ -20,15 +20,19 @@ import numba
 import numpy as np
 
 from ..errors import InputError
-from ..tolerances import DEGENERATE_AREA, WELD_DIGITS
+from .placement import Placement, Setup
+from ..tolerances import DEGENERATE_AREA, TESSELLATION_ANGLE, TESSELLATION_TOL, WELD_DIGITS
 
-SUPPORTED = (".stl", ".obj", ".ply")
+BREP = {".step": "step", ".stp": "step", ".iges": "iges", ".igs": "iges"}  # CAD solids, tessellated on reading
+SUPPORTED = (".stl", ".obj", ".ply", *BREP)
 CLOSED, HOLES, SHEET = 0, 1, 2  # kinds of connected pieces
 # an open piece is a sheet (a surface with material behind it) when its boundary loops enclose at
 # least this share of its area (its vector area: zero for a closed piece, the projected area of a
 # flat sheet); below it, a solid with holes
 SHEET_SHARE = 0.2
 SHEET_DEPTH = 10.0  # mm: the material below a sheet reaches at least this far below its lowest point
+STRAY_SIZE = 0.01  # a separate body smaller than this share of the part across ...
+STRAY_AREA = 0.001  # ... and of its area is a stray fragment, dropped
 
 
 @dataclass
@@ -44,6 +48,7 @@ class Mesh:
     warnings: list = field(default_factory=list)
     piece: np.ndarray | None = None  # (m,) connected piece of each face (across manifold edges)
     piece_kind: np.ndarray | None = None  # (p,) int8 per piece: CLOSED, HOLES or SHEET
+    placement: Placement | None = None  # how the file was set up into the work frame (None: as read)
     _solids: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -70,6 +75,7 @@ class Mesh:
             "pieces": {"closed": int((kinds == CLOSED).sum()), "with_holes": int((kinds == HOLES).sum()),
                        "sheets": int((kinds == SHEET).sum())},
             "bounds": self.bounds.round(6).tolist(),
+            "setup": (self.placement or Placement()).summary(),
         }
 
     def transformed(self, rotation=None, offset=None) -> "Mesh":
@@ -79,7 +85,7 @@ class Mesh:
         v = v if offset is None else v + np.asarray(offset, float)
         return Mesh(vertices=np.ascontiguousarray(v), faces=self.faces, closed=self.closed,
                     dropped_degenerate=self.dropped_degenerate, flipped=self.flipped, turned_faces=self.turned_faces,
-                    piece=self.piece, piece_kind=self.piece_kind)
+                    piece=self.piece, piece_kind=self.piece_kind, placement=self.placement)
 
     def solid(self, floor: float | None = None):
         """The :class:`~meshmill.geometry.solid.Solid` this mesh bounds, sheets down to ``floor``
@@ -101,9 +107,10 @@ def edge_face_counts(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return counts
 
 
-def mesh_from_arrays(vertices, faces, name="mesh", flip=False) -> Mesh:
+def mesh_from_arrays(vertices, faces, name="mesh", flip=False, setup: Setup | None = None) -> Mesh:
     """Check and clean raw arrays into a :class:`Mesh` (raises :class:`InputError`); ``flip``
-    turns every face over (after making neighbours agree)."""
+    turns every face over (after making neighbours agree); ``setup`` places the vertices into the
+    work frame first (units, up, work zero: :mod:`meshmill.geometry.placement`)."""
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if len(f) == 0 or len(v) == 0:
@@ -112,6 +119,9 @@ def mesh_from_arrays(vertices, faces, name="mesh", flip=False) -> Mesh:
         raise InputError(f"{name}: coordinates contain NaN or infinity")
     if f.min() < 0 or f.max() >= len(v):
         raise InputError(f"{name}: face indices out of range")
+    placement, notes = None, []
+    if setup is not None:
+        v, placement, notes = setup.place(v, name)
     # weld identical vertices so that neighbouring faces share edges
     key = np.round(v, WELD_DIGITS)
     uniq, inverse = np.unique(key, axis=0, return_inverse=True)
@@ -127,17 +137,24 @@ def mesh_from_arrays(vertices, faces, name="mesh", flip=False) -> Mesh:
     f = f[good]
     if len(f) == 0:
         raise InputError(f"{name}: every triangle is degenerate")
+    f, notes = _drop_strays(v, f, name, notes)
     used = np.unique(f)
     remap = np.full(len(v), -1, np.int64)
     remap[used] = np.arange(len(used))
     v = v[used]
     f = remap[f]
-    mesh = Mesh(vertices=v, faces=f.astype(np.int32), dropped_degenerate=dropped)
+    mesh = Mesh(vertices=v, faces=f.astype(np.int32), dropped_degenerate=dropped, placement=placement)
+    mesh.warnings += notes
     if dropped:
         mesh.warnings.append(f"{name}: dropped {dropped} degenerate triangle(s)")
     counts = edge_face_counts(mesh.faces, len(v))
-    mesh.closed = bool((counts == 2).all())
+    many = int((counts > 2).sum())
+    if many:
+        mesh.warnings.append(f"{name}: {many} non-manifold edge(s) (three or more faces on one edge): the pieces "
+                             "meeting there are taken apart along them")
     _orient(mesh, name, flip)
+    # closed: every piece encloses a volume (two closed bodies touching along an edge are closed)
+    mesh.closed = bool((counts % 2 == 0).all() and (mesh.piece_kind == CLOSED).all())
     if not mesh.closed:
         k = mesh.piece_kind
         mesh.warnings.append(f"{name}: the mesh is open (not watertight): " + ", ".join(
@@ -192,6 +209,39 @@ def _winding_parity(n_faces, pair_a, pair_b, pair_same):
     return flip, comp
 
 
+def _drop_strays(v, f, name, notes):
+    """Faces ``f`` without the stray fragments: separate bodies (faces joined by shared vertices)
+    smaller than ``STRAY_SIZE`` of the part across and ``STRAY_AREA`` of its area, with a warning."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    m = len(f)
+    # faces and vertices as one graph, a face joined to its three vertices
+    graph = coo_matrix((np.ones(3 * m), (np.repeat(np.arange(m), 3), m + f.reshape(-1))), shape=(m + len(v),) * 2)
+    _, label = connected_components(graph, directed=False)
+    n, comp = np.unique(label[:m], return_inverse=True)
+    n = len(n)
+    if n < 2:
+        return f, notes
+    tri = v[f]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    comp_area = np.bincount(comp, area, n)
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    pts = tri.reshape(-1, 3)
+    np.minimum.at(lo, np.repeat(comp, 3), pts)
+    np.maximum.at(hi, np.repeat(comp, 3), pts)
+    size = np.linalg.norm(hi - lo, axis=1)
+    whole = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+    stray = (size < STRAY_SIZE * whole) & (comp_area < STRAY_AREA * area.sum())
+    if not stray.any():
+        return f, notes
+    keep = ~stray[comp]
+    notes = notes + [f"{name}: dropped {int(stray.sum())} stray fragment(s) ({int((~keep).sum())} triangle(s), the "
+                     f"largest {size[stray].max():.3g} mm across): separate bodies too small to machine or to matter"]
+    return f[keep], notes
+
+
 def _orient(mesh: Mesh, name: str, flip: bool) -> None:
     """Make neighbouring faces agree (per connected piece, the faces of the smaller share of its
     area turn), turn everything over when ``flip``, classify the pieces, and refuse a mesh whose
@@ -243,9 +293,11 @@ def _orient(mesh: Mesh, name: str, flip: bool) -> None:
                              "is what lies below; if they should face up, pass --flip")
 
 
-def load_mesh(path, flip=False) -> Mesh:
+def load_mesh(path, flip=False, setup: Setup | None = None) -> Mesh:
     """Read STL/OBJ/PLY ``path`` into a checked :class:`Mesh` (raises :class:`InputError`);
-    ``flip`` turns every face over."""
+    ``flip`` turns every face over; ``setup`` places it into the work frame (default: as the file
+    is, in mm, with a warning where its size or place suggests otherwise)."""
+    setup = Setup() if setup is None else setup
     path = os.fspath(path)
     name = os.path.basename(path)
     if not os.path.exists(path):
@@ -259,6 +311,11 @@ def load_mesh(path, flip=False) -> Mesh:
         raise InputError(f"{path}: empty file, no triangles")
     import trimesh
 
+    if ext in BREP:
+        if setup is not None and setup.units != "mm":
+            raise InputError(f"{path}: a {BREP[ext].upper()} file states its own units (read in mm): leave --units out")
+        vertices, faces = _read_brep(path, BREP[ext])
+        return mesh_from_arrays(vertices, faces, name, flip, setup)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -268,4 +325,34 @@ def load_mesh(path, flip=False) -> Mesh:
     faces = getattr(loaded, "faces", None)
     if faces is None or len(faces) == 0:
         raise InputError(f"{path}: not a mesh or no triangles")
-    return mesh_from_arrays(loaded.vertices, faces, name, flip)
+    return mesh_from_arrays(loaded.vertices, faces, name, flip, setup)
+
+
+def _read_brep(path, kind):
+    """``(vertices (n, 3) mm, faces (m, 3))`` of a STEP or IGES file, every solid and surface
+    tessellated within ``TESSELLATION_TOL`` (OpenCASCADE, through cascadio: ``meshmill[step]``)."""
+    import io
+
+    import trimesh
+
+    try:
+        import cascadio
+    except ImportError:
+        raise InputError(f"{path}: reading {kind.upper()} needs the step extra: pip install 'meshmill[step]'") from None
+    with open(path, "rb") as fh:
+        data = fh.read()
+    glb = cascadio.load(data, file_type=kind, tol_linear=TESSELLATION_TOL, tol_angular=TESSELLATION_ANGLE)
+    if not glb:
+        raise InputError(f"{path}: not a readable {kind.upper()} file (no solid or surface in it)")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            loaded = trimesh.load(io.BytesIO(glb), file_type="glb", force="mesh", process=False)
+    except Exception as exc:  # noqa: BLE001 (cascadio wrote something trimesh cannot read)
+        raise InputError(f"{path}: its tessellation could not be read ({exc.__class__.__name__})") from None
+    faces = getattr(loaded, "faces", None)
+    if faces is None or len(faces) == 0:
+        raise InputError(f"{path}: no solid or surface in the {kind.upper()} file")
+    # glTF is in metres, in float32: back to mm, rounded to 10 nm so that a CAD dimension (20 mm, not
+    # 19.99999955) and the planes it puts vertices on come back exact
+    return np.round(np.asarray(loaded.vertices, np.float64) * 1000.0, 5), faces

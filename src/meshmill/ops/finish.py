@@ -3,9 +3,11 @@
 1. Contours: planes from the top down every ``step_down``; CC points with outward normals
    (:mod:`meshmill.geometry.slicing`).
 2. Gouge-free tool: per CC point the largest ball of the table whose sphere at CE = CC + R·n does not
-   enter the mesh by more than ``tol`` (exact point-to-triangle distances through the BVH); each
-   contour takes the smallest of its points' tools. A contour with a point that no tool fits is
-   reported and not cut.
+   enter the mesh by more than ``tol`` (exact point-to-triangle distances through the BVH). Each
+   *run* of a contour (the points between those that no ball fits) takes the smallest of its
+   points' tools, and runs shorter than ``min_run`` are left out: all of a contour that a tool
+   reaches is cut. With ``whole_contours`` (seed 004's rule) a contour takes one tool, and a
+   contour with a point that no tool fits is reported and not cut.
 3. Collision-free axis: candidates tilted by alpha toward the feed direction and beta toward the
    outward side, in order of increasing tilt up to ``max_tilt``; a point keeps its predecessor's
    choice when that is free and no more than one step more tilted. The flutes must not gouge and the
@@ -56,10 +58,12 @@ class FinishParams:
     clearance: float = HOLDER_CLEARANCE
     lead: float = 2.0  # mm, lead-in/out along the outward side
     stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
+    min_run: float = 1.0  # mm: a stretch of a contour that a ball fits, shorter than this, is left out
+    whole_contours: bool = False  # seed 004: one tool per contour, none where a point fits no ball
 
     def check(self):
         for name in ("step_down", "sample", "tilt_step", "max_tilt", "tol", "clearance", "lead", "safe_z",
-                     "stock_allowance"):
+                     "stock_allowance", "min_run"):
             v = getattr(self, name)
             if v is None and name == "safe_z":
                 continue
@@ -74,8 +78,8 @@ class FinishParams:
             raise InputError(f"--max-tilt must be in [0, 90) degrees, got {self.max_tilt}")
         if self.order not in ("contour", "tool"):
             raise InputError(f"--order must be 'contour' or 'tool', got {self.order!r}")
-        if self.tol < 0 or self.clearance < 0 or self.lead < 0 or self.stock_allowance < 0:
-            raise InputError("--tolerance, --clearance, --lead and --stock-allowance must not be negative")
+        if self.tol < 0 or self.clearance < 0 or self.lead < 0 or self.stock_allowance < 0 or self.min_run < 0:
+            raise InputError("--tolerance, --clearance, --lead, --stock-allowance and --min-run must not be negative")
 
 
 def tilt_candidates(max_tilt_deg: float, step_deg: float):
@@ -226,6 +230,33 @@ def _repair(passes, problem_moves, owner, role):
     return out, dropped
 
 
+def _run_tools(best, con, centre_dir, radii, params, kern):
+    """``(point_tool (n,), short runs, their points)``: each run of a contour where some ball fits
+    (cyclic on a closed contour) takes the smallest of its points' largest balls (re-checked as
+    :func:`_contour_tools` does); a run shorter than ``params.min_run`` mm is left out (-1)."""
+    pieces, short, short_points = [], 0, 0
+    for c in range(len(con)):
+        a, b = con.offsets[c], con.offsets[c + 1]
+        for run in _runs(best[a:b] >= 0, bool(con.closed[c])):
+            length = float(np.linalg.norm(np.diff(con.points[run + a], axis=0), axis=1).sum())
+            run = np.unique(run) + a  # a full loop lists its first point twice
+            if length < params.min_run:
+                short += 1
+                short_points += len(run)
+                continue
+            pieces.append(run)
+    point_tool = np.full(len(best), -1, np.int64)
+    if not pieces:
+        return point_tool, short, short_points
+    order = np.concatenate(pieces)
+    offsets = np.r_[0, np.cumsum([len(p) for p in pieces])]
+    piece_of = np.repeat(np.arange(len(pieces)), np.diff(offsets))
+    tool = _contour_tools(best[order], offsets, piece_of, con.points[order], centre_dir[order], radii, params.tol,
+                          kern)
+    point_tool[order] = tool[piece_of]
+    return point_tool, short, short_points
+
+
 def _contour_tools(best, offsets, contour_of, points, centre_dir, radii, tol, kern):
     """Per contour the smallest of its points' largest balls (-1 if a point fits none), re-checked
     at every point: in a concave crease a smaller ball sits nearer the crease, so gouge-freeness is
@@ -302,8 +333,15 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     centre_dir = con.normals * con.reach[:, None]  # ball centre = CC + R·centre_dir
     best = kern.largest_ball(con.points, centre_dir, radii, params.tol)
     fits = best >= 0
-    contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tol, kern)
-    point_tool = contour_tool[contour_of]
+    if params.whole_contours:
+        contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tol, kern)
+        point_tool = contour_tool[contour_of]
+        short_runs = short_points = 0
+    else:
+        point_tool, short_runs, short_points = _run_tools(best, con, centre_dir, radii, params, kern)
+        contour_tool = np.full(len(con), -1, np.int64)
+        if npts:
+            np.maximum.at(contour_tool, contour_of, point_tool)  # the smallest ball used on it
     seconds["tools"] = time.perf_counter() - t
 
     say("axes")
@@ -329,11 +367,13 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         if contour_tool[c] < 0:
             continue
         a, b = con.offsets[c], con.offsets[c + 1]
-        for run in _runs(has_axis[a:b], bool(con.closed[c])):
+        # runs of one tool: the contour's runs are apart where no ball fits, so each has one
+        for run in _runs(has_axis[a:b] & (point_tool[a:b] >= 0), bool(con.closed[c])):
             if len(run) < 2:
                 continue
             link = 0 if params.lead > 0 else NO_LEAD
-            passes.append(dict(contour=c, tool=table_index[balls[contour_tool[c]].number], rank=int(contour_tool[c]),
+            rank = int(point_tool[a + run[0]])
+            passes.append(dict(contour=c, tool=table_index[balls[rank].number], rank=rank,
                                idx=run + a, entry=link, exit=link, first_link=link))
     if not passes:
         smallest = min(radii)
@@ -409,6 +449,11 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         ],
         "cc_points": int(npts),
         "points_without_tool": int((~fits).sum()),
+        "whole_contours": bool(params.whole_contours),
+        "partly_cut_contours": int((machinable & (np.add.reduceat(point_tool < 0, con.offsets[:-1]) > 0)).sum())
+        if npts else 0,
+        "runs_too_short": int(short_runs),
+        "points_in_short_runs": int(short_points),
         "points_left_out": int((point_tool >= 0).sum() - cut[point_tool >= 0].sum()),
         "points_cut": int(cut.sum()),
         "points_tilted": int((tilt > 1e-6).sum()),
