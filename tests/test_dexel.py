@@ -153,11 +153,27 @@ def test_k_optimal_table():
     assert k == min(rows, key=lambda r: r["line_tests"])["K"] and k > 1
 
 
-def test_open_and_inconsistent_meshes_are_refused():
+def test_open_and_inconsistent_meshes_hold_the_solid_they_bound():
+    from meshmill.simulation.dexel import uneven_lines_warning
+
+    # a box with a triangle missing: a solid with a hole, closed across it
     b = box((0, 0, 0), (1, 1, 1))
-    open_mesh = mesh_from_arrays(b.vertices, b.faces[:-1], "open")
-    with pytest.raises(InputError, match="open"):
-        dexelize(open_mesh, 0.1)
+    holed = dexelize(mesh_from_arrays(b.vertices, b.faces[:-1], "open"), 0.1)
+    assert np.allclose(holed.volumes(), 1.0, atol=1e-9) and not uneven_lines_warning(holed)
+    # an open sheet: what lies below it down to the bottom of the bounds (here 2 mm under it)
+    sheet = mesh_from_arrays(np.array([[0, 0, 5], [4, 0, 5], [4, 3, 5], [0, 3, 5.0]]), np.array([[0, 1, 2], [0, 2, 3]]),
+                             "sheet")
+    d = dexelize(sheet, 0.25, bounds=np.array([[0, 0, 3.0], [4, 3, 5]]))
+    assert np.allclose(d.volumes(), 4 * 3 * 2, atol=1e-9)
+    # a closed box and, poking out of it, a small one wound inside out (it takes material away,
+    # as its winding says): lines through it do not balance, and are decided point by point
+    small = box((8, 4, 4), (12, 6, 6))
+    a = box((0, 0, 0), (10, 10, 10))
+    m = mesh_from_arrays(np.vstack([a.vertices, small.vertices]), np.vstack([a.faces, small.faces[:, ::-1] + 8]),
+                         "inverted")
+    d = dexelize(m, 0.5)
+    assert d.info["uneven_lines"]["X"] > 0 and "unevenly" in uneven_lines_warning(d)[0]
+    assert np.allclose(d.volumes(), 1000 - 8, atol=1e-9)
 
 
 def test_files_round_trip(tmp_path):

@@ -376,3 +376,27 @@ def test_review_cases_turning_flat_empty_stock_and_bad_axes():
                   np.zeros(2, int))
     with pytest.raises(Exception, match="turns by 180"):
         toolpath_moves(tp, [BALL])
+
+
+def test_an_open_surface_is_simulated_as_the_solid_below_it(tools):
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.ops.raster import RasterParams, raster
+    from meshmill.toolpath.model import Toolpath
+
+    # a wavy open sheet (a terrain), no solid of its own: raster it, then cut the path from the
+    # sheet with 0.5 mm on it
+    x, y = np.meshgrid(np.linspace(0, 30, 31), np.linspace(0, 20, 21), indexing="ij")
+    z = 5 + 2 * np.sin(x / 5) * np.cos(y / 5)
+    v = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+    i = np.arange(30)[:, None] * 21 + np.arange(20)[None, :]
+    f = np.concatenate([np.stack([i, i + 21, i + 22], -1).reshape(-1, 3), np.stack([i, i + 22, i + 1], -1).reshape(-1, 3)])
+    sheet = mesh_from_arrays(v, f, "terrain")
+    assert not sheet.closed
+    tp, s = raster(sheet, tools, "B6", RasterParams(stepover=1.0, sample=0.5))
+    assert s["verify"]["ok"]
+    dev, sim, *_ = simulate(sheet, tp, tools, 0.5, allowance=0.5)
+    assert dev["gouge_max"] <= 0.0101 and sim["colliding_moves"] == 0 and sim["rapid_moves_cutting"] == 0
+    # the material is there: the same path 0.2 mm lower gouges it by that much
+    low = Toolpath(tp.tip - np.where(tp.rapid, 0.0, 0.2)[:, None] * [0, 0, 1], tp.axis, tp.rapid, tp.tool)
+    dev, *_ = simulate(sheet, low, tools, 0.5, allowance=0.5)
+    assert dev["gouge_max"] == pytest.approx(0.2, abs=0.012)

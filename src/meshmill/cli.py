@@ -427,6 +427,8 @@ def cmd_dexel(args):
     summary["file"] = os.path.abspath(out)
     _write_json(run.tmp(os.path.join(folder, "summary.json")), summary)
     run.commit()
+    for w in summary["warnings"]:
+        _say(args, f"warning: {w}")
     d = summary["dexels"]
     _say(args, f"dexels X {d['X']:,}, Y {d['Y']:,}, Z {d['Z']:,}; volume {summary['volume_mm3']:.3f} mm^3 "
                f"(mesh {_mesh_volume(mesh):.3f}); cast in {model.info['cast_seconds']:.2f} s with {model.info['index']}")

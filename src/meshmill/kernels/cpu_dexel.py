@@ -20,7 +20,30 @@ ray = raycast.build(numba.njit(fastmath=False, cache=True))
 _cast_bvh_line = ray.cast_bvh_line
 _cast_box_line = ray.cast_box_line
 _ray_blocked = ray.ray_blocked
+_bvh_line_hits = ray.bvh_line_hits
 LINE_CHUNK = 256
+
+
+@numba.njit(cache=True)
+def _hits_of_lines(a, us, vs, node_lo, node_hi, node_child, node_range, tris):
+    k = us.shape[0]
+    w = np.full((k, MAX_HITS), np.nan)
+    n = np.zeros(k, np.int64)
+    stack = np.empty(STACK_SIZE, np.int32)
+    hw = np.empty(MAX_HITS)
+    hs = np.empty(MAX_HITS, np.int64)
+    for i in range(k):
+        m = _bvh_line_hits(a, us[i], vs[i], node_lo, node_hi, node_child, node_range, tris, stack, hw, hs)
+        n[i] = m
+        for j in range(min(m, MAX_HITS)):
+            w[i, j] = hw[j]
+    return w, n
+
+
+def line_hits(a, us, vs, bvh):
+    """Where the lines along axis ``a`` through ``(us[i], vs[i])`` cross the mesh of ``bvh``
+    (``BVH.arrays``): ``(w (k, MAX_HITS) mm, NaN-padded and unsorted; n (k,) hit counts)``."""
+    return _hits_of_lines(int(a), np.ascontiguousarray(us, np.float64), np.ascontiguousarray(vs, np.float64), *bvh)
 
 
 @numba.njit(parallel=True, cache=True)

@@ -12,7 +12,7 @@ from ..geometry import shapes
 from ..simulation import cut as cutting
 from ..simulation import partition
 from ..simulation.deviation import deviations, difference_volume, surface_parameters, uncovered_ends, uncut_ends
-from ..simulation.dexel import MAX_PARTITIONS, DexelModel, dexelize, lattice
+from ..simulation.dexel import MAX_PARTITIONS, DexelModel, dexelize, lattice, material_mesh, uneven_lines_warning
 from ..simulation.surface import machined_mesh
 
 TOOLPATH_APT = (".cl", ".apt", ".cls", ".aptsource")
@@ -46,6 +46,7 @@ def dexel_model(mesh, step, index="bvh", partitions="1", init="k-means++", minib
     summary["operation"] = "dexel"
     summary.update(model.summary())
     summary["index"] = model.info
+    summary["warnings"] = uneven_lines_warning(model)
     return model, summary
 
 
@@ -112,6 +113,7 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
         warnings.append(f"--step {step:g} mm is coarser than the smallest tool radius ({smallest:g} mm): "
                         "scallops and small features are not resolved")
     design_model = dexelize(design, step, bounds=bounds, device=device)
+    warnings += uneven_lines_warning(design_model)
     say(f"design: {sum(design_model.dexel_count(a) for a in range(3)):,} dexels")
     if allowance is not None:
         stock_model = design_model
@@ -137,7 +139,8 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     verts, faces, stride = machined_mesh(machined)
     mesh_s = time.perf_counter() - t2
     t1 = time.perf_counter()
-    pts, e, cut_pts, cut_depth = deviations(machined, design_model, design, device)
+    # an open design: deviations to the solid it bounds (its sheets, curtains and floor)
+    pts, e, cut_pts, cut_depth = deviations(machined, design_model, material_mesh(design, float(bounds[0, 2])), device)
     params = surface_parameters(pts, e, tolerance)
     # the stock's own ends inside the design (a stock short of the design) are not the path's gouges
     short = uncut_ends(machined, start_model) & (e < 0.0)

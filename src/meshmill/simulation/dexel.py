@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry.bvh import build_bvh
+from ..kernels import cpu_dexel
 from ..kernels.cpu_dexel import MAX_HITS, cast_lines
 from . import partition
 
@@ -139,15 +140,77 @@ def mesh_index(mesh, index="bvh", partitions=1, init="k-means++", minibatch=Fals
     return ("boxes", (lo, hi, start, t)), info
 
 
+def material_mesh(mesh, floor=None):
+    """``mesh`` if closed, else the closed surface of the solid it bounds as a mesh: its holes
+    capped, its sheets down to ``floor`` mm (default: the solid's, see
+    :meth:`~meshmill.geometry.mesh.Mesh.solid`) by curtains under their edges and a floor under
+    them (:mod:`meshmill.geometry.solid`). What a dexel model of an open part holds, and what
+    deviations are measured to."""
+    if mesh.closed:
+        return mesh
+    from ..geometry.mesh import Mesh
+
+    s = mesh.solid(floor)
+    return Mesh(vertices=s.vertices, faces=s.faces.astype(np.int32), closed=True, flipped=mesh.flipped,
+                placement=mesh.placement)
+
+
+def uneven_lines_warning(model) -> list[str]:
+    """The one-line warning of a model whose lines crossed its mesh unevenly (none: [])."""
+    odd = model.info.get("uneven_lines")
+    if not odd:
+        return []
+    lines = ", ".join(f"{k} along {axis}" for axis, k in odd.items())
+    return [f"{lines} grid line(s) cross the surface unevenly (self-intersecting or overlapping shells): their "
+            "material was decided point by point, by the winding of the solid (the parity under a sheet)"]
+
+
+def _resolve_lines(a, lines, lo, n, step, dense, count, material, source):
+    """``(dense, count)`` with the material of grid ``lines`` along axis ``a`` decided between
+    every two crossings of ``material``'s surface by the inside test of the solid ``source``
+    bounds (winding of its closed pieces and caps, parity under its sheets), as verification
+    decides it."""
+    from ..kernels import cpu
+
+    u, v = (a + 1) % 3, (a + 2) % 3
+    nv = n[v]
+    us = lo[u] + (lines // nv + 0.5) * step
+    vs = lo[v] + (lines % nv + 0.5) * step
+    w, hits = cpu_dexel.line_hits(a, us, vs, build_bvh(material.vertices, material.faces).arrays)
+    inside = source.solid(float(material.bounds[0, 2])).inside
+    rows = []
+    for i in range(len(lines)):
+        t = np.unique(w[i, :min(hits[i], w.shape[1])])
+        t = t[np.r_[True, np.diff(t) > 1e-9]] if len(t) else t
+        if len(t) < 2:
+            rows.append(np.zeros((0, 2)))
+            continue
+        mid = 0.5 * (t[1:] + t[:-1])
+        pts = np.empty((len(mid), 3))
+        pts[:, a], pts[:, u], pts[:, v] = mid, us[i], vs[i]
+        ins = cpu.points_inside(pts, inside)
+        edges = np.diff(np.r_[0, ins.astype(np.int8), 0])
+        rows.append(np.column_stack([t[:-1][edges[:-1] == 1], t[1:][edges[1:] == -1]]))
+    cap = max(dense.shape[1], max(len(r) for r in rows))
+    if cap > dense.shape[1]:
+        dense = np.concatenate([dense, np.zeros((dense.shape[0], cap - dense.shape[1], 2))], axis=1)
+    count = count.copy()
+    for line, r in zip(lines, rows):
+        dense[line, :len(r)] = r
+        count[line] = len(r)
+    return dense, count
+
+
 def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", minibatch=False,
              bounds=None, progress=None, device="cpu") -> DexelModel:
-    """Triple-dexel model of a closed ``mesh`` at ``step`` mm over ``bounds (2, 3)`` (default: the
-    mesh's box with one empty cell around). ``device``: ``"cpu"`` or ``"cuda"`` (BVH index only).
-    Timings, the index and the device go to ``model.info``."""
-    if not mesh.closed:
-        raise InputError("the mesh is open (not watertight): a dexel model needs a closed solid; "
-                         "close the holes in the CAD export")
+    """Triple-dexel model of the solid ``mesh`` bounds at ``step`` mm over ``bounds (2, 3)``
+    (default: the solid's box with one empty cell around; an open mesh's sheets reach down to the
+    bottom of ``bounds``, see :func:`material_mesh`). ``device``: ``"cpu"`` or ``"cuda"`` (BVH
+    index only). Timings, the index and the device go to ``model.info``."""
+    source = mesh
+    mesh = material_mesh(mesh, None if bounds is None else float(np.asarray(bounds, float)[0, 2]))
     lo, n = lattice(mesh.bounds if bounds is None else bounds, step)
+    odd = {}
     t0 = time.perf_counter()
     idx, info = mesh_index(mesh, index, partitions, init, minibatch)
     info["index_seconds"] = round(time.perf_counter() - t0, 4)
@@ -169,16 +232,18 @@ def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", min
         if (count == -2).any():
             raise InputError(f"{int((count == -2).sum())} line(s) along {'XYZ'[a]} cross the surface more than "
                              f"{MAX_HITS} times: the mesh is too intricate for one line (or has many stacked shells)")
-        bad = int((count < 0).sum())
-        if bad:
-            raise InputError(f"{bad} line(s) along {'XYZ'[a]} cross the surface an odd number of times: "
-                             "the mesh is not a consistent closed solid (self-intersecting or overlapping shells)")
+        bad = np.nonzero(count == -1)[0]
+        if len(bad):  # self-intersecting or overlapping shells: decided point by point
+            dense, count = _resolve_lines(a, bad, lo, n, step, dense, count, mesh, source)
+            odd["XYZ"[a]] = int(len(bad))
         s, iv = compact(dense, count)
         starts.append(s)
         ivs.append(iv)
         if progress:
             progress(f"lines along {'XYZ'[a]}: {n[u] * n[v]:,}, dexels {len(iv):,}")
     info["cast_seconds"] = round(time.perf_counter() - t1, 4)
+    if odd:
+        info["uneven_lines"] = odd
     return DexelModel(lo=lo, step=float(step), n=n, start=starts, iv=ivs, info=info)
 
 
