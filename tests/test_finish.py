@@ -249,3 +249,25 @@ def test_every_run_of_a_contour_that_a_ball_fits_is_cut(tools):
             tris = m.vertices[m.faces]
             dist = np.array([brute_point_triangle_dist(p, tris).min() for p in d["ce"][cut]])
             assert (dist >= r - 0.01 - 1e-9).all()
+
+
+def test_scallop_levels_follow_the_slope_and_report_what_is_too_flat(tools):
+    from meshmill.ops.finish import scallop_levels
+
+    # a frustum whose side rises at 30 deg, with a flat top of radius 5
+    h = 15 * math.tan(math.radians(30))
+    m = revolve([0, 20, 5, 0], [0, 0, h, h], 64)
+    base = np.array([h - 2, h - 4, h - 6, h - 8])
+    levels, rep = scallop_levels(m, base, h, 1.0, 0.01)
+    # two passes dz apart lie dz / sin(30) apart on the side: a 1 mm ball leaves 0.01 mm while that
+    # is at most 2 sqrt(2 R h - h^2)
+    dz_max = 2 * math.sqrt(2 * 0.01 - 0.01 ** 2) * math.sin(math.radians(30))
+    gaps = -np.diff(np.r_[h, levels])
+    assert np.all(gaps <= dz_max + 1e-9) and np.all(np.diff(levels) < 0)
+    assert np.abs(levels[:, None] - base[None, :]).min(axis=0).max() < 1e-12  # the step-down's levels kept
+    assert rep["levels_added"] == len(levels) - len(base)
+    top = 0.5 * 64 * 25 * math.sin(2 * math.pi / 64)  # the top: flat, for raster
+    assert rep["shallow_area_mm2"] == pytest.approx(top, rel=1e-9)
+    # and a finish with it verifies
+    tp, s, d = finish(m, tools, FinishParams(step_down=2.0, scallop=0.05, sample=1.0))
+    assert s["verify"]["ok"] and s["scallop"]["levels_added"] > 0 and s["levels"] > 4

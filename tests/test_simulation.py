@@ -279,9 +279,10 @@ def test_dexel_command(tmp_path, capsys):
     assert (tmp_path / "b.td").read_text().startswith("# TD v1")
     open_box = trimesh.Trimesh(b.vertices, b.faces[:-1])
     open_box.export(tmp_path / "open.stl")
-    capsys.readouterr()
-    assert main(["dexel", str(tmp_path / "open.stl"), "--step", "0.25"]) == 2
-    assert "open" in capsys.readouterr().err
+    capsys.readouterr()  # an open box: the solid it bounds, closed across its hole
+    assert main(["dexel", str(tmp_path / "open.stl"), "--step", "0.25", "--out", str(tmp_path / "open.npz")]) == 0
+    assert "open" in capsys.readouterr().err and json.loads((tmp_path / "summary.json").read_text())[
+        "volume_mm3"] == pytest.approx(6.0)
     assert main(["dexel", str(tmp_path / "b.stl"), "--step", "0"]) == 2
     from meshmill.kernels.backend import cuda_available
 

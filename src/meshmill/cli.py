@@ -11,7 +11,7 @@ import os
 import sys
 import time
 
-from . import __version__
+from . import __version__, memory
 from .errors import InputError
 from .runfiles import RunFiles
 from .tolerances import GOUGE_TOL, HOLDER_CLEARANCE
@@ -240,7 +240,7 @@ def cmd_finish(args):
     params = FinishParams(step_down=args.step_down, sample=args.sample, max_tilt=args.max_tilt,
                           tilt_step=args.tilt_step, order=args.order, safe_z=args.safe_z, tol=args.tolerance,
                           clearance=args.clearance, lead=args.lead, stock_allowance=args.stock_allowance,
-                          min_run=args.min_run, whole_contours=args.whole_contours)
+                          min_run=args.min_run, whole_contours=args.whole_contours, scallop=args.scallop)
     params.check()
     stock = _stock_mesh(args)
     device = _device(args)
@@ -795,6 +795,9 @@ def build_parser():
     f.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
                    help=f"shank and holder clearance from the part, and rapids' from the stock, mm ({HOLDER_CLEARANCE})")
     f.add_argument("--lead", type=float, default=2.0, help="lead-in/out distance, mm (2)")
+    f.add_argument("--scallop", type=float, default=None,
+                   help="add levels where the surface is shallow so that the scallop between passes stays under MM "
+                        "(surfaces flatter than 10 deg are reported, for raster) (off)")
     f.add_argument("--min-run", type=float, default=1.0,
                    help="a stretch of a contour that a ball fits, shorter than this, is left out, mm (1)")
     f.add_argument("--whole-contours", action="store_true",
@@ -1021,6 +1024,11 @@ def main(argv=None) -> int:
         _end_status()
         print("meshmill: interrupted", file=sys.stderr)
         return 130
+    except MemoryError:  # an estimate fell short: still one line, and nothing written
+        _end_status()
+        print(f"meshmill: error: out of memory ({memory.size(memory.available_bytes())} available): use a coarser "
+              "step, sample or step-down", file=sys.stderr)
+        return 2
     finally:
         if _run[0] is not None and not _run[0].done:
             _run[0].abort()  # a run that did not complete leaves no result behind

@@ -26,6 +26,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from .. import memory
 from ..errors import InputError
 from ..geometry.mesh import Mesh, mesh_from_arrays
 from ..tomlfile import read_toml
@@ -33,6 +34,8 @@ from ..tomlfile import read_toml
 DATA = os.path.join(os.path.dirname(os.path.dirname(__file__)), "data", "surfaces")
 BUILTIN = ("rubio", "choi")
 KEYS = {"name", "degree_u", "degree_v", "points", "knots_u", "knots_v", "weights"}
+
+NODE_BYTES = 160  # one node of a patch's grid: points, normals, the triangles it spans
 
 
 def _basis(knots, degree, count, t):
@@ -285,8 +288,8 @@ def patch_mesh(patch: Patch, step: float = 0.5, chord_tol: float | None = None) 
     len_v = np.linalg.norm(np.diff(probe, axis=1), axis=2).sum(axis=1).max()
     for _ in range(8):
         nu, nv = int(math.ceil(len_u / step)) + 1, int(math.ceil(len_v / step)) + 1
-        if nu * nv > 20_000_000:
-            raise InputError(f"a mesh step of {step:g} mm gives {nu * nv} nodes: use a larger step or tolerance")
+        memory.check(NODE_BYTES * float(nu) * nv, f"a mesh step of {step:g} mm: {nu * nv:,} patch nodes",
+                     "use a larger --mesh-step")
         fu, fv = np.linspace(0.0, 1.0, nu), np.linspace(0.0, 1.0, nv)
         su_, sv_ = u0 + (u1 - u0) * fu, v0 + (v1 - v0) * fv
         s, su, sv = patch.grid(su_, sv_)

@@ -24,11 +24,13 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from .. import memory
 from ..errors import InputError
 from ..tolerances import SAME_POINT
 from .mesh import Mesh
 
-MAX_POINTS = 50_000_000  # CC points (or triangle cuts) in one run: about 5 GB of arrays
+POINT_BYTES = 240  # the arrays of one CC point through finish (points, normals, feed, centres, tips, axes, ...)
+CUT_BYTES = 120  # one triangle cut while slicing (indices, segment ends)
 MIN_HALF_COS = 0.1  # cap of the centre's reach in a crease sharper than about 170 degrees
 
 
@@ -294,9 +296,7 @@ def slice_contours(mesh: Mesh, levels: np.ndarray, sample: float, arc_step: floa
     lo = np.searchsorted(asc, tz.min(axis=1), side="right")
     hi = np.searchsorted(asc, tz.max(axis=1), side="right")
     cnt = hi - lo
-    if cnt.sum() > MAX_POINTS:
-        raise InputError(f"{int(cnt.sum())} triangle cuts: too many for one run (at most {MAX_POINTS}); "
-                         "use a larger step-down")
+    memory.check(CUT_BYTES * float(cnt.sum()), f"{int(cnt.sum()):,} triangle cuts", "use a larger --step-down")
     tri_idx = np.repeat(np.arange(len(F)), cnt)
     lvl_idx = (np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(lo, cnt))
     if len(V) ** 2 * max(1, len(asc)) >= 2 ** 62:
@@ -321,9 +321,7 @@ def slice_contours(mesh: Mesh, levels: np.ndarray, sample: float, arc_step: floa
     empty = np.empty((0, 3))
     counts = _emit(False, *args, empty, empty, np.empty(0))
     total = int(counts.sum())
-    if total > MAX_POINTS:
-        raise InputError(f"{total} CC points: too many for one run (at most {MAX_POINTS}); "
-                         "use a larger step-down or sample")
+    memory.check(POINT_BYTES * float(total), f"{total:,} CC points", "use a larger --step-down or --sample")
     out_p = np.empty((total, 3))
     out_n = np.empty((total, 3))
     out_r = np.ones(total)

@@ -43,6 +43,7 @@ REPAIR_ROUNDS = 7
 LINKS = ((True, False, False), (True, True, False), (False, False, False), (False, True, False), (False, False, True),
          (False, True, True))
 NO_LEAD = 2
+SCALLOP_MIN_SLOPE = 10.0  # deg from the horizontal: flatter surfaces are left to raster (--scallop)
 MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
 
 
@@ -59,6 +60,7 @@ class FinishParams:
     lead: float = 2.0  # mm, lead-in/out along the outward side
     stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
     min_run: float = 1.0  # mm: a stretch of a contour that a ball fits, shorter than this, is left out
+    scallop: float | None = None  # mm: levels added where the surface is shallow, so that scallops stay under it
     whole_contours: bool = False  # seed 004: one tool per contour, none where a point fits no ball
 
     def check(self):
@@ -78,6 +80,9 @@ class FinishParams:
             raise InputError(f"--max-tilt must be in [0, 90) degrees, got {self.max_tilt}")
         if self.order not in ("contour", "tool"):
             raise InputError(f"--order must be 'contour' or 'tool', got {self.order!r}")
+        if self.scallop is not None and (isinstance(self.scallop, bool) or not isinstance(self.scallop, (int, float))
+                                         or not (math.isfinite(self.scallop) and self.scallop > 0)):
+            raise InputError(f"--scallop must be a positive number of mm, got {self.scallop}")
         if self.tol < 0 or self.clearance < 0 or self.lead < 0 or self.stock_allowance < 0 or self.min_run < 0:
             raise InputError("--tolerance, --clearance, --lead, --stock-allowance and --min-run must not be negative")
 
@@ -230,6 +235,40 @@ def _repair(passes, problem_moves, owner, role):
     return out, dropped
 
 
+def scallop_levels(mesh, levels, zmax, radius, height):
+    """``(levels (l,), report)``: ``levels`` (from the top down) with planes added between them,
+    and between the top and the first, where the surface is steep enough for Z-levels: two passes
+    dz apart lie dz / sin(slope) apart on a surface sloped ``slope`` from the horizontal, and a
+    ball of ``radius`` (the smallest, so any ball of the table does as well) leaves a scallop under
+    ``height`` while that is at most 2 sqrt(2 R h - h²). Surfaces flatter than
+    ``SCALLOP_MIN_SLOPE`` would need ever more levels: they are left to a raster pass, and their
+    area is reported."""
+    v = mesh.vertices[mesh.faces]
+    n = mesh.face_normals
+    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+    sin_slope = np.sqrt(np.clip(1.0 - n[:, 2] ** 2, 0.0, 1.0))
+    shallow = sin_slope < math.sin(math.radians(SCALLOP_MIN_SLOPE))
+    h = min(height, radius)
+    spacing = 2.0 * math.sqrt(2.0 * radius * h - h * h)  # on the surface, square to the passes
+    tlo, thi = v[:, :, 2].min(axis=1), v[:, :, 2].max(axis=1)
+    bounds = np.r_[zmax, levels]
+    out, added = [], 0
+    for z_hi, z_lo in zip(bounds[:-1], bounds[1:]):
+        band = (thi > z_lo) & (tlo < z_hi) & ~shallow
+        if band.any():
+            k = max(1, int(math.ceil((z_hi - z_lo) / (spacing * sin_slope[band].min()) - 1e-9)))
+            out += list(z_hi - (z_hi - z_lo) * np.arange(1, k) / k)
+            added += k - 1
+        out.append(z_lo)
+    up = shallow & (n[:, 2] > 0)
+    report = {"height": float(height), "radius": float(radius), "levels_added": int(added),
+              "min_slope_deg": SCALLOP_MIN_SLOPE, "shallow_area_mm2": float(area[up].sum()),
+              "shallow_share": float(area[up].sum() / area.sum()),
+              "shallow_why": f"Z-levels leave scallops over {height:g} mm on surfaces flatter than "
+                             f"{SCALLOP_MIN_SLOPE:g} deg (facing up): machine them with raster --scallop {height:g}"}
+    return np.array(out), report
+
+
 def _run_tools(best, con, centre_dir, radii, params, kern):
     """``(point_tool (n,), short runs, their points)``: each run of a contour where some ball fits
     (cyclic on a closed contour) takes the smallest of its points' largest balls (re-checked as
@@ -309,6 +348,9 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
             raise InputError(f"--safe-z {safe_z:g} is too low: it must be above {top + params.clearance + lowest_ball:.3f} "
                              "mm (the stock's top, the clearance, and what a tilted ball hangs below its tip)")
     levels = z_levels(zmin, zmax, params.step_down)
+    scallop = None
+    if params.scallop is not None and len(levels):
+        levels, scallop = scallop_levels(mesh, levels, zmax, float(radii.min()), params.scallop)
     if len(levels) == 0:
         raise InputError(f"--step-down {params.step_down:g} is larger than the part height {zmax - zmin:g} mm: no contour")
 
@@ -440,6 +482,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "clearance": params.clearance,
         "stock": rapid_stock.summary(),
         "levels": int(len(levels)),
+        "scallop": scallop,
         "contours": int(len(con)),
         "machinable_contours": int(machinable.sum()),
         "unmachinable_contours": [

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import memory
 from ..errors import InputError
 from ..kernels.backend import solid_kernels
 from ..geometry.mesh import Mesh
@@ -26,6 +27,7 @@ from .dropcutter import ToolDrop, body_grow, check_stock_params, pick_tool, safe
 from .verify import DEFAULT_STEP
 
 REFINE_ROUNDS = 6  # each halves the spacing where the chord leaves the surface
+CL_BYTES = 200  # one dropped point of a pass, its contact and its share of the tool path and verification
 
 
 @dataclass
@@ -133,8 +135,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     bounds = mesh.bounds
     extent = bounds[1, :2] - bounds[0, :2] + 2 * tool.radius
     estimate = (extent.max() * 1.5 / stepover + 1) * (extent.max() * 1.5 / params.sample + 1)
-    if estimate > 50_000_000:
-        raise InputError(f"about {estimate:.3g} CL points: use a larger --stepover or --sample")
+    memory.check(CL_BYTES * estimate, f"about {estimate:.3g} CL points", "use a larger --stepover or --sample")
     say("index")
     t = time.perf_counter()
     kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device from here on

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import memory
 from ..kernels.backend import MeshKernels, solid_kernels
 from ..tolerances import GOUGE_TOL
 from ..tools.table import pack_cylinders, pack_rings
@@ -35,6 +36,7 @@ from ..toolpath.model import Toolpath
 DEFAULT_STEP = 0.5  # mm between the poses first measured along a move
 MIN_INTERVAL = 1e-5  # mm: an interval this short that cannot be certified is reported with its bound
 MAX_ROUNDS = 40  # halvings of an interval (0.5 mm / 2^40: far below MIN_INTERVAL)
+POSE_BYTES = 400  # a pose measured and its intervals (tips, axes, depths of every part, the interval ends)
 
 
 @dataclass
@@ -89,7 +91,9 @@ def sample_moves(tp: Toolpath, tools, step: float):
         dtip[1:] = np.linalg.norm(np.diff(tp.tip, axis=0), axis=1)
         cosang = np.clip(np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1]), -1.0, 1.0)
         dang[1:] = np.arccos(cosang) * reach[1:]
-    n = np.maximum(1, np.ceil(np.maximum(dtip, dang) / step)).astype(np.int64)
+    n = np.maximum(1, np.ceil(np.maximum(dtip, dang) / step))
+    memory.check(POSE_BYTES * float(n.sum()), f"{n.sum():,.0f} poses {step:g} mm apart", "use a larger --step")
+    n = n.astype(np.int64)
     n[0] = 1
     move = np.repeat(np.arange(k), n)
     first = np.cumsum(n) - n

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from .. import memory
 from ..errors import InputError
 from ..kernels.backend import solid_kernels
 from ..geometry.mesh import Mesh
@@ -34,6 +35,7 @@ from .dropgrid import DropGrid
 from .verify import DEFAULT_STEP
 
 REFINE_ROUNDS = 8  # chord refinement rounds of a loop
+NODE_BYTES = 64  # one node of the drop grid: heights, contacts, bounds and the level masks
 PROBES = np.array([0.5, 0.25, 0.75, 0.125, 0.375, 0.625, 0.875])  # where chords are checked
 
 
@@ -228,8 +230,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     hi = bounds[1, :2] + reach + 2 * spacing
     nx = int(math.ceil((hi[0] - lo[0]) / spacing)) + 1
     ny = int(math.ceil((hi[1] - lo[1]) / spacing)) + 1
-    if nx * ny > 20_000_000:  # heights and contacts: 32 bytes a node
-        raise InputError(f"{nx} x {ny} grid points: use a larger --sample")
+    memory.check(NODE_BYTES * float(nx) * ny, f"{nx:,} x {ny:,} grid points", "use a larger --sample")
     seconds = {}
     t_all = time.perf_counter()
     say("index")

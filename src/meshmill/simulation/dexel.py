@@ -21,13 +21,14 @@ from types import SimpleNamespace
 import numba
 import numpy as np
 
+from .. import memory
 from ..errors import InputError
 from ..geometry.bvh import build_bvh
 from ..kernels import cpu_dexel
 from ..kernels.cpu_dexel import MAX_HITS, cast_lines
 from . import partition
 
-MAX_LINES = 60_000_000  # all three grids together; about 1 GB of intervals at that size
+LINE_BYTES = 200  # one line while casting (its dense rows, count and CSR share) and its intervals after
 FORMAT = "meshmill-dexel-1"
 MAX_PARTITIONS = 4096  # the seed used up to 37; every line tests every partition box
 
@@ -89,9 +90,8 @@ def lattice(bounds: np.ndarray, step: float, pad: int = 1) -> tuple[np.ndarray, 
     n = np.maximum(n, 1)
     lo = 0.5 * (bounds[0] + bounds[1]) - 0.5 * n * step
     lines = int(n[1] * n[2] + n[2] * n[0] + n[0] * n[1])
-    if lines > MAX_LINES:
-        raise InputError(f"--step {step:g} mm gives {lines:,} lines over a {ext[0]:.1f} x {ext[1]:.1f} x "
-                         f"{ext[2]:.1f} mm box (at most {MAX_LINES:,}); use a larger step")
+    memory.check(LINE_BYTES * float(lines), f"--step {step:g} mm: {lines:,} dexel lines over a {ext[0]:.1f} x "
+                 f"{ext[1]:.1f} x {ext[2]:.1f} mm box", "use a larger --step")
     return lo, n
 
 
