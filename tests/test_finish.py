@@ -271,3 +271,39 @@ def test_scallop_levels_follow_the_slope_and_report_what_is_too_flat(tools):
     # and a finish with it verifies
     tp, s, d = finish(m, tools, FinishParams(step_down=2.0, scallop=0.05, sample=1.0))
     assert s["verify"]["ok"] and s["scallop"]["levels_added"] > 0 and s["levels"] > 4
+
+
+def test_no_move_swings_the_axis_past_the_pole_of_the_machine(tmp_path, tools_file, capsys):
+    from meshmill.cli import main
+    from meshmill.ops.finish import POLE_MARGIN, POLE_STEP, _pole_distance, around_pole
+    from meshmill.toolpath.cldata import write_apt
+    from meshmill.toolpath.model import Toolpath
+    from meshmill.tools.table import load_tools
+
+    tools = load_tools(tools_file)
+    t = math.radians(10)
+    a0 = np.array([math.sin(t), 0, math.cos(t)])
+    a1 = np.array([math.sin(t) * math.cos(math.radians(179)), math.sin(t) * math.sin(math.radians(179)), math.cos(t)])
+    c0, c1 = np.array([0, 0, 13.0]), np.array([10, 0, 13.0])  # B6: centres 3 mm over the tips
+    axes, centres = around_pole(a0, a1, c0, c1, 3.0)
+    chain = np.vstack([a0, axes, a1])
+    dist, _ = _pole_distance(chain[:-1], chain[1:])
+    assert len(axes) >= 179 / POLE_STEP - 1 and dist.min() >= math.radians(POLE_MARGIN) - 1e-9
+    assert np.allclose(np.linalg.norm(axes, axis=1), 1.0)
+    assert np.allclose(np.cross(centres - c0, c1 - c0), 0.0) and np.all(np.diff(centres[:, 0]) > 0)  # on the segment
+    # through the pole exactly, or from and to it, nothing is needed
+    assert len(around_pole(a0, a0 * [-1, 1, 1], c0, c1, 3.0)[0]) == 0
+    assert len(around_pole(a0, np.array([0, 0, 1.0]), c0, c1, 3.0)[0]) == 0
+
+    def program(axes_between, centres_between):
+        ax = np.vstack([a0, a0, axes_between, a1, a1])
+        ce = np.vstack([c0 + [0, 0, 40], c0, centres_between, c1, c1 + [0, 0, 40]])
+        tp = Toolpath(ce - 3.0 * ax, ax, np.r_[True, True, np.zeros(len(axes_between) + 1, bool), True],
+                      np.full(len(ax), 2))
+        write_apt(tmp_path / "p.cl", tp, tools)
+        return main(["post", str(tmp_path / "p.cl"), "--machine", "table-table-ac", "--tools", str(tools_file),
+                     "--clearance", "75", "--out", str(tmp_path / "p.nc")])
+
+    capsys.readouterr()
+    assert program(np.empty((0, 3)), np.empty((0, 3))) == 2 and "pole" in capsys.readouterr().err
+    assert program(axes, centres) == 0

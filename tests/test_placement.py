@@ -203,3 +203,12 @@ def test_reading_step_without_its_extra_says_how_to_get_it(tmp_path, monkeypatch
     (tmp_path / "p.step").write_text(step_box((0, 0, 0), (1, 1, 1)))
     with pytest.raises(InputError, match=r"pip install 'meshmill\[step\]'"):
         load_mesh(tmp_path / "p.step")
+
+
+def test_a_model_scale_after_the_units():
+    v, f = _utm_block()
+    m = mesh_from_arrays(v, f, "utm", setup=Setup(units="m", scale=0.05, origin="corner"))  # a 1:20 model
+    assert np.allclose(m.bounds, [[0, 0, 0], [6, 4, 1.5]], atol=1e-6)
+    assert m.summary()["setup"]["model_scale"] == 0.05 and m.summary()["setup"]["scale"] == 50.0
+    with pytest.raises(InputError, match="--scale"):
+        Setup(scale=0).check()

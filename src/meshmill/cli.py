@@ -102,6 +102,8 @@ def _add_setup(parser):
     g.add_argument("--up", default="+Z",
                    help="the part's axis that points to the spindle (+X, -Y, ...), or a rotation: RX,RY,RZ degrees "
                         "about X, then Y, then Z, or nine numbers, a matrix by rows (+Z)")
+    g.add_argument("--scale", type=float, default=1.0,
+                   help="the model's scale, after --units (0.05: a 1:20 model) (1)")
     g.add_argument("--origin", default="file",
                    help=f"the work zero: {', '.join(ORIGINS)} (of the part's box, after --up) or a point X,Y,Z "
                         "in the file's coordinates (file: the file's own zero)")
@@ -118,7 +120,7 @@ def _setup(args):
     from .geometry.placement import Setup
 
     setup = Setup(units=getattr(args, "units", "mm"), up=getattr(args, "up", "+Z"),
-                  origin=getattr(args, "origin", "file"))
+                  origin=getattr(args, "origin", "file"), scale=getattr(args, "scale", 1.0))
     setup.check()
     return setup
 
@@ -244,7 +246,13 @@ def cmd_finish(args):
     params.check()
     stock = _stock_mesh(args)
     device = _device(args)
-    tp, summary, detail = finish(mesh, tools, params, progress=_progress(args), device=device, stock=stock)
+    machine = None
+    if args.machine:
+        from .machine.config import load_machine
+
+        machine = load_machine(args.machine)
+    tp, summary, detail = finish(mesh, tools, params, progress=_progress(args), device=device, stock=stock,
+                                 machine=machine)
     summary["device"] = device
     summary["tools_file"] = os.path.abspath(args.tools)
     con = detail["contours"]
@@ -795,6 +803,9 @@ def build_parser():
     f.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
                    help=f"shank and holder clearance from the part, and rapids' from the stock, mm ({HOLDER_CLEARANCE})")
     f.add_argument("--lead", type=float, default=2.0, help="lead-in/out distance, mm (2)")
+    f.add_argument("--machine", default=None,
+                   help="the 5-axis machine the path is for (TOML file or shipped name): no move swings the tool axis "
+                        "past the pole of its rotaries (it goes round it)")
     f.add_argument("--scallop", type=float, default=None,
                    help="add levels where the surface is shallow so that the scallop between passes stays under MM "
                         "(surfaces flatter than 10 deg are reported, for raster) (off)")

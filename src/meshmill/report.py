@@ -93,7 +93,7 @@ def read_run(folder: str, meshes: dict | None = None) -> Run:
                 setup = entry.get("setup") or {}
                 meshes[key] = load_mesh(part_file, flip=bool(entry.get("flipped")),
                                         setup=Setup(setup.get("units", "mm"), setup.get("up", "+Z"),
-                                                    setup.get("origin", "file")))
+                                                    setup.get("origin", "file"), setup.get("model_scale", 1.0)))
         run.part = meshes[key]
     elif part_file:
         run.notes.append(f"the part {part_file} is gone: not shown")

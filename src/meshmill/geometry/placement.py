@@ -35,6 +35,7 @@ class Placement:
     units: str = "mm"
     up: str = "+Z"
     origin: str = "file"
+    model_scale: float = 1.0
 
     def apply(self, points: np.ndarray) -> np.ndarray:
         """File coordinates ``(k, 3)`` to the work frame ``(k, 3)`` (mm)."""
@@ -46,7 +47,8 @@ class Placement:
     def summary(self) -> dict:
         r = np.eye(3) if self.rotation is None else self.rotation
         t = np.zeros(3) if self.offset is None else self.offset
-        return {"units": self.units, "scale": self.scale, "up": self.up, "origin": self.origin,
+        return {"units": self.units, "model_scale": self.model_scale, "scale": self.scale, "up": self.up,
+                "origin": self.origin,
                 "rotation": (np.round(r, 12) + 0.0).tolist(), "offset_mm": (np.round(t, 9) + 0.0).tolist()}
 
 
@@ -106,15 +108,19 @@ class Setup:
     :func:`up_rotation`) and ``origin``, the work zero: ``file`` (the file's own, turned and
     scaled), ``bottom-centre`` (the centre of the bottom of the part's box), ``top-centre`` (of its
     top), ``corner`` (the box's lowest corner, x, y and z smallest), or ``X,Y,Z`` (a point in the
-    file's coordinates and units)."""
+    file's coordinates and units); ``scale``: the model's scale (0.05: a 1:20 model of a car)."""
 
     units: str = "mm"
     up: str = "+Z"
     origin: str = "file"
+    scale: float = 1.0
 
     def check(self) -> None:
         if self.units not in UNITS:
             raise InputError(f"--units must be one of {', '.join(UNITS)}, got '{self.units}'")
+        if isinstance(self.scale, bool) or not isinstance(self.scale, (int, float)) or not (
+                math.isfinite(self.scale) and self.scale > 0):
+            raise InputError(f"--scale must be a positive number, got {self.scale}")
         up_rotation(self.up)
         if self.origin not in ORIGINS and len(_numbers(self.origin, "--origin")) != 3:
             raise InputError(f"--origin '{self.origin}': give one of {', '.join(ORIGINS)} or a point X,Y,Z")
@@ -122,7 +128,7 @@ class Setup:
     def place(self, vertices: np.ndarray, name: str = "part"):
         """``(work-frame vertices (n, 3), Placement, warnings)`` of the file's ``vertices (n, 3)``."""
         self.check()
-        scale = UNITS[self.units]
+        scale = UNITS[self.units] * float(self.scale)
         rot = up_rotation(self.up)
         v = (np.asarray(vertices, np.float64) * scale) @ rot.T
         lo, hi = v.min(axis=0), v.max(axis=0)
@@ -139,7 +145,7 @@ class Setup:
         v = v - zero
         placement = Placement(scale=scale, rotation=None if np.array_equal(rot, np.eye(3)) else rot,
                               offset=None if not zero.any() else -zero, units=self.units, up=self.up,
-                              origin=self.origin)
+                              origin=self.origin, model_scale=float(self.scale))
         return v, placement, self._warnings(v, name)
 
     def _warnings(self, v, name) -> list[str]:

@@ -44,6 +44,8 @@ LINKS = ((True, False, False), (True, True, False), (False, False, False), (Fals
          (False, True, True))
 NO_LEAD = 2
 SCALLOP_MIN_SLOPE = 10.0  # deg from the horizontal: flatter surfaces are left to raster (--scallop)
+POLE_MARGIN = 2.0  # deg: for a 5-axis machine, no move swings the axis nearer its rotaries' pole than this ...
+POLE_STEP = 10.0  # ... it goes round it instead, its azimuth in steps of at most this (deg)
 MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
 
 
@@ -235,6 +237,84 @@ def _repair(passes, problem_moves, owner, role):
     return out, dropped
 
 
+def _pole_distance(a0, a1):
+    """Smallest angle (rad, (k,)) between +Z and the great-circle arcs from unit ``a0`` to ``a1``
+    (k, 3), and whether it is reached inside the arc (not at an end)."""
+    n = np.cross(a0, a1)
+    size = np.linalg.norm(n, axis=1)
+    n = n / np.maximum(size, 1e-300)[:, None]
+    p = np.array([0.0, 0.0, 1.0]) - n[:, 2:3] * n  # +Z projected on the arc's plane
+    p /= np.maximum(np.linalg.norm(p, axis=1), 1e-300)[:, None]
+    arc = np.arccos(np.clip(np.einsum("ij,ij->i", a0, a1), -1.0, 1.0))
+    to_p = np.arccos(np.clip(np.einsum("ij,ij->i", a0, p), -1.0, 1.0)) + \
+        np.arccos(np.clip(np.einsum("ij,ij->i", p, a1), -1.0, 1.0))
+    inside = (size > 1e-12) & (to_p <= arc + 1e-9)
+    ends = np.minimum(np.arccos(np.clip(a0[:, 2], -1, 1)), np.arccos(np.clip(a1[:, 2], -1, 1)))
+    return np.where(inside, np.arcsin(np.clip(np.abs(n[:, 2]), 0.0, 1.0)), ends), inside
+
+
+def around_pole(a0, a1, c0, c1, radius, margin=POLE_MARGIN, step=POLE_STEP, through=math.radians(0.025)):
+    """Poses ``(axes (m, 3), ball centres (m, 3))`` to put between the pose (``a0``, centre ``c0``)
+    and (``a1``, ``c1``) of a ball of ``radius`` when the axis would swing past the pole of a 5-axis
+    machine's rotaries (nearer than ``margin`` deg, neither end on it): C would have to turn half
+    a turn in an instant, which no post can follow. The axis goes round the pole instead, tilted
+    at least ``margin``, its azimuth in steps of at most ``step`` deg; the centre stays on its
+    segment, so the ball cuts what it cut. None needed (``m = 0``) where the arc passes within
+    ``through`` rad of the pole (the machine flips the tilt there: half its ``singular``) or starts
+    or ends on it."""
+    a0, a1 = np.asarray(a0, float), np.asarray(a1, float)
+    dist, inside = _pole_distance(a0[None], a1[None])
+    t0, t1 = math.acos(min(1.0, a0[2])), math.acos(min(1.0, a1[2]))
+    m_rad = math.radians(margin)
+    if not (inside[0] and through <= dist[0] < m_rad and min(t0, t1) > dist[0] + 1e-12):
+        return np.empty((0, 3)), np.empty((0, 3))
+    z0, z1 = math.atan2(a0[1], a0[0]), math.atan2(a1[1], a1[0])
+    turn = (z1 - z0 + math.pi) % (2 * math.pi) - math.pi  # the shorter way round
+    k = max(1, int(math.ceil(abs(math.degrees(turn)) / step)))
+    s = np.arange(1, k + 1) / (k + 1)
+    tilt = np.maximum(m_rad, t0 + s * (t1 - t0))
+    az = z0 + s * turn
+    axes = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
+    centres = np.asarray(c0, float) + s[:, None] * (np.asarray(c1, float) - np.asarray(c0, float))
+    return axes, centres
+
+
+def _passes_around_pole(passes, tip, axis, ce, side, radius, through):
+    """Put :func:`around_pole`'s poses into ``passes`` (their ``idx``, in place) where a move
+    swings past the pole; returns the arrays grown by them ``(tip, axis, side)`` and a report."""
+    new_tip, new_axis, new_side = [], [], []
+    n = len(tip)
+    moves = 0
+    for ps, r in zip(passes, radius):
+        idx = ps["idx"]
+        if len(idx) < 2:
+            continue
+        dist, inside = _pole_distance(axis[idx[:-1]], axis[idx[1:]])
+        near = np.nonzero(inside & (dist < math.radians(POLE_MARGIN)))[0]
+        if not len(near):
+            continue
+        out = [idx[:1]]
+        last = 0
+        for j in near:
+            axes, centres = around_pole(axis[idx[j]], axis[idx[j + 1]], ce[idx[j]], ce[idx[j + 1]], r,
+                                        through=through)
+            out.append(idx[last + 1:j + 1])
+            last = j
+            if len(axes):
+                moves += 1
+                new_axis.append(axes)
+                new_tip.append(centres - r * axes)
+                new_side.append(np.repeat(side[idx[j]][None], len(axes), axis=0))
+                out.append(np.arange(n, n + len(axes)))
+                n += len(axes)
+        out.append(idx[last + 1:])
+        ps["idx"] = np.concatenate(out)
+    added = n - len(tip)
+    if added:
+        tip, axis, side = (np.vstack([a, *b]) for a, b in ((tip, new_tip), (axis, new_axis), (side, new_side)))
+    return tip, axis, side, {"margin_deg": POLE_MARGIN, "moves_around_pole": moves, "poses_added": added}
+
+
 def scallop_levels(mesh, levels, zmax, radius, height):
     """``(levels (l,), report)``: ``levels`` (from the top down) with planes added between them,
     and between the top and the first, where the surface is steep enough for Z-levels: two passes
@@ -321,13 +401,15 @@ def _contour_tools(best, offsets, contour_of, points, centre_dir, radii, tol, ke
     return tool
 
 
-def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", stock=None):
+def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", stock=None, machine=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, detail)``.
 
     ``tools``: the whole tool table (ball tools are used); ``progress(stage)`` is called as each
     stage starts; ``stock``: a closed :class:`Mesh` of the material the finish starts from (else
     the part with ``params.stock_allowance`` on it), which rapids keep ``params.clearance`` from.
-    ``detail`` holds per-point arrays for reports and tests.
+    ``detail`` holds per-point arrays for reports and tests. ``machine``: the 5-axis
+    :class:`~meshmill.machine.config.Machine` the path is for: no move swings the axis past the
+    pole of its rotaries (:func:`around_pole`).
     """
     params.check()
     say = progress or (lambda stage: None)
@@ -424,6 +506,10 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
                          f"--max-tilt {params.max_tilt:g}; add smaller or longer tools")
     if params.order == "tool":
         passes.sort(key=lambda p: (p["rank"], p["contour"]))
+    pole = None
+    if machine is not None and machine.chain.type != "3-axis":
+        tip, axis, side, pole = _passes_around_pole(passes, tip, axis, ce, side, radii[[p["rank"] for p in passes]],
+                                                    0.5 * machine.chain.singular)
     builder = _PathBuilder(tip, axis, side, safe_z, params.lead,
                            approach=rapid_stock.allowance + rapid_stock.clearance + params.tol)
     seconds["path"] = time.perf_counter() - t
@@ -453,9 +539,10 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
 
-    cut = np.zeros(npts, bool)
+    cut = np.zeros(len(tip), bool)
     for ps in passes:
         cut[ps["idx"]] = True
+    cut = cut[:npts]  # (points put in around the pole are no CC points)
     machinable = contour_tool >= 0
     tools_used = {}
     for ps in passes:
@@ -466,7 +553,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         entry["contours"].add(ps["contour"])
     for entry in tools_used.values():
         entry["contours"] = len(entry["contours"])
-    tilt = np.degrees(np.arccos(np.clip(axis[cut, 2], -1, 1))) if cut.any() else np.zeros(0)
+    tilt = np.degrees(np.arccos(np.clip(axis[:npts][cut, 2], -1, 1))) if cut.any() else np.zeros(0)
     feed_move = ~tp.rapid[1:] & (tp.tool[1:] == tp.tool[:-1])
     turn = np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1])[feed_move]
     max_turn = float(np.degrees(np.arccos(np.clip(turn.min(), -1, 1)))) if len(turn) else 0.0
@@ -483,6 +570,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "stock": rapid_stock.summary(),
         "levels": int(len(levels)),
         "scallop": scallop,
+        "pole": pole,
         "contours": int(len(con)),
         "machinable_contours": int(machinable.sum()),
         "unmachinable_contours": [
@@ -511,5 +599,5 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "seconds": {k: round(v, 4) for k, v in seconds.items()},
     }
     detail = dict(contours=con, best=best, contour_tool=contour_tool, point_tool=point_tool, choice=choice,
-                  axis=axis, tip=tip, ce=ce, cut=cut, balls=balls, kern=kern)
+                  axis=axis[:npts], tip=tip[:npts], ce=ce, cut=cut, balls=balls, kern=kern)
     return tp, summary, detail
