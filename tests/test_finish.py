@@ -307,3 +307,23 @@ def test_no_move_swings_the_axis_past_the_pole_of_the_machine(tmp_path, tools_fi
     capsys.readouterr()
     assert program(np.empty((0, 3)), np.empty((0, 3))) == 2 and "pole" in capsys.readouterr().err
     assert program(axes, centres) == 0
+
+
+def test_the_summary_says_how_much_surface_was_cut_and_why_the_rest_was_not(tools):
+    # a 48-gon column 20 mm tall: 9 levels 2 mm apart, each standing for 2 mm of its walls
+    m = revolve([0, 10, 10, 0], [0, 0, 20, 20], 48)
+    tp, s, d = finish(m, tools, FinishParams(step_down=2.0))
+    perimeter = 2 * 48 * 10 * math.sin(math.pi / 48)
+    a = s["area_mm2"]
+    assert a["cut"] == pytest.approx(9 * 2 * perimeter, rel=1e-9)
+    assert a["no_ball"] == a["no_axis"] == a["short_runs"] == a["left_out"] == 0
+    # the towers with a 1 mm gap: the gap's walls fit no ball, and say so
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.geometry.shapes import box
+
+    parts = [box([0, 0, 0], [40, 20, 5]), box([0, 0, 0], [19.5, 20, 20]), box([20.5, 0, 0], [40, 20, 20])]
+    m = mesh_from_arrays(np.vstack([p.vertices for p in parts]),
+                         np.vstack([p.faces + 8 * i for i, p in enumerate(parts)]), "towers")
+    tp, s, d = finish(m, tools, FinishParams(step_down=3.0))
+    wall = 20 * (20 - 5)  # each gap wall above the base, 20 mm wide
+    assert s["area_mm2"]["no_ball"] >= 2 * wall * 0.8

@@ -315,6 +315,42 @@ def _passes_around_pole(passes, tip, axis, ce, side, radius, through):
     return tip, axis, side, {"margin_deg": POLE_MARGIN, "moves_around_pole": moves, "poses_added": added}
 
 
+def point_areas(con, levels, zmin, zmax):
+    """``(k,)`` mm² of surface each CC point stands for (an estimate): half the way to its
+    neighbours along its contour, times half the way to the levels above and below (the top and
+    the bottom of the part beyond the first and the last), over the sine of the surface's slope
+    (taken at least ``SCALLOP_MIN_SLOPE``: flatter, a level stands for more than this says)."""
+    if len(con.points) == 0:
+        return np.zeros(0)
+    bounds = np.r_[zmax, levels, zmin]
+    gap = 0.5 * (bounds[:-2] - bounds[2:])  # (l,): half the way to each neighbour level
+    level_of = np.clip(np.searchsorted(-levels, -con.z), 0, len(levels) - 1)
+    ds = np.zeros(len(con.points))
+    for c in range(len(con)):
+        a, b = con.offsets[c], con.offsets[c + 1]
+        p = con.points[a:b]
+        seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        if con.closed[c] and b - a > 1:
+            seg = np.r_[seg, np.linalg.norm(p[0] - p[-1])]
+            ds[a:b] = 0.5 * (seg + np.roll(seg, 1))
+        elif b - a > 1:
+            ds[a:b] = 0.5 * (np.r_[0.0, seg] + np.r_[seg, 0.0])
+    sin_slope = np.maximum(np.sqrt(np.clip(1.0 - con.normals[:, 2] ** 2, 0.0, 1.0)),
+                           math.sin(math.radians(SCALLOP_MIN_SLOPE)))
+    return ds * np.repeat(gap[level_of], np.diff(con.offsets)) / sin_slope
+
+
+def _areas(area, cut, fits, point_tool, has_axis):
+    """The surface (mm², :func:`point_areas`) cut, and not cut by why."""
+    no_axis = fits & (point_tool >= 0) & ~has_axis
+    short = fits & (point_tool < 0)  # in runs shorter than --min-run (or a contour of the seed's rule)
+    return {"cut": float(area[cut].sum()), "no_ball": float(area[~fits].sum()),
+            "no_axis": float(area[no_axis & ~cut].sum()), "short_runs": float(area[short].sum()),
+            "left_out": float(area[~cut & fits & (point_tool >= 0) & has_axis].sum()),
+            "why": "estimated from the CC points (along the contour times the level spacing over the slope); "
+                   "left_out: dropped by the verification's repair"}
+
+
 def scallop_levels(mesh, levels, zmax, radius, height):
     """``(levels (l,), report)``: ``levels`` (from the top down) with planes added between them,
     and between the top and the first, where the surface is steep enough for Z-levels: two passes
@@ -587,6 +623,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "points_in_short_runs": int(short_points),
         "points_left_out": int((point_tool >= 0).sum() - cut[point_tool >= 0].sum()),
         "points_cut": int(cut.sum()),
+        "area_mm2": _areas(point_areas(con, levels, zmin, zmax), cut, fits, point_tool, has_axis),
         "points_tilted": int((tilt > 1e-6).sum()),
         "max_tilt_used": float(tilt.max()) if len(tilt) else 0.0,
         "max_axis_change": max_turn,
