@@ -152,7 +152,9 @@ class _Measure:
             self.body_col[i, :len(c)] = c
         self.body_segs = tuple(packed)
         self.no_rings = self.rings[:2] + (np.zeros_like(self.rings[2]), self.rings[3])
-        self.body_in_stock = stock.feed_body and (stock.allowance > 0 or stock.kern is not None)
+        # what the shank and holder of feed moves stay out of: (kernels, grown by) per solid
+        self.body_stocks = [] if not stock.feed_body else (
+            [(kern, float(stock.allowance))] * (stock.allowance > 0) + [(stock.kern, 0.0)] * (stock.kern is not None))
 
     def _grow(self, rapid, on_stock):
         c = self.stock.clearance
@@ -162,14 +164,9 @@ class _Measure:
         """``(f, Kb)``: how deep the shank and holder of feed poses enter the stock (the design
         grown by the allowance, and the stock mesh)."""
         depth = np.zeros((len(tip), self.body_col.shape[1]))
-        if self.stock.allowance > 0:
-            grow = np.full(len(tip), float(self.stock.allowance))
-            depth = self.kern.pose_penetration(tip, axis, tool, grow, self.no_rings, self.body_segs,
-                                               self.body_segs[0])[1]
-        if self.stock.kern is not None:
-            depth = np.maximum(depth, self.stock.kern.pose_penetration(tip, axis, tool, np.zeros(len(tip)),
-                                                                       self.no_rings, self.body_segs,
-                                                                       self.body_segs[0])[1])
+        for kern, grow in self.body_stocks:
+            depth = np.maximum(depth, kern.pose_penetration(tip, axis, tool, np.full(len(tip), grow), self.no_rings,
+                                                            self.body_segs, self.body_segs[0])[1])
         return depth
 
     def depths(self, tip, axis, tool, rapid):
@@ -186,7 +183,7 @@ class _Measure:
             segs[rapid] = np.maximum(segs[rapid], s2)
         in_stock = np.zeros(len(tip))
         feed = np.nonzero(~rapid)[0]
-        if self.body_in_stock and len(feed):
+        if self.body_stocks and len(feed):
             sb = self._body_stock_depth(tip[feed], axis[feed], tool[feed])
             in_stock[feed] = sb.max(axis=1)
             cols = self.body_col[tool[feed]]
@@ -210,14 +207,11 @@ class _Measure:
             ok[sel] = self.stock.kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel],
                                                       self._grow(rapid[sel], True), lim[sel], self.rings, self.segs,
                                                       self.base)
-        if self.body_in_stock:
-            for kern, grow in ((self.kern, self.stock.allowance), (self.stock.kern, 0.0)):
-                sel = np.nonzero(ok & ~rapid)[0]
-                if kern is None or len(sel) == 0 or (kern is self.kern and grow <= 0):
-                    continue
-                ok[sel] = kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel],
-                                               np.full(len(sel), float(grow)), lim[sel], self.no_rings,
-                                               self.body_segs, self.body_segs[0])
+        for kern, grow in self.body_stocks:
+            sel = np.nonzero(ok & ~rapid)[0]
+            if len(sel):
+                ok[sel] = kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel], np.full(len(sel), grow),
+                                               lim[sel], self.no_rings, self.body_segs, self.body_segs[0])
         return ok
 
 

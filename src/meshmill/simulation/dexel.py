@@ -165,10 +165,10 @@ def uneven_lines_warning(model) -> list[str]:
             "material was decided point by point, by the winding of the solid (the parity under a sheet)"]
 
 
-def _resolve_lines(a, lines, lo, n, step, dense, count, material, source):
+def _resolve_lines(a, lines, lo, n, step, dense, count, material, bvh, source):
     """``(dense, count)`` with the material of grid ``lines`` along axis ``a`` decided between
-    every two crossings of ``material``'s surface by the inside test of the solid ``source``
-    bounds (winding of its closed pieces and caps, parity under its sheets), as verification
+    every two crossings of ``material``'s surface (``bvh``: its BVH arrays) by the inside test of
+    the solid ``source`` bounds (winding of its closed pieces and caps, parity under its sheets), as verification
     decides it."""
     from ..kernels import cpu
 
@@ -176,7 +176,7 @@ def _resolve_lines(a, lines, lo, n, step, dense, count, material, source):
     nv = n[v]
     us = lo[u] + (lines // nv + 0.5) * step
     vs = lo[v] + (lines % nv + 0.5) * step
-    w, hits = cpu_dexel.line_hits(a, us, vs, build_bvh(material.vertices, material.faces).arrays)
+    w, hits = cpu_dexel.line_hits(a, us, vs, bvh)
     inside = source.solid(float(material.bounds[0, 2])).inside
     rows = []
     for i in range(len(lines)):
@@ -213,6 +213,7 @@ def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", min
     odd = {}
     t0 = time.perf_counter()
     idx, info = mesh_index(mesh, index, partitions, init, minibatch)
+    bvh = idx[1] if idx[0] == "bvh" else None
     info["index_seconds"] = round(time.perf_counter() - t0, 4)
     info["device"] = device
     if device == "cuda":
@@ -234,7 +235,9 @@ def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", min
                              f"{MAX_HITS} times: the mesh is too intricate for one line (or has many stacked shells)")
         bad = np.nonzero(count == -1)[0]
         if len(bad):  # self-intersecting or overlapping shells: decided point by point
-            dense, count = _resolve_lines(a, bad, lo, n, step, dense, count, mesh, source)
+            if bvh is None:  # the cells and k-means indexes hold no BVH: one for these lines
+                bvh = build_bvh(mesh.vertices, mesh.faces).arrays
+            dense, count = _resolve_lines(a, bad, lo, n, step, dense, count, mesh, bvh, source)
             odd["XYZ"[a]] = int(len(bad))
         s, iv = compact(dense, count)
         starts.append(s)
