@@ -2,12 +2,13 @@
 bundled vase) set up by meshmill's own options (units, model scale, which axis is up, work zero),
 finished with ``--scallop``, simulated from a 0.5 mm allowance, and posted for two 5-axis machines.
 
-Per part it prints and writes (JSON) the share of CC points cut and why the rest are not (no ball
-fits, no free axis), the contours not cut at all, the share of the surface flatter than Z-levels
-serve (left to raster), the share of the design surface within the scallop limit plus the
-tolerance after the finish (``within``, simulate) against what the tools reached (``cut``), the
-verification, wall times, and whether ``post`` wrote a program for ``table-table-ac`` and
-``head-table-bc`` (or its one-line refusal).
+Per part it prints and writes (JSON) the shares of the design's surface area that the finish cut
+and why the rest was not (no ball of the table fits there, no collision-free axis, facing down
+beyond --max-tilt), the contours not cut at all, the share of the surface within the scallop limit
+plus the tolerance after the finish (simulate) of what the tools reach and of the whole,
+``meshmill verify`` of the written path, wall times, and whether ``post`` wrote a program for
+``table-table-ac`` and ``head-table-bc`` (with its warnings) or its one-line refusal. The finish is
+made for ``table-table-ac`` (``--machine``: both machines have their pole at +Z).
 
     .venv/bin/python bench/realparts.py [--parts vase,dolphin] [--scallop 0.01] [--sim-step 0.3]
 """
@@ -80,12 +81,52 @@ PARTS = {
 MACHINES = ("table-table-ac", "head-table-bc")
 
 
-def meshmill(*argv, timeout=3600):
-    """``(exit code, last line of stderr, seconds)`` of a meshmill command."""
+def band_shares(out, sim, tools_file, scallop, tol, max_tilt, spacing):
+    """Shares of the design's surface area, from points spread over it (``spacing`` mm apart),
+    each taking the deviation of the nearest dexel end of the simulation and its status
+    (:func:`meshmill.ops.finish.surface_status`: facing down beyond ``max_tilt``, no ball of the
+    table fits there, else the finish's status of the nearest CC point or raster contact):
+    ``reachable`` (cut, or left out in short runs or by the repair: a ball with a free axis gets
+    there), ``no_ball``, ``no_axis``, ``facing_down``, and ``within`` (deviation in
+    [-tol, scallop + tol]) of the whole and of what is reachable."""
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    sys.path.insert(0, os.path.join(ROOT, "src"))
+    from meshmill.geometry.analysis import sample_surface
+    from meshmill.geometry.mesh import load_mesh
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.ops.finish import AREA_STATUS, surface_status
+    from meshmill.tools.table import load_tools
+
+    mesh = load_mesh(os.path.join(out, "part.stl"))
+    radii = np.array(sorted((t.radius for t in load_tools(tools_file) if t.type == "ball"), reverse=True))
+    p, w, face = sample_surface(mesh, spacing)
+    c = np.load(os.path.join(out, "contours.npz"))
+    status = surface_status(mesh, solid_kernels(mesh, "cpu"), radii, tol, max_tilt, p, face, c["surface_points"],
+                            c["surface_status"], rastered=True)
+    d = np.load(os.path.join(sim, "deviation.npz"))
+    e = d["e"][cKDTree(d["points"]).query(p)[1]]
+    reach = np.isin(status, [AREA_STATUS.index(k) for k in ("cut", "short_runs", "left_out")])
+    band = (e >= -tol) & (e <= scallop + tol)
+    total = w.sum()
+    out = {k: round(float(w[status == AREA_STATUS.index(k)].sum() / total), 4) for k in ("no_ball", "no_axis",
+                                                                                         "facing_down")}
+    return {**out, "reachable": round(float(w[reach].sum() / total), 4),
+            "within_all": round(float(w[band].sum() / total), 4),
+            "within_reachable": round(float(w[band & reach].sum() / max(w[reach].sum(), 1e-300)), 4)}
+
+
+def meshmill(*argv, timeout=3600, warnings=False):
+    """``(exit code, last line of stderr, seconds)`` of a meshmill command (``warnings``: its
+    warnings instead, joined, when it succeeds)."""
     t = time.perf_counter()
     r = subprocess.run([sys.executable, "-m", "meshmill", *argv], capture_output=True, text=True, timeout=timeout,
                        env=dict(os.environ, PYTHONPATH=os.path.join(ROOT, "src")))
-    lines = [x for x in r.stderr.strip().splitlines() if not x.startswith(("warning", "["))]
+    said = r.stderr.strip().splitlines()
+    lines = [x for x in said if not x.startswith(("warning", "["))]
+    if warnings and r.returncode == 0:
+        lines = ["; ".join(x[len("warning: "):] for x in said if x.startswith("warning"))]
     return r.returncode, (lines or [""])[-1], round(time.perf_counter() - t, 1)
 
 
@@ -94,20 +135,25 @@ def run_part(name, work, tools, scallop, sim_step):
     out = os.path.join(work, name)
     row = {"part": name, "setup": " ".join(setup), "step_down": step_down}
     rc, last, s = meshmill("finish", path, "--tools", tools, "--step-down", str(step_down), "--sample", "1.0",
-                           "--tilt-step", "10", "--scallop", str(scallop), "--out", out, "--quiet", *setup)
+                           "--tilt-step", "10", "--scallop", str(scallop), "--machine", MACHINES[0], "--out", out,
+                           "--quiet", *setup)
     row.update(finish_rc=rc, finish_s=s)
     if rc not in (0, 1):
         row["error"] = last[:200]
         return row
     f = json.load(open(os.path.join(out, "summary.json")))
-    n = f["cc_points"]
-    row.update(cc_points=n, cut=round(f["points_cut"] / n, 4), no_ball=round(f["points_without_tool"] / n, 4),
-               no_axis=round((n - f["points_without_tool"] - f["points_cut"]) / n, 4),
+    a = f["area_mm2"]
+    row.update(cc_points=f["cc_points"], raster_points=f["raster_points"], levels=f["levels"],
                contours_not_cut=len(f["unmachinable_contours"]), contours=f["contours"],
-               levels=f["levels"], shallow=round(f["scallop"]["shallow_share"], 4) if f["scallop"] else None,
-               verify_ok=f["verify"]["ok"], gouging=f["verify"]["gouging_moves"],
-               colliding=f["verify"]["colliding_moves"])
+               area_mm2=round(a["total"], 1), **{f"area_{k}": round(a[k] / a["total"], 4) for k in
+                                                 ("cut", "no_ball", "no_axis", "facing_down", "short_runs", "left_out")},
+               verify_ok=f["verify"]["ok"], moves=f["moves"])
     part_stl = os.path.join(out, "part.stl")  # the part as set up: the path's frame
+    rc, last, s = meshmill("verify", part_stl, os.path.join(out, "toolpath.cl"), "--tools", tools, "--out",
+                           os.path.join(out, "verify.json"))
+    v = json.load(open(os.path.join(out, "verify.json"))) if rc in (0, 1) else {}
+    row.update(verify_rc=rc, verify_s=s, gouging=v.get("gouging_moves"), colliding=v.get("colliding_moves"),
+               rapid_touching=v.get("rapid_moves_touching"))
     if sim_step:
         rc, last, s = meshmill("simulate", "--design", part_stl, "--allowance", "0.5", "--toolpath",
                                os.path.join(out, "toolpath.cl"), "--tools", tools, "--step", str(sim_step),
@@ -115,13 +161,14 @@ def run_part(name, work, tools, scallop, sim_step):
         row.update(sim_rc=rc, sim_s=s)
         if rc in (0, 1):
             d = json.load(open(os.path.join(out, "sim", "deviation.json")))
-            row.update(within=round(d["within_tolerance"], 4), gouge_max=round(d["gouge_max"], 4))
+            row.update(gouge_max=round(d["gouge_max"], 4),
+                       **band_shares(out, os.path.join(out, "sim"), tools, scallop, 0.01, 60.0, sim_step))
         else:
             row["sim_error"] = last[:200]
     for m in MACHINES:
         rc, last, s = meshmill("post", os.path.join(out, "toolpath.cl"), "--machine", m, "--tools", tools,
-                               "--clearance", "75", "--out", os.path.join(out, f"{m}.nc"))
-        row[f"post_{m}"] = "ok" if rc == 0 else last[:200]
+                               "--clearance", "75", "--out", os.path.join(out, f"{m}.nc"), warnings=True)
+        row[f"post_{m}"] = ("ok" if rc == 0 else "refused: ") + last[:200]
     return row
 
 
@@ -143,8 +190,8 @@ def main():
         with open(os.path.join(a.work, "realparts.json"), "w") as fh:
             json.dump({"date": datetime.date.today().isoformat(), "scallop": a.scallop, "sim_step": a.sim_step,
                        "rows": rows}, fh, indent=1)
-    keys = ["cut", "no_ball", "no_axis", "contours_not_cut", "shallow", "within", "gouge_max", "verify_ok", "finish_s",
-            "sim_s"]
+    keys = ["area_cut", "no_ball", "no_axis", "facing_down", "reachable", "within_reachable", "within_all",
+            "contours_not_cut", "gouging", "colliding", "gouge_max", "finish_s", "sim_s"]
     print("\n| part | " + " | ".join(keys) + " | " + " | ".join(MACHINES) + " |")
     print("|---" * (len(keys) + len(MACHINES) + 1) + "|")
     for r in rows:

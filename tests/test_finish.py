@@ -251,26 +251,116 @@ def test_every_run_of_a_contour_that_a_ball_fits_is_cut(tools):
             assert (dist >= r - 0.01 - 1e-9).all()
 
 
-def test_scallop_levels_follow_the_slope_and_report_what_is_too_flat(tools):
-    from meshmill.ops.finish import scallop_levels
+def _frustum_column(segments=64):
+    """A frustum rising at 30 deg from r 20 to r 10, a vertical column r 10 above it and a flat top:
+    ``(mesh, height of the frustum's top, of the part)``."""
+    t = 10 * math.tan(math.radians(30))
+    return revolve([0, 20, 10, 10, 0], [0, 0, t, t + 10, t + 10], segments), t, t + 10
 
-    # a frustum whose side rises at 30 deg, with a flat top of radius 5
-    h = 15 * math.tan(math.radians(30))
-    m = revolve([0, 20, 5, 0], [0, 0, h, h], 64)
-    base = np.array([h - 2, h - 4, h - 6, h - 8])
-    levels, rep = scallop_levels(m, base, h, 1.0, 0.01)
-    # two passes dz apart lie dz / sin(30) apart on the side: a 1 mm ball leaves 0.01 mm while that
-    # is at most 2 sqrt(2 R h - h^2)
-    dz_max = 2 * math.sqrt(2 * 0.01 - 0.01 ** 2) * math.sin(math.radians(30))
-    gaps = -np.diff(np.r_[h, levels])
-    assert np.all(gaps <= dz_max + 1e-9) and np.all(np.diff(levels) < 0)
-    assert np.abs(levels[:, None] - base[None, :]).min(axis=0).max() < 1e-12  # the step-down's levels kept
-    assert rep["levels_added"] == len(levels) - len(base)
-    top = 0.5 * 64 * 25 * math.sin(2 * math.pi / 64)  # the top: flat, for raster
-    assert rep["shallow_area_mm2"] == pytest.approx(top, rel=1e-9)
-    # and a finish with it verifies
-    tp, s, d = finish(m, tools, FinishParams(step_down=2.0, scallop=0.05, sample=1.0))
-    assert s["verify"]["ok"] and s["scallop"]["levels_added"] > 0 and s["levels"] > 4
+
+def test_scallop_adds_levels_only_where_the_slope_needs_them_and_rasters_the_flats(tools):
+    from meshmill.ops.finish_levels import scallop_spacing
+
+    m, t, top = _frustum_column()
+    h, step = 0.05, 1.5
+    tp, s, d = finish(m, tools, FinishParams(step_down=step, scallop=h, sample=1.0))
+    assert s["verify"]["ok"]
+    con, cut = d["contours"], d["cut"]
+    z = np.repeat(con.z, np.diff(con.offsets))
+    radius = np.array([b.radius for b in d["balls"]])[d["point_tool"]]
+    nz = con.normals[:, 2]
+    # the column: a 20 mm ball leaves 0.028 mm between levels 1.5 mm apart: the step-down's alone
+    column = cut & (np.abs(nz) < 1e-9) & (z > t + 1e-6)
+    assert column.sum() > 100
+    k = (top - z[column]) / step
+    assert np.abs(k - np.round(k))[k > 1].max() < 1e-9
+    assert np.all(np.abs(k[k < 1] - 0.5) < 1e-9)  # the top and the first level: one-sided, one level between
+    # the 30 deg frustum, cut by the 20 mm ball but by its concave edge: levels close enough for that
+    # ball (dz / sin 30 on the surface), the lowest within half that of the bottom (no pass there)
+    frustum = cut & (np.abs(nz - math.cos(math.radians(30))) < 0.01) & (radius == 10.0)
+    levels = np.unique(z[frustum])
+    gap = np.diff(levels)
+    dz_max = float(scallop_spacing(10.0, h)) * math.sin(math.radians(30))
+    assert len(levels) >= 3 and gap.max() <= dz_max + 1e-9 and levels[0] <= 0.5 * dz_max + 1e-9
+    # the flat top: raster passes, not levels; its area reported
+    sh = s["scallop"]["shallow"]
+    assert sh["passes"] > 0 and s["raster_points_cut"] > 0
+    assert sh["area_mm2"] == pytest.approx(0.5 * 64 * 100 * math.sin(2 * math.pi / 64), rel=1e-9)
+    assert s["scallop"]["planes_added"] > 0 and s["levels"] > len(np.unique(np.round((top - z) / step)))
+
+
+def test_scallop_is_met_on_the_surface_the_balls_reach_by_simulation(tools):
+    """Independent check: cut the finish out of the part with 0.5 mm on it (exact dexel
+    simulation) and measure the surface: within [-tol, scallop + tol] nearly everywhere but the
+    part's underside, which no tool reaches."""
+    from scipy.spatial import cKDTree
+
+    from meshmill.geometry.analysis import sample_surface
+    from meshmill.ops.finish import AREA_STATUS, surface_status
+    from meshmill.ops.simulate import simulate
+
+    m, t, top = _frustum_column(32)
+    h = 0.05
+    tp, s, d = finish(m, tools, FinishParams(step_down=2.0, scallop=h, sample=1.0))
+    radii = np.array([b.radius for b in d["balls"]])
+    assert s["verify"]["ok"]
+    dev, summary, _, _, ends = simulate(m, tp, tools, 0.25, allowance=0.5)
+    p, w, face = sample_surface(m, 0.25)
+    e = ends["e"][cKDTree(ends["points"]).query(p)[1]]
+    # reached: not the underside, and the nearest CC point or raster contact fits a ball (the
+    # column's foot, in the concave edge, fits none of the table)
+    status = surface_status(m, d["kern"], radii, 0.01, 60.0, p, face, d["surface_points"], d["surface_status"])
+    reached = status == AREA_STATUS.index("cut")
+    band = (e >= -0.01) & (e <= h + 0.01)
+    assert w[band & reached].sum() / w[reached].sum() > 0.97
+    assert dev["gouge_max"] <= 0.01 + 1e-6
+    a = s["area_mm2"]
+    assert a["facing_down"] == pytest.approx(w[m.face_normals[face, 2] < -0.5].sum(), rel=1e-9)
+    assert a["cut"] + a["facing_down"] + a["no_ball"] == pytest.approx(a["total"], rel=1e-6)
+    assert 0 < a["no_ball"] < 0.05 * a["total"]
+
+
+def test_a_run_takes_the_largest_ball_stretch_by_stretch(tools):
+    from meshmill.ops.finish import _stretch_ranks
+
+    s = np.arange(12) * 0.5
+    # a long stretch of ball 0, a narrow spot (one point) for ball 2, a long stretch of ball 1
+    best = np.array([0, 0, 0, 0, 0, 2, 1, 1, 1, 1, 1, 1])
+    r = _stretch_ranks(best, s, 1.0)
+    assert (r >= best).all()  # never a larger ball than fits
+    assert r[0] == 0 and r[-1] == 1 and r[5] == 2
+    assert (r[4:7] == 2).all()  # the narrow spot's ball spreads to a stretch of 1 mm
+    # a short stretch of a larger ball between smaller ones takes theirs
+    assert (_stretch_ranks(np.array([1, 1, 1, 1, 0, 1, 1, 1]), s[:8], 1.0) == 1).all()
+    assert (_stretch_ranks(np.array([0, 0, 0, 0]), s[:4], 1.0) == 0).all()
+
+
+def test_axis_search_keeps_a_shank_bottom_hovering_over_the_part_out_of_the_allowance():
+    """The shank's flat bottom 0.3 mm above a step's top, within its radius: the allowance (0.5 mm)
+    on the step reaches it. The axis search must see it as verification does (the cylinders grown
+    at their ends too), or every such pose fails verification and is left out."""
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.geometry.shapes import box
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.ops.verify import StockCheck, _Measure
+    from meshmill.tools.table import Tool, pack_cylinders
+
+    parts = [box([-10, -10, -5], [1, 10, 0]), box([1, -10, -5], [10, 10, 2.7])]
+    m = mesh_from_arrays(np.vstack([p.vertices for p in parts]), np.vstack([p.faces + 8 * i for i, p in
+                                                                            enumerate(parts)]), "step")
+    kern = solid_kernels(m, "cpu")
+    ball = Tool(name="B1", type="ball", diameter=1.0, corner_radius=0.5, flute_length=3.0, gauge_length=30.0,
+                shank_diameter=4.0, holder_diameter=25.0, holder_length=40.0, number=1)
+    ce = np.array([[0.4, 0.0, 0.5]])  # the ball on the floor, 0.1 mm from the step's wall
+    args = (ce, np.array([[0.0, 1.0, 0.0]]), np.array([[1.0, 0.0, 0.0]]), np.array([0]), np.zeros((1, 2)),
+            np.zeros(1), 0.0, np.array([0.5]))
+    grown, _ = pack_cylinders([ball], 0.01, 0.5)
+    bare, _ = pack_cylinders([ball], 0.01, 0.0)
+    assert kern.axis_search(*args, grown, np.array([0, 1]))[0] == -1
+    assert kern.axis_search(*args, bare, np.array([0, 1]))[0] == 0
+    meas = _Measure(kern, [ball], 0.01, StockCheck(allowance=0.5))
+    *_, in_stock = meas.depths(ce - [0, 0, 0.5], np.array([[0.0, 0, 1]]), np.array([0]), np.array([False]))
+    assert in_stock[0] == pytest.approx(0.2, abs=1e-6)
 
 
 def test_no_move_swings_the_axis_past_the_pole_of_the_machine(tmp_path, tools_file, capsys):
@@ -310,13 +400,19 @@ def test_no_move_swings_the_axis_past_the_pole_of_the_machine(tmp_path, tools_fi
 
 
 def test_the_summary_says_how_much_surface_was_cut_and_why_the_rest_was_not(tools):
-    # a 48-gon column 20 mm tall: 9 levels 2 mm apart, each standing for 2 mm of its walls
+    # a 48-gon column 20 mm tall: its walls cut, its flat top left to a raster (no --scallop), its
+    # underside facing down
     m = revolve([0, 10, 10, 0], [0, 0, 20, 20], 48)
     tp, s, d = finish(m, tools, FinishParams(step_down=2.0))
     perimeter = 2 * 48 * 10 * math.sin(math.pi / 48)
+    disc = 0.5 * 48 * 100 * math.sin(2 * math.pi / 48)
     a = s["area_mm2"]
-    assert a["cut"] == pytest.approx(9 * 2 * perimeter, rel=1e-9)
+    assert a["cut"] == pytest.approx(20 * perimeter, rel=1e-9)
+    assert a["shallow"] == pytest.approx(disc, rel=1e-9) and a["facing_down"] == pytest.approx(disc, rel=1e-9)
     assert a["no_ball"] == a["no_axis"] == a["short_runs"] == a["left_out"] == 0
+    # with --scallop the top is rastered: cut
+    tp, s, d = finish(m, tools, FinishParams(step_down=2.0, scallop=0.05))
+    assert s["area_mm2"]["cut"] == pytest.approx(20 * perimeter + disc, rel=1e-9)
     # the towers with a 1 mm gap: the gap's walls fit no ball, and say so
     from meshmill.geometry.mesh import mesh_from_arrays
     from meshmill.geometry.shapes import box

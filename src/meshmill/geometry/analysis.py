@@ -139,3 +139,23 @@ def accessibility_map(mesh: Mesh, directions: np.ndarray, bvh=None) -> tuple[np.
         share[i] = float(area[acc].sum() / area.sum())
         reached += acc
     return share, reached
+
+
+def sample_surface(mesh: Mesh, spacing: float, max_samples: int = 2_000_000, faces=None):
+    """Points spread over the facets ``faces`` (all by default) about one per ``spacing``² mm²
+    (fewer when that would pass ``max_samples``; at least one a facet), at fixed pseudo-random
+    places: ``(points (s, 3), weight (s,) mm² each stands for, face (s,))``."""
+    v = mesh.vertices[mesh.faces]
+    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+    faces = np.nonzero(area > 0)[0] if faces is None else np.asarray(faces)[area[faces] > 0]
+    if not len(faces):
+        return np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64)
+    spacing = max(spacing, math.sqrt(area[faces].sum() / max_samples))
+    count = np.maximum(1, np.ceil(area[faces] / spacing ** 2)).astype(np.int64)
+    face = np.repeat(faces, count)
+    rng = np.random.default_rng(0)
+    u, w = rng.random(len(face)), rng.random(len(face))
+    over = u + w > 1.0
+    u[over], w[over] = 1.0 - u[over], 1.0 - w[over]
+    p = v[face, 0] + u[:, None] * (v[face, 1] - v[face, 0]) + w[:, None] * (v[face, 2] - v[face, 0])
+    return p, np.repeat(area[faces] / count, count), face

@@ -54,6 +54,65 @@ class Contours:
     def __len__(self):
         return len(self.closed)
 
+    @property
+    def contour_of(self) -> np.ndarray:
+        """``(k,)`` the contour of each point."""
+        return np.repeat(np.arange(len(self)), np.diff(self.offsets))
+
+    def take(self, keep: np.ndarray) -> "Contours":
+        """The runs of points where ``keep (k,) bool`` as contours of their own (open, but a
+        closed contour kept whole), with their normals and feed directions as they were."""
+        pieces, closed, z = [], [], []
+        for c in range(len(self)):
+            a, b = self.offsets[c], self.offsets[c + 1]
+            whole = bool(self.closed[c]) and bool(keep[a:b].all())
+            for run in contour_runs(keep[a:b], bool(self.closed[c])):
+                pieces.append(a + (run[:-1] if whole else run))
+                closed.append(whole)
+                z.append(self.z[c])
+        idx = np.concatenate(pieces) if pieces else np.zeros(0, np.int64)
+        return Contours(points=self.points[idx], normals=self.normals[idx], feed=self.feed[idx],
+                        reach=self.reach[idx], offsets=np.r_[0, np.cumsum([len(p) for p in pieces])].astype(np.int64),
+                        closed=np.array(closed, bool), z=np.array(z, float))
+
+
+def contour_runs(ok: np.ndarray, closed: bool) -> list:
+    """Index runs of consecutive True in ``ok`` (cyclic when closed; a full loop ends where it began)."""
+    n = len(ok)
+    if closed and n and ok.all():
+        return [np.r_[np.arange(n), 0]]
+    if closed and n:
+        start = int(np.nonzero(~ok)[0][0]) + 1
+        order = (np.arange(n) + start) % n
+    else:
+        order = np.arange(n)
+    runs, cur = [], []
+    for i in order:
+        if ok[i]:
+            cur.append(i)
+        elif cur:
+            runs.append(np.array(cur))
+            cur = []
+    if cur:
+        runs.append(np.array(cur))
+    return runs
+
+
+def concat_contours(parts) -> Contours:
+    """The contours of ``parts`` (a list of :class:`Contours`) in one, from the top plane down
+    (in their order within a plane)."""
+    sizes = np.concatenate([np.diff(p.offsets) for p in parts])
+    z = np.concatenate([p.z for p in parts])
+    first = np.concatenate([p.offsets[:-1] + base for p, base in
+                            zip(parts, np.cumsum([0] + [len(p.points) for p in parts[:-1]]))])
+    order = np.argsort(-z, kind="stable")
+    idx = np.concatenate([np.arange(first[c], first[c] + sizes[c]) for c in order]) if len(order) else \
+        np.zeros(0, np.int64)
+    cat = {k: np.concatenate([getattr(p, k) for p in parts]) for k in ("points", "normals", "feed", "reach")}
+    return Contours(points=cat["points"][idx], normals=cat["normals"][idx], feed=cat["feed"][idx],
+                    reach=cat["reach"][idx], offsets=np.r_[0, np.cumsum(sizes[order])].astype(np.int64),
+                    closed=np.concatenate([p.closed for p in parts])[order], z=z[order])
+
 
 def z_levels(zmin: float, zmax: float, step: float) -> np.ndarray:
     """Planes from the top down: ``zmax - k·step`` for k = 1, 2, ... while above ``zmin``."""

@@ -25,14 +25,18 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..errors import InputError
+from ..geometry.analysis import sample_surface
 from ..geometry.mesh import Mesh
-from ..geometry.slicing import slice_contours, z_levels
+from ..geometry.slicing import concat_contours, contour_runs, slice_contours, z_levels
 from ..kernels.backend import solid_kernels
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
+from .finish_levels import added_contours
+from .finish_shallow import shallow_facets, shallow_fill
 from .verify import DEFAULT_STEP, StockCheck, verify_toolpath
 
 REPAIR_ROUNDS = 7
@@ -43,7 +47,8 @@ REPAIR_ROUNDS = 7
 LINKS = ((True, False, False), (True, True, False), (False, False, False), (False, True, False), (False, False, True),
          (False, True, True))
 NO_LEAD = 2
-SCALLOP_MIN_SLOPE = 10.0  # deg from the horizontal: flatter surfaces are left to raster (--scallop)
+SCALLOP_MIN_SLOPE = 10.0  # deg from the horizontal: flatter surfaces are rastered, not Z-levelled (--scallop)
+AREA_SAMPLES = 2_000_000  # most points sampled on the design to say what each status of the CC points stands for
 POLE_MARGIN = 2.0  # deg: for a 5-axis machine, no move swings the axis nearer its rotaries' pole than this ...
 POLE_STEP = 10.0  # ... it goes round it instead, its azimuth in steps of at most this (deg)
 MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
@@ -112,28 +117,6 @@ def _axes(cand, idx, feed, side):
     up = np.array([0.0, 0.0, 1.0])
     u = np.sin(al) * feed + np.cos(al) * (np.cos(be) * up + np.sin(be) * side)
     return u / np.linalg.norm(u, axis=1, keepdims=True)
-
-
-def _runs(ok: np.ndarray, closed: bool):
-    """Index runs of consecutive True in ``ok`` (cyclic when closed; a full loop ends where it began)."""
-    n = len(ok)
-    if closed and ok.all():
-        return [np.r_[np.arange(n), 0]]
-    if closed:
-        start = int(np.nonzero(~ok)[0][0]) + 1
-        order = (np.arange(n) + start) % n
-    else:
-        order = np.arange(n)
-    runs, cur = [], []
-    for i in order:
-        if ok[i]:
-            cur.append(i)
-        elif cur:
-            runs.append(np.array(cur))
-            cur = []
-    if cur:
-        runs.append(np.array(cur))
-    return runs
 
 
 class _PathBuilder:
@@ -315,99 +298,68 @@ def _passes_around_pole(passes, tip, axis, ce, side, radius, through):
     return tip, axis, side, {"margin_deg": POLE_MARGIN, "moves_around_pole": moves, "poses_added": added}
 
 
-def point_areas(con, levels, zmin, zmax):
-    """``(k,)`` mm² of surface each CC point stands for (an estimate): half the way to its
-    neighbours along its contour, times half the way to the levels above and below (the top and
-    the bottom of the part beyond the first and the last), over the sine of the surface's slope
-    (taken at least ``SCALLOP_MIN_SLOPE``: flatter, a level stands for more than this says)."""
-    if len(con.points) == 0:
-        return np.zeros(0)
-    bounds = np.r_[zmax, levels, zmin]
-    gap = 0.5 * (bounds[:-2] - bounds[2:])  # (l,): half the way to each neighbour level
-    level_of = np.clip(np.searchsorted(-levels, -con.z), 0, len(levels) - 1)
-    ds = np.zeros(len(con.points))
-    for c in range(len(con)):
-        a, b = con.offsets[c], con.offsets[c + 1]
-        p = con.points[a:b]
-        seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
-        if con.closed[c] and b - a > 1:
-            seg = np.r_[seg, np.linalg.norm(p[0] - p[-1])]
-            ds[a:b] = 0.5 * (seg + np.roll(seg, 1))
-        elif b - a > 1:
-            ds[a:b] = 0.5 * (np.r_[0.0, seg] + np.r_[seg, 0.0])
-    sin_slope = np.maximum(np.sqrt(np.clip(1.0 - con.normals[:, 2] ** 2, 0.0, 1.0)),
-                           math.sin(math.radians(SCALLOP_MIN_SLOPE)))
-    return ds * np.repeat(gap[level_of], np.diff(con.offsets)) / sin_slope
-
-
-def _areas(area, cut, fits, point_tool, has_axis):
-    """The surface (mm², :func:`point_areas`) cut, and not cut by why."""
-    no_axis = fits & (point_tool >= 0) & ~has_axis
-    short = fits & (point_tool < 0)  # in runs shorter than --min-run (or a contour of the seed's rule)
-    return {"cut": float(area[cut].sum()), "no_ball": float(area[~fits].sum()),
-            "no_axis": float(area[no_axis & ~cut].sum()), "short_runs": float(area[short].sum()),
-            "left_out": float(area[~cut & fits & (point_tool >= 0) & has_axis].sum()),
-            "why": "estimated from the CC points (along the contour times the level spacing over the slope); "
-                   "left_out: dropped by the verification's repair"}
-
-
-def scallop_levels(mesh, levels, zmax, radius, height):
-    """``(levels (l,), report)``: ``levels`` (from the top down) with planes added between them,
-    and between the top and the first, where the surface is steep enough for Z-levels: two passes
-    dz apart lie dz / sin(slope) apart on a surface sloped ``slope`` from the horizontal, and a
-    ball of ``radius`` (the smallest, so any ball of the table does as well) leaves a scallop under
-    ``height`` while that is at most 2 sqrt(2 R h - h²). Surfaces flatter than
-    ``SCALLOP_MIN_SLOPE`` would need ever more levels: they are left to a raster pass, and their
-    area is reported."""
-    v = mesh.vertices[mesh.faces]
-    n = mesh.face_normals
-    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
-    sin_slope = np.sqrt(np.clip(1.0 - n[:, 2] ** 2, 0.0, 1.0))
-    shallow = sin_slope < math.sin(math.radians(SCALLOP_MIN_SLOPE))
-    h = min(height, radius)
-    spacing = 2.0 * math.sqrt(2.0 * radius * h - h * h)  # on the surface, square to the passes
-    tlo, thi = v[:, :, 2].min(axis=1), v[:, :, 2].max(axis=1)
-    bounds = np.r_[zmax, levels]
-    out, added = [], 0
-    for z_hi, z_lo in zip(bounds[:-1], bounds[1:]):
-        band = (thi > z_lo) & (tlo < z_hi) & ~shallow
-        if band.any():
-            k = max(1, int(math.ceil((z_hi - z_lo) / (spacing * sin_slope[band].min()) - 1e-9)))
-            out += list(z_hi - (z_hi - z_lo) * np.arange(1, k) / k)
-            added += k - 1
-        out.append(z_lo)
-    up = shallow & (n[:, 2] > 0)
-    report = {"height": float(height), "radius": float(radius), "levels_added": int(added),
-              "min_slope_deg": SCALLOP_MIN_SLOPE, "shallow_area_mm2": float(area[up].sum()),
-              "shallow_share": float(area[up].sum() / area.sum()),
-              "shallow_why": f"Z-levels leave scallops over {height:g} mm on surfaces flatter than "
-                             f"{SCALLOP_MIN_SLOPE:g} deg (facing up): machine them with raster --scallop {height:g}"}
-    return np.array(out), report
+def _stretch_ranks(best, s, min_run):
+    """Ball ranks ``(n,)`` along a run (``best`` each point's largest ball, ``s`` arc length, mm)
+    with no stretch of one ball shorter than ``min_run``: the shortest such stretch takes the
+    smaller ball of a neighbour when one has a smaller ball (which fits wherever a larger one
+    does), else (a narrow spot) its ball spreads onto the points within ``min_run / 2`` around it."""
+    r = best.astype(np.int64).copy()
+    n = len(r)
+    for _ in range(n):
+        starts = np.r_[0, np.flatnonzero(np.diff(r)) + 1]
+        if len(starts) == 1:
+            break
+        ends = np.r_[starts[1:], n]
+        length = s[ends - 1] - s[starts]
+        short = np.flatnonzero(length < min_run)
+        if not len(short):
+            break
+        k = short[np.argmin(length[short])]
+        own = r[starts[k]]
+        smaller = [r[j] for j in (starts[k] - 1, ends[k]) if 0 <= j < n and r[j] > own]
+        if smaller:
+            r[starts[k]:ends[k]] = min(smaller)
+        else:
+            mid = 0.5 * (s[starts[k]] + s[ends[k] - 1])
+            near = np.abs(s - mid) <= 0.5 * min_run
+            near[starts[k]:ends[k]] = True
+            r[near] = np.maximum(r[near], own)
+    return r
 
 
 def _run_tools(best, con, centre_dir, radii, params, kern):
-    """``(point_tool (n,), short runs, their points)``: each run of a contour where some ball fits
-    (cyclic on a closed contour) takes the smallest of its points' largest balls (re-checked as
-    :func:`_contour_tools` does); a run shorter than ``params.min_run`` mm is left out (-1)."""
-    pieces, short, short_points = [], 0, 0
+    """``(point_tool (n,), short runs, their points)``. A run is a stretch of a contour where some
+    ball fits (cyclic on a closed contour); a run shorter than ``params.min_run`` mm is left out
+    (-1). Along a run each point takes its largest ball, in stretches no shorter than
+    ``params.min_run`` (:func:`_stretch_ranks`), each re-checked as :func:`_contour_tools` does."""
+    pieces, ranks, short, short_points = [], [], 0, 0
     for c in range(len(con)):
         a, b = con.offsets[c], con.offsets[c + 1]
-        for run in _runs(best[a:b] >= 0, bool(con.closed[c])):
-            length = float(np.linalg.norm(np.diff(con.points[run + a], axis=0), axis=1).sum())
-            run = np.unique(run) + a  # a full loop lists its first point twice
-            if length < params.min_run:
+        for run in contour_runs(best[a:b] >= 0, bool(con.closed[c])):
+            full = bool(con.closed[c]) and len(run) == b - a + 1
+            idx = run[:-1] + a if full else run + a  # a full loop lists its first point twice
+            pts = con.points[np.r_[idx, idx[:1]] if full else idx]
+            seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+            if seg.sum() < params.min_run:
                 short += 1
-                short_points += len(run)
+                short_points += len(idx)
                 continue
-            pieces.append(run)
+            r = best[idx]
+            if full and (r != r[0]).any():  # start the loop where a stretch starts
+                k = int(np.flatnonzero(r != np.roll(r, 1))[0])
+                idx, r, seg = np.roll(idx, -k), np.roll(r, -k), np.roll(seg, -k)
+            r = _stretch_ranks(r, np.r_[0.0, np.cumsum(seg[:len(idx) - 1])], params.min_run)
+            cuts = np.flatnonzero(np.diff(r)) + 1
+            pieces += np.split(idx, cuts)
+            ranks += list(r[np.r_[0, cuts]])
     point_tool = np.full(len(best), -1, np.int64)
     if not pieces:
         return point_tool, short, short_points
     order = np.concatenate(pieces)
     offsets = np.r_[0, np.cumsum([len(p) for p in pieces])]
     piece_of = np.repeat(np.arange(len(pieces)), np.diff(offsets))
-    tool = _contour_tools(best[order], offsets, piece_of, con.points[order], centre_dir[order], radii, params.tol,
-                          kern)
+    tool = _contour_tools(np.asarray(ranks)[piece_of], offsets, piece_of, con.points[order], centre_dir[order], radii,
+                          params.tol, kern)
     point_tool[order] = tool[piece_of]
     return point_tool, short, short_points
 
@@ -436,6 +388,73 @@ def _contour_tools(best, offsets, contour_of, points, centre_dir, radii, tol, ke
             break
     return tool
 
+
+def _smaller_balls(point_tool, choice, con, centre_dir, side, radii, params, kern, cand, cand_tilt, slack, body):
+    """Points whose ball has no collision-free axis try the smaller balls of the table in turn
+    (each re-checked for gouges: the largest smaller one that fits); ``(point_tool, choice, count
+    of points that found an axis on a smaller ball)``."""
+    point_tool, choice = point_tool.copy(), choice.copy()
+    moved = np.zeros(len(point_tool), bool)
+    tried = np.zeros(len(point_tool), bool)
+    for _ in range(len(radii) - 1):
+        todo = np.nonzero((point_tool >= 0) & (choice < 0) & (point_tool < len(radii) - 1) & ~tried)[0]
+        if not len(todo):
+            break
+        new = np.full(len(todo), -1, np.int64)
+        for t in np.unique(point_tool[todo]) + 1:
+            sel = point_tool[todo] + 1 == t
+            res = kern.largest_ball(con.points[todo[sel]], centre_dir[todo[sel]], radii[t:], params.tol)
+            new[sel] = np.where(res >= 0, t + res, -1)
+        tried[todo[new < 0]] = True
+        todo, new = todo[new >= 0], new[new >= 0]
+        if not len(todo):
+            break
+        ce = con.points[todo] + radii[new][:, None] * centre_dir[todo]
+        found = kern.axis_search(ce, con.feed[todo], side[todo], new, cand, cand_tilt, slack, radii, body,
+                                 np.array([0, len(todo)], np.int64))
+        point_tool[todo] = new
+        choice[todo] = found
+        moved[todo[found >= 0]] = True
+    return point_tool, choice, int(moved.sum())
+
+
+AREA_STATUS = ("cut", "no_ball", "no_axis", "short_runs", "left_out", "facing_down", "shallow")
+
+
+def surface_status(mesh, kern, radii, tol, max_tilt, p, face, points, status, rastered=False):
+    """``(s,)`` index into ``AREA_STATUS`` of each point ``p (s, 3)`` of the design (on facets
+    ``face (s,)``): ``facing_down`` on facets no ball within ``max_tilt`` touches (:func:`facing_down`),
+    ``shallow`` on facets facing up flatter than ``SCALLOP_MIN_SLOPE`` unless ``rastered``,
+    ``no_ball`` where no ball of ``radii`` touches the facet there without entering the part by more
+    than ``tol`` (exact, through ``kern``), else the status of the nearest of ``points (k, 3)`` (CC
+    points and raster contacts, ``status (k,)``)."""
+    out = np.full(len(p), AREA_STATUS.index("facing_down"), np.int64)
+    flat = np.zeros(len(mesh.faces), bool) if rastered else shallow_facets(mesh, SCALLOP_MIN_SLOPE)
+    out[flat[face]] = AREA_STATUS.index("shallow")
+    up = np.nonzero(~facing_down(mesh, max_tilt)[face] & ~flat[face])[0]
+    if len(up) and len(points):
+        out[up] = status[cKDTree(points).query(p[up])[1]]
+        fits = kern.largest_ball(p[up], mesh.face_normals[face[up]], radii, tol) >= 0
+        out[up[~fits]] = AREA_STATUS.index("no_ball")
+    return out
+
+
+def surface_areas(mesh, kern, radii, tol, max_tilt, spacing, points, status, rastered):
+    """mm² of the design surface by why it was or was not cut (:func:`surface_status` of points
+    spread over it about ``spacing`` apart, :func:`~meshmill.geometry.analysis.sample_surface`)."""
+    p, weight, face = sample_surface(mesh, spacing, AREA_SAMPLES)
+    by = np.bincount(surface_status(mesh, kern, radii, tol, max_tilt, p, face, points, status, rastered),
+                     weights=weight, minlength=len(AREA_STATUS))
+    return {**{name: float(by[k]) for k, name in enumerate(AREA_STATUS)}, "total": float(weight.sum()),
+            "why": "points spread over the design: facing_down where no ball within --max-tilt touches it, "
+                   "shallow (without --scallop) where a raster should cut it, no_ball where no ball of the table "
+                   "touches it there, else the status of the nearest CC point or raster contact"}
+
+
+def facing_down(mesh, max_tilt):
+    """``(m,) bool``: facets facing down more steeply than a ball whose axis is tilted at most
+    ``max_tilt`` deg from +Z can touch (its cutting half faces down the axis; the flutes square to it)."""
+    return mesh.face_normals[:, 2] < -math.sin(math.radians(max_tilt)) - 1e-9
 
 def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", stock=None, machine=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, detail)``.
@@ -466,9 +485,6 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
             raise InputError(f"--safe-z {safe_z:g} is too low: it must be above {top + params.clearance + lowest_ball:.3f} "
                              "mm (the stock's top, the clearance, and what a tilted ball hangs below its tip)")
     levels = z_levels(zmin, zmax, params.step_down)
-    scallop = None
-    if params.scallop is not None and len(levels):
-        levels, scallop = scallop_levels(mesh, levels, zmax, float(radii.min()), params.scallop)
     if len(levels) == 0:
         raise InputError(f"--step-down {params.step_down:g} is larger than the part height {zmax - zmin:g} mm: no contour")
 
@@ -484,9 +500,18 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     t = time.perf_counter()
     arc_step = min(params.sample / radii.max(), MAX_ARC_STEP)
     con = slice_contours(mesh, levels, params.sample, arc_step)
+    scallop = None
+    if params.scallop is not None:
+        def piece_tools(c):
+            cd = c.normals * c.reach[:, None]
+            return _run_tools(kern.largest_ball(c.points, cd, radii, params.tol), c, cd, radii, params, kern)[0]
+
+        added, scallop = added_contours(mesh, levels, zmin, zmax, radii, params.scallop, params.sample, arc_step,
+                                        piece_tools, SCALLOP_MIN_SLOPE)
+        con = concat_contours([con, *added])
     seconds["contours"] = time.perf_counter() - t
     npts = len(con.points)
-    contour_of = np.repeat(np.arange(len(con)), np.diff(con.offsets))
+    contour_of = con.contour_of
 
     say("tools")
     t = time.perf_counter()
@@ -499,49 +524,95 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         short_runs = short_points = 0
     else:
         point_tool, short_runs, short_points = _run_tools(best, con, centre_dir, radii, params, kern)
-        contour_tool = np.full(len(con), -1, np.int64)
-        if npts:
-            np.maximum.at(contour_tool, contour_of, point_tool)  # the smallest ball used on it
     seconds["tools"] = time.perf_counter() - t
 
     say("axes")
     t = time.perf_counter()
     side = np.cross(con.feed, [0.0, 0.0, 1.0])
-    ce = con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir
     cand, cand_tilt = tilt_candidates(params.max_tilt, params.tilt_step)
     # shank and holder keep the clearance from the part, and stay out of the allowance on it
     body, _ = pack_cylinders(balls, params.tol, max(params.clearance, rapid_stock.allowance))
-    choice = kern.axis_search(ce, con.feed, side, point_tool, cand, cand_tilt, math.radians(params.tilt_step) + 1e-9,
-                              radii, body, con.offsets)
+    slack = math.radians(params.tilt_step) + 1e-9
+    choice = kern.axis_search(con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir, con.feed, side,
+                              point_tool, cand, cand_tilt, slack, radii, body, con.offsets)
+    fallback = 0
+    if not params.whole_contours:  # no free axis for the run's ball: a smaller one, with a thinner shank
+        point_tool, choice, fallback = _smaller_balls(point_tool, choice, con, centre_dir, side, radii, params, kern,
+                                                      cand, cand_tilt, slack, body)
+    contour_tool = np.full(len(con), -1, np.int64)
+    if npts:
+        np.maximum.at(contour_tool, contour_of, point_tool)  # the smallest ball on it
     has_axis = choice >= 0
+    ce = con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir
     axis = np.zeros_like(ce)
     axis[has_axis] = _axes(cand, choice[has_axis], con.feed[has_axis], side[has_axis])
     tip = ce - radii[np.maximum(point_tool, 0)][:, None] * axis
     seconds["axes"] = time.perf_counter() - t
 
+    table_index = {tool.number: i for i, tool in enumerate(tools)}
+    shallow = None
+    if params.scallop is not None:
+        say("shallow areas")
+        t = time.perf_counter()
+        shallow = shallow_fill(mesh, kern, balls, params.scallop, SCALLOP_MIN_SLOPE, params.sample, params.tol,
+                               max(params.clearance, rapid_stock.allowance), params.min_run)
+        seconds["shallow"] = time.perf_counter() - t
+
     say("path")
     t = time.perf_counter()
-    table_index = {tool.number: i for i, tool in enumerate(tools)}
-    passes = []
+    passes, bridge = [], []  # bridge: (CC point, axis, rank) of points put in where a pass meets a larger ball's
     for c in range(len(con)):
-        if contour_tool[c] < 0:
-            continue
         a, b = con.offsets[c], con.offsets[c + 1]
-        # runs of one tool: the contour's runs are apart where no ball fits, so each has one
-        for run in _runs(has_axis[a:b] & (point_tool[a:b] >= 0), bool(con.closed[c])):
-            if len(run) < 2:
-                continue
-            link = 0 if params.lead > 0 else NO_LEAD
-            rank = int(point_tool[a + run[0]])
-            passes.append(dict(contour=c, tool=table_index[balls[rank].number], rank=rank,
-                               idx=run + a, entry=link, exit=link, first_link=link))
+        for run in contour_runs(has_axis[a:b] & (point_tool[a:b] >= 0), bool(con.closed[c])):
+            # one ball a pass: where the ball changes the pass ends, and the smaller ball's pass takes
+            # in the larger one's neighbouring point (a smaller ball fits where a larger one does), so
+            # that the stretch between them is cut
+            pieces = np.split(run + a, np.nonzero(np.diff(point_tool[a + run]))[0] + 1)
+            for j, piece in enumerate(pieces):
+                rank = int(point_tool[piece[0]])
+                ends = []
+                for k, nb, at in ((j - 1, -1, 0), (j + 1, 0, -1)):
+                    if 0 <= k < len(pieces) and point_tool[pieces[k][nb]] < rank:
+                        ends.append(len(tip) + len(bridge))
+                        bridge.append((pieces[k][nb], axis[piece[at]], rank))
+                    else:
+                        ends.append(None)
+                idx = np.r_[[ends[0]] * (ends[0] is not None), piece, [ends[1]] * (ends[1] is not None)]
+                if len(idx) < 2:
+                    continue
+                link = 0 if params.lead > 0 else NO_LEAD
+                passes.append(dict(contour=c, tool=table_index[balls[rank].number], rank=rank,
+                                   idx=idx.astype(np.int64), entry=link, exit=link, first_link=link, shallow=False))
+    if bridge:
+        cc, ax, rk = (np.array(x) for x in zip(*bridge))
+        r = radii[rk][:, None]
+        bce = con.points[cc] + r * centre_dir[cc]
+        tip, axis, ce, side = np.vstack([tip, bce - r * ax]), np.vstack([axis, ax]), np.vstack([ce, bce]), \
+            np.vstack([side, side[cc]])
+    n_raster, raster_first = 0, len(tip)
+    if shallow is not None and shallow.tips:
+        # the raster's tips follow the CC points' in the arrays: vertical axes, the outward side square to the lines
+        first = len(tip)
+        sizes = [len(p) for p in shallow.tips]
+        rtip = np.concatenate(shallow.tips)
+        n_raster = len(rtip)
+        rank = np.repeat(shallow.rank, sizes)
+        raxis = np.tile([0.0, 0.0, 1.0], (n_raster, 1))
+        tip, axis = np.vstack([tip, rtip]), np.vstack([axis, raxis])
+        ce = np.vstack([ce, rtip + radii[rank][:, None] * raxis])
+        side = np.vstack([side, np.tile(np.cross(shallow.direction, [0.0, 0.0, 1.0]), (n_raster, 1))])
+        for k, (size, r) in enumerate(zip(sizes, shallow.rank)):
+            passes.append(dict(contour=len(con) + k, tool=table_index[balls[r].number], rank=r,
+                               idx=first + np.arange(size), entry=NO_LEAD, exit=NO_LEAD, first_link=NO_LEAD,
+                               shallow=True))
+            first += size
     if not passes:
         smallest = min(radii)
         raise InputError(f"nothing to cut: of {len(con)} contour(s), {int((contour_tool >= 0).sum())} fit a ball of "
                          f"the table (smallest R {smallest:g} mm) and none has a collision-free axis within "
                          f"--max-tilt {params.max_tilt:g}; add smaller or longer tools")
     if params.order == "tool":
-        passes.sort(key=lambda p: (p["rank"], p["contour"]))
+        passes.sort(key=lambda p: (p["rank"], p["shallow"], p["contour"]))
     pole = None
     if machine is not None and machine.chain.type != "3-axis":
         tip, axis, side, pole = _passes_around_pole(passes, tip, axis, ce, side, radii[[p["rank"] for p in passes]],
@@ -573,26 +644,37 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         raise InputError("nothing left to cut: every pass failed verification (try --lead 0, a larger --max-tilt "
                          "or other tools)")
     seconds["verify"] = time.perf_counter() - t
-    seconds["total"] = time.perf_counter() - t_all
 
-    cut = np.zeros(len(tip), bool)
+    cut_all = np.zeros(len(tip), bool)
     for ps in passes:
-        cut[ps["idx"]] = True
-    cut = cut[:npts]  # (points put in around the pole are no CC points)
+        cut_all[ps["idx"]] = True
+    cut = cut_all[:npts]  # (the bridges, the raster's tips and the poses put in around the pole are no CC points)
+    raster_cut = cut_all[raster_first:raster_first + n_raster]
     machinable = contour_tool >= 0
     tools_used = {}
     for ps in passes:
         name = tools[ps["tool"]].name
-        entry = tools_used.setdefault(name, {"passes": 0, "cc_points": 0, "contours": set()})
+        entry = tools_used.setdefault(name, {"passes": 0, "cc_points": 0, "contours": set(), "raster_points": 0})
         entry["passes"] += 1
-        entry["cc_points"] += int(len(np.unique(ps["idx"])))
-        entry["contours"].add(ps["contour"])
+        if ps["shallow"]:
+            entry["raster_points"] += int(len(ps["idx"]))
+        else:
+            entry["cc_points"] += int(len(np.unique(ps["idx"])))
+            entry["contours"].add(ps["contour"])
     for entry in tools_used.values():
         entry["contours"] = len(entry["contours"])
     tilt = np.degrees(np.arccos(np.clip(axis[:npts][cut, 2], -1, 1))) if cut.any() else np.zeros(0)
     feed_move = ~tp.rapid[1:] & (tp.tool[1:] == tp.tool[:-1])
     turn = np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1])[feed_move]
     max_turn = float(np.degrees(np.arccos(np.clip(turn.min(), -1, 1)))) if len(turn) else 0.0
+    status = np.select([cut, ~fits, point_tool < 0, ~has_axis], [0, 1, 3, 2], 4)
+    contacts = np.concatenate(shallow.contacts) if n_raster else np.zeros((0, 3))
+    point_status = np.r_[status, np.where(raster_cut, 0, 4)].astype(np.int64)
+    areas = surface_areas(mesh, kern, radii, params.tol, params.max_tilt, params.sample,
+                          np.vstack([con.points, contacts]), point_status, shallow is not None)
+    if scallop is not None:
+        scallop = {**scallop, "shallow": shallow.report}
+    seconds["total"] = time.perf_counter() - t_all
     summary = {
         "operation": "finish",
         "step_down": params.step_down,
@@ -604,7 +686,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "tolerance": params.tol,
         "clearance": params.clearance,
         "stock": rapid_stock.summary(),
-        "levels": int(len(levels)),
+        "levels": int(len(np.unique(con.z))),
         "scallop": scallop,
         "pole": pole,
         "contours": int(len(con)),
@@ -621,9 +703,12 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         if npts else 0,
         "runs_too_short": int(short_runs),
         "points_in_short_runs": int(short_points),
+        "points_on_smaller_balls": int(fallback),
         "points_left_out": int((point_tool >= 0).sum() - cut[point_tool >= 0].sum()),
         "points_cut": int(cut.sum()),
-        "area_mm2": _areas(point_areas(con, levels, zmin, zmax), cut, fits, point_tool, has_axis),
+        "raster_points": int(n_raster),
+        "raster_points_cut": int(raster_cut.sum()),
+        "area_mm2": areas,
         "points_tilted": int((tilt > 1e-6).sum()),
         "max_tilt_used": float(tilt.max()) if len(tilt) else 0.0,
         "max_axis_change": max_turn,
@@ -635,6 +720,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "verify": report,
         "seconds": {k: round(v, 4) for k, v in seconds.items()},
     }
-    detail = dict(contours=con, best=best, contour_tool=contour_tool, point_tool=point_tool, choice=choice,
-                  axis=axis[:npts], tip=tip[:npts], ce=ce, cut=cut, balls=balls, kern=kern)
+    detail = dict(surface_points=np.vstack([con.points, contacts]), surface_status=point_status,
+                  contours=con, best=best, contour_tool=contour_tool, point_tool=point_tool, choice=choice,
+                  axis=axis[:npts], tip=tip[:npts], ce=ce[:npts], cut=cut, balls=balls, kern=kern, shallow=shallow)
     return tp, summary, detail

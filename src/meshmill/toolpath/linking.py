@@ -40,11 +40,12 @@ def _simplify(p, tol):
     return keep
 
 
-def simplify_polyline(points: np.ndarray, tol: float) -> np.ndarray:
+def simplify_polyline(points: np.ndarray, tol: float, mask: bool = False) -> np.ndarray:
     """Drop points of ``points (k, 3)`` that lie within ``tol`` mm of the segment that replaces
-    them; the end points stay. Returns the kept points."""
+    them; the end points stay. Returns the kept points (``mask``: which are kept, ``(k,) bool``)."""
     points = np.ascontiguousarray(points, np.float64)
-    return points[_simplify(points, float(tol))]
+    keep = _simplify(points, float(tol))
+    return keep if mask else points[keep]
 
 
 def link_passes(passes, tool: int, safe_z: float, clear_in=None, clear_out=None) -> Toolpath:

@@ -118,8 +118,10 @@ def pack_cylinders(tools, tol=0.0, clearance=0.0):
     """Per-tool cylinder arrays ``(t0, t1, r)`` (T, K) and ``cutting (T, K) bool``.
 
     Cutting cylinders shrink by ``tol`` (and a cylinder starting at the tip starts ``tol`` higher,
-    so that a flat bottom may rest on a facet); shank and holder grow by ``clearance``. Unused slots
-    have radius 0.
+    so that a flat bottom may rest on a facet); shank and holder grow by ``clearance`` in radius and
+    at both ends (a flat-ended cylinder holding all points within ``clearance`` of the real one, as
+    verification grows them: a shank bottom hovering over the part is kept ``clearance`` off it too).
+    Unused slots have radius 0.
     """
     cyl = [tool.cylinders() for tool in tools]
     k = max(len(c) for c in cyl)
@@ -129,8 +131,8 @@ def pack_cylinders(tools, tol=0.0, clearance=0.0):
     cutting = np.zeros((len(tools), k), bool)
     for i, parts in enumerate(cyl):
         for j, (a, b, rad, cut) in enumerate(parts):
-            t0[i, j] = a + (tol if (cut and a == 0.0) else 0.0)
-            t1[i, j] = b
+            t0[i, j] = a + (tol if (cut and a == 0.0) else 0.0) if cut else max(0.0, a - clearance)
+            t1[i, j] = b if cut else b + clearance
             r[i, j] = rad - tol if cut else rad + clearance
             cutting[i, j] = cut
     return (t0, t1, r), cutting
