@@ -69,7 +69,7 @@ holder_length = 40.0
 # name: (file, set-up options, step-down mm)
 PARTS = {
     "vase": (os.path.join(ROOT, "src", "meshmill", "data", "vase.stl"), [], 2.0),
-    "dolphin": (os.path.join(REAL, "mould_dolphin_tail_cavity.stl"), ["--up", "+X", "--origin", "corner"], 2.0),
+    "dolphin": (os.path.join(REAL, "mould_dolphin_tail_cavity.stl"), ["--up", "+X", "--origin", "bottom-centre"], 2.0),
     "terrain": (os.path.join(REAL, "relief_terrain.stl"), ["--units", "m", "--scale", "0.0002", "--origin", "corner"],
                 1.0),
     "blade": (os.path.join(REAL, "blade_hpt_airfoil.stl"), ["--units", "m", "--origin", "bottom-centre"], 1.0),
@@ -144,7 +144,9 @@ def run_part(name, work, tools, scallop, sim_step):
     f = json.load(open(os.path.join(out, "summary.json")))
     a = f["area_mm2"]
     row.update(cc_points=f["cc_points"], raster_points=f["raster_points"], levels=f["levels"],
-               contours_not_cut=len(f["unmachinable_contours"]), contours=f["contours"],
+               contours=f["contours"], contours_not_cut=len(f["unmachinable_contours"]),
+               # a contour is never dropped for one point: those not cut fit no ball, or only in runs under --min-run
+               contours_not_cut_short=sum(c["points_without_tool"] < c["cc_points"] for c in f["unmachinable_contours"]),
                area_mm2=round(a["total"], 1), **{f"area_{k}": round(a[k] / a["total"], 4) for k in
                                                  ("cut", "no_ball", "no_axis", "facing_down", "short_runs", "left_out")},
                verify_ok=f["verify"]["ok"], moves=f["moves"])
@@ -168,7 +170,7 @@ def run_part(name, work, tools, scallop, sim_step):
     for m in MACHINES:
         rc, last, s = meshmill("post", os.path.join(out, "toolpath.cl"), "--machine", m, "--tools", tools,
                                "--clearance", "75", "--out", os.path.join(out, f"{m}.nc"), warnings=True)
-        row[f"post_{m}"] = ("ok" if rc == 0 else "refused: ") + last[:200]
+        row[f"post_{m}"] = (f"ok ({last[:200]})" if last else "ok") if rc == 0 else "refused: " + last[:200]
     return row
 
 

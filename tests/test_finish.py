@@ -423,3 +423,44 @@ def test_the_summary_says_how_much_surface_was_cut_and_why_the_rest_was_not(tool
     tp, s, d = finish(m, tools, FinishParams(step_down=3.0))
     wall = 20 * (20 - 5)  # each gap wall above the base, 20 mm wide
     assert s["area_mm2"]["no_ball"] >= 2 * wall * 0.8
+
+
+def test_leaving_the_pole_the_axis_tilts_out_where_c_is_held_and_turns_gently(tmp_path, tools_file, capsys):
+    from meshmill.cli import main
+    from meshmill.ops.finish import POLE_STEP, gentle_turns
+    from meshmill.toolpath.cldata import write_apt
+    from meshmill.toolpath.model import Toolpath
+    from meshmill.tools.table import load_tools
+
+    tools = load_tools(tools_file)
+    t = math.radians(10)
+
+    def tilted(az):
+        return [math.sin(t) * math.cos(math.radians(az)), math.sin(t) * math.sin(math.radians(az)), math.cos(t)]
+
+    # B6 (index 2) feeding along X: tilted at azimuth 0, vertical, then tilted at azimuth 135
+    ax = np.array([tilted(0), tilted(0), [0, 0, 1.0], tilted(135), tilted(135)])
+    ce = np.array([[0, 0, 53.0], [0, 0, 13.0], [5, 0, 13.0], [10, 0, 13.0], [10, 0, 53.0]])
+    tp = Toolpath(ce - 3.0 * ax, ax, np.array([True, True, False, False, True]), np.full(5, 2))
+    radius = np.array([tool.radius for tool in tools])
+    out, source = gentle_turns(tp, radius, math.radians(0.025))
+    assert (np.diff(source) >= 0).all() and len(np.unique(source)) == len(tp)
+    tilt = np.degrees(np.arccos(np.clip(out.axis[:, 2], -1, 1)))
+    az = np.degrees(np.arctan2(out.axis[:, 1], out.axis[:, 0]))
+    off = tilt > 1e-6
+    both = off[1:] & off[:-1]
+    turn = np.abs((np.diff(az) + 180) % 360 - 180)
+    assert turn[both].max() <= POLE_STEP + 1e-9
+    first_off = np.flatnonzero(off & (np.arange(len(off)) > 2))[0]  # the first tilted pose after the vertical one
+    assert abs(az[first_off]) < 1e-9  # tilts out where C was held (azimuth 0)
+    # the ball centres stay on their segments
+    centre = out.tip + 3.0 * out.axis
+    feed = ~out.rapid
+    assert np.allclose(centre[feed][:, 1:], [0.0, 13.0])
+    for path, ok in ((tp, False), (out, True)):
+        write_apt(tmp_path / "p.cl", path, tools)
+        capsys.readouterr()
+        rc = main(["post", str(tmp_path / "p.cl"), "--machine", "table-table-ac", "--tools", str(tools_file),
+                   "--clearance", "75", "--out", str(tmp_path / "p.nc")])
+        err = capsys.readouterr().err
+        assert (rc == 0 and "stray" not in err) if ok else (rc == 2 or "stray" in err)

@@ -26,3 +26,9 @@ WELD_DIGITS = 9
 
 # Two CC points closer than this along a contour are the same place (arc points at an edge).
 SAME_POINT = 1e-9
+
+# What writing moves a path by: APT coordinates to 6 decimals, and a part.stl in float32 (2^-24 of
+# each coordinate, three of them). finish keeps its gouges this much under the tolerance, so that the
+# files it writes verify against each other within it.
+WRITE_ROUNDING = 1e-6
+FLOAT32_ROUNDING = 1.1e-7  # of the largest coordinate

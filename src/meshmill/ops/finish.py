@@ -20,6 +20,7 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -32,7 +33,7 @@ from ..geometry.analysis import sample_surface
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import concat_contours, contour_runs, slice_contours, z_levels
 from ..kernels.backend import solid_kernels
-from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
+from ..tolerances import FLOAT32_ROUNDING, GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE, WRITE_ROUNDING
 from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
 from .finish_levels import added_contours
@@ -50,7 +51,7 @@ NO_LEAD = 2
 SCALLOP_MIN_SLOPE = 10.0  # deg from the horizontal: flatter surfaces are rastered, not Z-levelled (--scallop)
 AREA_SAMPLES = 2_000_000  # most points sampled on the design to say what each status of the CC points stands for
 POLE_MARGIN = 2.0  # deg: for a 5-axis machine, no move swings the axis nearer its rotaries' pole than this ...
-POLE_STEP = 10.0  # ... it goes round it instead, its azimuth in steps of at most this (deg)
+POLE_STEP = 10.0  # ... and C turns at most this much in one move (deg): the azimuth goes round in steps
 MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
 
 
@@ -121,11 +122,13 @@ def _axes(cand, idx, feed, side):
 
 class _PathBuilder:
     """Turns passes into moves and maps verification problems back onto passes. ``approach``: the
-    distance (mm) above a lead's end where the rapid stops and the feed begins."""
+    distance (mm) above a lead's end where the rapid stops and the feed begins. ``gentle``: the
+    ``through`` angle (rad) of a 5-axis machine whose C must turn gently (:func:`gentle_turns`), or
+    None. Between passes the axis turns where the last pass left the safe plane, then travels."""
 
-    def __init__(self, tip, axis, side, safe_z, lead, approach):
+    def __init__(self, tip, axis, side, safe_z, lead, approach, radius, gentle=None):
         self.tip, self.axis, self.side, self.safe_z, self.lead = tip, axis, side, safe_z, lead
-        self.approach = approach
+        self.approach, self.radius, self.gentle = approach, radius, gentle
 
     def _up(self, p, u, vertical):
         if vertical or u[2] < 1e-6:
@@ -156,6 +159,8 @@ class _PathBuilder:
             lead_out, vertical_out, feed_out = LINKS[ps["exit"]]
             start = t0 + (self.lead * self.side[idx[0]] if lead_in else 0.0)
             end = t1 + (self.lead * self.side[idx[-1]] if lead_out else 0.0)
+            if tips and float(np.dot(axes[-1], u0)) < 1.0 - 1e-12:  # turn in place, then travel
+                add(tips[-1], u0, True, tool, k, "link_in")
             add(self._up(start, u0, vertical_in), u0, True, tool, k, "link_in")
             if not feed_in:
                 add(self._above(start, u0, vertical_in), u0, True, tool, k, "link_in")
@@ -173,6 +178,12 @@ class _PathBuilder:
                 add(self._up(end, u1, vertical_out), u1, False, tool, k, "approach_out")
         tp = Toolpath(np.array(tips).reshape(-1, 3), np.array(axes).reshape(-1, 3), np.array(rapid, bool),
                       np.array(tools, np.int64))
+        self.added = 0
+        if self.gentle is not None:
+            n = len(tp)
+            tp, keep = gentle_turns(tp, self.radius, self.gentle)
+            owner, role = [owner[k] for k in keep], [role[k] for k in keep]
+            self.added = len(tp) - n
         return tp, owner, role
 
 
@@ -238,64 +249,77 @@ def _pole_distance(a0, a1):
 
 def around_pole(a0, a1, c0, c1, radius, margin=POLE_MARGIN, step=POLE_STEP, through=math.radians(0.025)):
     """Poses ``(axes (m, 3), ball centres (m, 3))`` to put between the pose (``a0``, centre ``c0``)
-    and (``a1``, ``c1``) of a ball of ``radius`` when the axis would swing past the pole of a 5-axis
-    machine's rotaries (nearer than ``margin`` deg, neither end on it): C would have to turn half
-    a turn in an instant, which no post can follow. The axis goes round the pole instead, tilted
-    at least ``margin``, its azimuth in steps of at most ``step`` deg; the centre stays on its
-    segment, so the ball cuts what it cut. None needed (``m = 0``) where the arc passes within
-    ``through`` rad of the pole (the machine flips the tilt there: half its ``singular``) or starts
-    or ends on it."""
+    and (``a1``, ``c1``) of a ball of ``radius`` where the rotaries of a 5-axis machine whose pole is
+    +Z would turn C by more than ``step`` deg in the move: near the pole a small turn of the axis is
+    a large turn of C (half a turn in an instant where the axis swings past the pole), which no post
+    can follow within the path's tolerance. The axis turns its azimuth in steps of at most ``step``
+    deg instead, its tilt going from one end's to the other's (at least ``margin`` deg where the arc
+    would pass nearer the pole than that); the centre stays on its segment, so the ball cuts what it
+    cut. None needed (``m = 0``) where the arc passes within ``through`` rad of the pole (the
+    machine flips the tilt there: half its ``singular``) or starts or ends on it."""
     a0, a1 = np.asarray(a0, float), np.asarray(a1, float)
     dist, inside = _pole_distance(a0[None], a1[None])
     t0, t1 = math.acos(min(1.0, a0[2])), math.acos(min(1.0, a1[2]))
     m_rad = math.radians(margin)
-    if not (inside[0] and through <= dist[0] < m_rad and min(t0, t1) > dist[0] + 1e-12):
-        return np.empty((0, 3)), np.empty((0, 3))
     z0, z1 = math.atan2(a0[1], a0[0]), math.atan2(a1[1], a1[0])
     turn = (z1 - z0 + math.pi) % (2 * math.pi) - math.pi  # the shorter way round
-    k = max(1, int(math.ceil(abs(math.degrees(turn)) / step)))
+    past = bool(inside[0]) and dist[0] < m_rad
+    if min(t0, t1) <= max(through, dist[0] + 1e-12 if past else 0.0) or (past and dist[0] < through) or \
+            abs(turn) <= math.radians(step) + 1e-12:
+        return np.empty((0, 3)), np.empty((0, 3))
+    k = max(1, int(math.ceil(abs(math.degrees(turn)) / step)) - 1)
     s = np.arange(1, k + 1) / (k + 1)
-    tilt = np.maximum(m_rad, t0 + s * (t1 - t0))
+    tilt = np.maximum(m_rad if past else 0.0, t0 + s * (t1 - t0))
     az = z0 + s * turn
     axes = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
     centres = np.asarray(c0, float) + s[:, None] * (np.asarray(c1, float) - np.asarray(c0, float))
     return axes, centres
 
 
-def _passes_around_pole(passes, tip, axis, ce, side, radius, through):
-    """Put :func:`around_pole`'s poses into ``passes`` (their ``idx``, in place) where a move
-    swings past the pole; returns the arrays grown by them ``(tip, axis, side)`` and a report."""
-    new_tip, new_axis, new_side = [], [], []
-    n = len(tip)
-    moves = 0
-    for ps, r in zip(passes, radius):
-        idx = ps["idx"]
-        if len(idx) < 2:
-            continue
-        dist, inside = _pole_distance(axis[idx[:-1]], axis[idx[1:]])
-        near = np.nonzero(inside & (dist < math.radians(POLE_MARGIN)))[0]
-        if not len(near):
-            continue
-        out = [idx[:1]]
-        last = 0
-        for j in near:
-            axes, centres = around_pole(axis[idx[j]], axis[idx[j + 1]], ce[idx[j]], ce[idx[j + 1]], r,
-                                        through=through)
-            out.append(idx[last + 1:j + 1])
-            last = j
-            if len(axes):
-                moves += 1
-                new_axis.append(axes)
-                new_tip.append(centres - r * axes)
-                new_side.append(np.repeat(side[idx[j]][None], len(axes), axis=0))
-                out.append(np.arange(n, n + len(axes)))
-                n += len(axes)
-        out.append(idx[last + 1:])
-        ps["idx"] = np.concatenate(out)
-    added = n - len(tip)
-    if added:
-        tip, axis, side = (np.vstack([a, *b]) for a, b in ((tip, new_tip), (axis, new_axis), (side, new_side)))
-    return tip, axis, side, {"margin_deg": POLE_MARGIN, "moves_around_pole": moves, "poses_added": added}
+def gentle_turns(tp: Toolpath, radius, through, margin=POLE_MARGIN, step=POLE_STEP):
+    """``(toolpath, source (k',))``: ``tp`` with poses put in wherever C of a 5-axis machine whose
+    pole is +Z would turn more than ``step`` deg in one move (``source``: the move of ``tp`` each
+    new move belongs to). Off the pole, :func:`around_pole`'s poses. Leaving the pole (a tilt under
+    ``through`` rad), the machine still holds C where the last tilted pose had it: the axis tilts
+    out at that azimuth first (to ``margin`` deg, or the move's end tilt if smaller), turns round at
+    that tilt in steps of ``step`` deg, and tilts to the move's end. Tips follow the ball centres
+    along their segment (``radius (T,)`` per tool index; a rapid's tip simply along its segment)."""
+    tilt = np.arccos(np.clip(tp.axis[:, 2], -1.0, 1.0))
+    az = np.arctan2(tp.axis[:, 1], tp.axis[:, 0])
+    m_rad, step_rad = math.radians(margin), math.radians(step)
+    tips, axes, source = [], [], []
+    held = None
+    for i in range(len(tp)):
+        if i and tilt[i] > through:
+            r = 0.0 if tp.rapid[i] else float(radius[tp.tool[i]])
+            c0, c1 = tp.tip[i - 1] + r * tp.axis[i - 1], tp.tip[i] + r * tp.axis[i]
+            if tilt[i - 1] > through:
+                new_axes, centres = around_pole(tp.axis[i - 1], tp.axis[i], c0, c1, r, margin, step, through)
+            elif held is not None and abs((az[i] - held + math.pi) % (2 * math.pi) - math.pi) > 1e-9:
+                turn = (az[i] - held + math.pi) % (2 * math.pi) - math.pi
+                k = max(1, int(math.ceil(abs(turn) / step_rad)))
+                t = min(m_rad, tilt[i])
+                zs = held + turn * np.arange(0, k + 1) / k
+                new_axes = np.column_stack([np.sin(t) * np.cos(zs), np.sin(t) * np.sin(zs), np.full(k + 1, np.cos(t))])
+                if t >= tilt[i] - 1e-12:
+                    new_axes = new_axes[:-1]  # the last is the move's own end
+                f = np.arange(1, len(new_axes) + 1) / (len(new_axes) + 1)
+                centres = c0 + f[:, None] * (c1 - c0)
+            else:
+                new_axes = np.zeros((0, 3))
+            if len(new_axes):
+                tips.append(centres - r * new_axes)
+                axes.append(new_axes)
+                source += [i] * len(new_axes)
+        tips.append(tp.tip[i:i + 1])
+        axes.append(tp.axis[i:i + 1])
+        source.append(i)
+        if tilt[i] > through:
+            held = az[i]
+    source = np.array(source, np.int64)
+    if len(source) == len(tp):
+        return tp, source
+    return Toolpath(np.vstack(tips), np.vstack(axes), tp.rapid[source], tp.tool[source]), source
 
 
 def _stretch_ranks(best, s, min_run):
@@ -467,6 +491,10 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     pole of its rotaries (:func:`around_pole`).
     """
     params.check()
+    # kept under the tolerance by what writing the path and the part moves them (the files verify)
+    tolerance = params.tol
+    params = dataclasses.replace(params, tol=max(0.0, tolerance - WRITE_ROUNDING - FLOAT32_ROUNDING *
+                                                 float(np.abs(mesh.bounds).max())))
     say = progress or (lambda stage: None)
     seconds = {}
     t_all = time.perf_counter()
@@ -613,12 +641,12 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
                          f"--max-tilt {params.max_tilt:g}; add smaller or longer tools")
     if params.order == "tool":
         passes.sort(key=lambda p: (p["rank"], p["shallow"], p["contour"]))
-    pole = None
+    gentle = None
     if machine is not None and machine.chain.type != "3-axis":
-        tip, axis, side, pole = _passes_around_pole(passes, tip, axis, ce, side, radii[[p["rank"] for p in passes]],
-                                                    0.5 * machine.chain.singular)
+        gentle = 0.5 * machine.chain.singular
     builder = _PathBuilder(tip, axis, side, safe_z, params.lead,
-                           approach=rapid_stock.allowance + rapid_stock.clearance + params.tol)
+                           approach=rapid_stock.allowance + rapid_stock.clearance + params.tol,
+                           radius=np.array([t.radius for t in tools]), gentle=gentle)
     seconds["path"] = time.perf_counter() - t
 
     say("verify")
@@ -648,7 +676,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     cut_all = np.zeros(len(tip), bool)
     for ps in passes:
         cut_all[ps["idx"]] = True
-    cut = cut_all[:npts]  # (the bridges, the raster's tips and the poses put in around the pole are no CC points)
+    cut = cut_all[:npts]  # (the bridges and the raster's tips are no CC points)
     raster_cut = cut_all[raster_first:raster_first + n_raster]
     machinable = contour_tool >= 0
     tools_used = {}
@@ -683,12 +711,14 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "tilt_step": params.tilt_step,
         "order": params.order,
         "safe_z": safe_z,
-        "tolerance": params.tol,
+        "tolerance": tolerance,
+        "tolerance_kept": params.tol,
         "clearance": params.clearance,
         "stock": rapid_stock.summary(),
         "levels": int(len(np.unique(con.z))),
         "scallop": scallop,
-        "pole": pole,
+        "pole": None if gentle is None else {"margin_deg": POLE_MARGIN, "step_deg": POLE_STEP,
+                                             "poses_added": builder.added},
         "contours": int(len(con)),
         "machinable_contours": int(machinable.sum()),
         "unmachinable_contours": [
