@@ -6,8 +6,9 @@ Per part it prints and writes (JSON) the shares of the design's surface area tha
 and why the rest was not (no ball of the table fits there, no collision-free axis, facing down
 beyond --max-tilt), the contours not cut at all, the share of the surface within the scallop limit
 plus the tolerance after the finish (simulate) of what the tools reach and of the whole,
-``meshmill verify`` of the written path, wall times, and whether ``post`` wrote a program for
-``table-table-ac`` and ``head-table-bc`` (with its warnings) or its one-line refusal. The finish is
+``meshmill verify`` of the written path, wall times, and whether ``post`` (``--clearance``: 10 mm
+over the finish's safe plane) wrote a program for ``table-table-ac`` and ``head-table-bc`` (with
+its warnings) or its one-line refusal. The finish is
 made for ``table-table-ac`` (``--machine``: both machines have their pole at +Z).
 
     .venv/bin/python bench/realparts.py [--parts vase,dolphin] [--scallop 0.01] [--sim-step 0.3]
@@ -167,9 +168,11 @@ def run_part(name, work, tools, scallop, sim_step):
                        **band_shares(out, os.path.join(out, "sim"), tools, scallop, 0.01, 60.0, sim_step))
         else:
             row["sim_error"] = last[:200]
+    clearance = f"{f['safe_z'] + 10.0:.1f}"  # where the rotaries may swing: 10 mm over the path's rapids
+    row["post_clearance"] = float(clearance)
     for m in MACHINES:
         rc, last, s = meshmill("post", os.path.join(out, "toolpath.cl"), "--machine", m, "--tools", tools,
-                               "--clearance", "75", "--out", os.path.join(out, f"{m}.nc"), warnings=True)
+                               "--clearance", clearance, "--out", os.path.join(out, f"{m}.nc"), warnings=True)
         row[f"post_{m}"] = (f"ok ({last[:200]})" if last else "ok") if rc == 0 else "refused: " + last[:200]
     return row
 
