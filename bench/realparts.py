@@ -87,8 +87,8 @@ def band_shares(out, sim, tools_file, scallop, tol, max_tilt, spacing):
     each taking the deviation of the nearest dexel end of the simulation and its status
     (:func:`meshmill.ops.finish.surface_status`: facing down beyond ``max_tilt``, no ball of the
     table fits there, else the finish's status of the nearest CC point or raster contact):
-    ``reachable`` (cut, or left out in short runs or by the repair: a ball with a free axis gets
-    there), ``no_ball``, ``no_axis``, ``facing_down``, and ``within`` (deviation in
+    ``reachable`` (cut, or left out in short runs or by the repair, or flat and not reached by the
+    raster: a ball gets there), ``no_ball``, ``no_axis``, ``facing_down``, and ``within`` (deviation in
     [-tol, scallop + tol]) of the whole and of what is reachable."""
     import numpy as np
     from scipy.spatial import cKDTree
@@ -105,14 +105,14 @@ def band_shares(out, sim, tools_file, scallop, tol, max_tilt, spacing):
     p, w, face = sample_surface(mesh, spacing)
     c = np.load(os.path.join(out, "contours.npz"))
     status = surface_status(mesh, solid_kernels(mesh, "cpu"), radii, tol, max_tilt, p, face, c["surface_points"],
-                            c["surface_status"], rastered=True)
+                            c["surface_status"], int(c["raster_from"]), float(c["raster_reach"]))
     d = np.load(os.path.join(sim, "deviation.npz"))
     e = d["e"][cKDTree(d["points"]).query(p)[1]]
-    reach = np.isin(status, [AREA_STATUS.index(k) for k in ("cut", "short_runs", "left_out")])
+    reach = np.isin(status, [AREA_STATUS.index(k) for k in ("cut", "short_runs", "left_out", "shallow")])
     band = (e >= -tol) & (e <= scallop + tol)
     total = w.sum()
     out = {k: round(float(w[status == AREA_STATUS.index(k)].sum() / total), 4) for k in ("no_ball", "no_axis",
-                                                                                         "facing_down")}
+                                                                                         "facing_down", "shallow")}
     return {**out, "reachable": round(float(w[reach].sum() / total), 4),
             "within_all": round(float(w[band].sum() / total), 4),
             "within_reachable": round(float(w[band & reach].sum() / max(w[reach].sum(), 1e-300)), 4)}

@@ -261,7 +261,8 @@ def cmd_finish(args):
     np.savez_compressed(run.tmp(os.path.join(out, "contours.npz")), points=con.points, offsets=con.offsets, z=con.z,
                         closed=con.closed, machinable=detail["contour_tool"] >= 0,
                         surface_points=detail["surface_points"], surface_status=detail["surface_status"],
-                        status_names=np.array(AREA_STATUS))
+                        status_names=np.array(AREA_STATUS), raster_from=detail["raster_from"],
+                        raster_reach=detail["raster_reach"])
     summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
     summary["seconds"]["load"] = round(load_s, 4)
     summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)

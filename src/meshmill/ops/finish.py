@@ -123,7 +123,7 @@ def _axes(cand, idx, feed, side):
 class _PathBuilder:
     """Turns passes into moves and maps verification problems back onto passes. ``approach``: the
     distance (mm) above a lead's end where the rapid stops and the feed begins. ``gentle``: the
-    ``through`` angle (rad) of a 5-axis machine whose C must turn gently (:func:`gentle_turns`), or
+    ``singular`` angle (rad) of a 5-axis machine whose C must turn gently (:func:`gentle_turns`), or
     None. Between passes the axis turns where the last pass left the safe plane, then travels."""
 
     def __init__(self, tip, axis, side, safe_z, lead, approach, radius, gentle=None):
@@ -276,24 +276,28 @@ def around_pole(a0, a1, c0, c1, radius, margin=POLE_MARGIN, step=POLE_STEP, thro
     return axes, centres
 
 
-def gentle_turns(tp: Toolpath, radius, through, margin=POLE_MARGIN, step=POLE_STEP):
+def gentle_turns(tp: Toolpath, radius, singular, margin=POLE_MARGIN, step=POLE_STEP):
     """``(toolpath, source (k',))``: ``tp`` with poses put in wherever C of a 5-axis machine whose
     pole is +Z would turn more than ``step`` deg in one move (``source``: the move of ``tp`` each
-    new move belongs to). Off the pole, :func:`around_pole`'s poses. Leaving the pole (a tilt under
-    ``through`` rad), the machine still holds C where the last tilted pose had it: the axis tilts
-    out at that azimuth first (to ``margin`` deg, or the move's end tilt if smaller), turns round at
-    that tilt in steps of ``step`` deg, and tilts to the move's end. Tips follow the ball centres
-    along their segment (``radius (T,)`` per tool index; a rapid's tip simply along its segment)."""
+    new move belongs to). The machine holds C within ``singular`` rad of the pole; poses put in
+    near it are tilted at least ``margin`` deg, and at least twice ``singular``. Off the pole,
+    :func:`around_pole`'s poses. Leaving the pole, the machine still holds C where the last tilted
+    pose had it: the axis tilts out at that azimuth first (to that tilt, or the move's end tilt if
+    smaller), turns round at that tilt in steps of ``step`` deg, and tilts to the move's end. Tips
+    follow the ball centres along their segment (``radius (T,)`` per tool index; a rapid's tip
+    simply along its segment)."""
+    margin = max(margin, 2.0 * math.degrees(singular))
+    through = 0.5 * singular  # an arc this near the pole: the machine flips the tilt instead
     tilt = np.arccos(np.clip(tp.axis[:, 2], -1.0, 1.0))
     az = np.arctan2(tp.axis[:, 1], tp.axis[:, 0])
     m_rad, step_rad = math.radians(margin), math.radians(step)
     tips, axes, source = [], [], []
     held = None
     for i in range(len(tp)):
-        if i and tilt[i] > through:
+        if i and tilt[i] > singular:
             r = 0.0 if tp.rapid[i] else float(radius[tp.tool[i]])
             c0, c1 = tp.tip[i - 1] + r * tp.axis[i - 1], tp.tip[i] + r * tp.axis[i]
-            if tilt[i - 1] > through:
+            if tilt[i - 1] > singular:
                 new_axes, centres = around_pole(tp.axis[i - 1], tp.axis[i], c0, c1, r, margin, step, through)
             elif held is not None and abs((az[i] - held + math.pi) % (2 * math.pi) - math.pi) > 1e-9:
                 turn = (az[i] - held + math.pi) % (2 * math.pi) - math.pi
@@ -314,7 +318,7 @@ def gentle_turns(tp: Toolpath, radius, through, margin=POLE_MARGIN, step=POLE_ST
         tips.append(tp.tip[i:i + 1])
         axes.append(tp.axis[i:i + 1])
         source.append(i)
-        if tilt[i] > through:
+        if tilt[i] > singular:
             held = az[i]
     source = np.array(source, np.int64)
     if len(source) == len(tp):
@@ -324,12 +328,14 @@ def gentle_turns(tp: Toolpath, radius, through, margin=POLE_MARGIN, step=POLE_ST
 
 def _stretch_ranks(best, s, min_run):
     """Ball ranks ``(n,)`` along a run (``best`` each point's largest ball, ``s`` arc length, mm)
-    with no stretch of one ball shorter than ``min_run``: the shortest such stretch takes the
-    smaller ball of a neighbour when one has a smaller ball (which fits wherever a larger one
-    does), else (a narrow spot) its ball spreads onto the points within ``min_run / 2`` around it."""
+    with no stretch of one ball shorter than ``min_run`` (unless the run is): the shortest such
+    stretch takes the smaller ball of a neighbour when one has a smaller ball (which fits wherever
+    a larger one does), else (a narrow spot) its ball spreads onto its neighbours, a point at a time
+    on the nearer side, until it spans ``min_run``. Ranks only grow: no point gets a larger ball
+    than its own."""
     r = best.astype(np.int64).copy()
     n = len(r)
-    for _ in range(n):
+    for _ in range(n * (int(r.max(initial=0)) + 2)):
         starts = np.r_[0, np.flatnonzero(np.diff(r)) + 1]
         if len(starts) == 1:
             break
@@ -339,15 +345,18 @@ def _stretch_ranks(best, s, min_run):
         if not len(short):
             break
         k = short[np.argmin(length[short])]
-        own = r[starts[k]]
-        smaller = [r[j] for j in (starts[k] - 1, ends[k]) if 0 <= j < n and r[j] > own]
+        a, b = int(starts[k]), int(ends[k])
+        own = r[a]
+        smaller = [r[j] for j in (a - 1, b) if 0 <= j < n and r[j] > own]
         if smaller:
-            r[starts[k]:ends[k]] = min(smaller)
-        else:
-            mid = 0.5 * (s[starts[k]] + s[ends[k] - 1])
-            near = np.abs(s - mid) <= 0.5 * min_run
-            near[starts[k]:ends[k]] = True
-            r[near] = np.maximum(r[near], own)
+            r[a:b] = min(smaller)
+            continue
+        while s[b - 1] - s[a] < min_run and (a > 0 or b < n):
+            if b >= n or (a > 0 and s[a] - s[a - 1] <= s[b] - s[b - 1]):
+                a -= 1
+            else:
+                b += 1
+        r[a:b] = np.maximum(r[a:b], own)
     return r
 
 
@@ -445,34 +454,42 @@ def _smaller_balls(point_tool, choice, con, centre_dir, side, radii, params, ker
 AREA_STATUS = ("cut", "no_ball", "no_axis", "short_runs", "left_out", "facing_down", "shallow")
 
 
-def surface_status(mesh, kern, radii, tol, max_tilt, p, face, points, status, rastered=False):
+def surface_status(mesh, kern, radii, tol, max_tilt, p, face, points, status, raster_from=None, raster_reach=0.0):
     """``(s,)`` index into ``AREA_STATUS`` of each point ``p (s, 3)`` of the design (on facets
-    ``face (s,)``): ``facing_down`` on facets no ball within ``max_tilt`` touches (:func:`facing_down`),
-    ``shallow`` on facets facing up flatter than ``SCALLOP_MIN_SLOPE`` unless ``rastered``,
+    ``face (s,)``): ``facing_down`` on facets no ball within ``max_tilt`` touches (:func:`facing_down`);
     ``no_ball`` where no ball of ``radii`` touches the facet there without entering the part by more
-    than ``tol`` (exact, through ``kern``), else the status of the nearest of ``points (k, 3)`` (CC
-    points and raster contacts, ``status (k,)``)."""
+    than ``tol`` (exact, through ``kern``); on facets facing up flatter than ``SCALLOP_MIN_SLOPE``,
+    the status of the nearest raster contact (``points[raster_from:]``) within ``raster_reach`` mm,
+    else ``shallow`` (no raster, or none of its passes reached there); elsewhere the status of the
+    nearest of ``points (k, 3)`` (CC points, then raster contacts; ``status (k,)``)."""
     out = np.full(len(p), AREA_STATUS.index("facing_down"), np.int64)
-    flat = np.zeros(len(mesh.faces), bool) if rastered else shallow_facets(mesh, SCALLOP_MIN_SLOPE)
-    out[flat[face]] = AREA_STATUS.index("shallow")
-    up = np.nonzero(~facing_down(mesh, max_tilt)[face] & ~flat[face])[0]
+    flat = shallow_facets(mesh, SCALLOP_MIN_SLOPE)[face]
+    out[flat] = AREA_STATUS.index("shallow")
+    up = np.nonzero(~facing_down(mesh, max_tilt)[face] & ~flat)[0]
     if len(up) and len(points):
         out[up] = status[cKDTree(points).query(p[up])[1]]
-        fits = kern.largest_ball(p[up], mesh.face_normals[face[up]], radii, tol) >= 0
-        out[up[~fits]] = AREA_STATUS.index("no_ball")
+    flat = np.nonzero(flat)[0]
+    if raster_from is not None and len(flat) and len(points) > raster_from:
+        dist, near = cKDTree(points[raster_from:]).query(p[flat], distance_upper_bound=raster_reach)
+        hit = np.isfinite(dist)
+        out[flat[hit]] = status[raster_from:][near[hit]]
+    checked = np.nonzero(out != AREA_STATUS.index("facing_down"))[0]
+    if len(checked):
+        fits = kern.largest_ball(p[checked], mesh.face_normals[face[checked]], radii, tol) >= 0
+        out[checked[~fits]] = AREA_STATUS.index("no_ball")
     return out
 
 
-def surface_areas(mesh, kern, radii, tol, max_tilt, spacing, points, status, rastered):
+def surface_areas(mesh, kern, radii, tol, max_tilt, spacing, points, status, raster_from=None, raster_reach=0.0):
     """mm² of the design surface by why it was or was not cut (:func:`surface_status` of points
     spread over it about ``spacing`` apart, :func:`~meshmill.geometry.analysis.sample_surface`)."""
     p, weight, face = sample_surface(mesh, spacing, AREA_SAMPLES)
-    by = np.bincount(surface_status(mesh, kern, radii, tol, max_tilt, p, face, points, status, rastered),
-                     weights=weight, minlength=len(AREA_STATUS))
+    by = np.bincount(surface_status(mesh, kern, radii, tol, max_tilt, p, face, points, status, raster_from,
+                                    raster_reach), weights=weight, minlength=len(AREA_STATUS))
     return {**{name: float(by[k]) for k, name in enumerate(AREA_STATUS)}, "total": float(weight.sum()),
-            "why": "points spread over the design: facing_down where no ball within --max-tilt touches it, "
-                   "shallow (without --scallop) where a raster should cut it, no_ball where no ball of the table "
-                   "touches it there, else the status of the nearest CC point or raster contact"}
+            "why": "points spread over the design: facing_down where no ball within --max-tilt touches it, no_ball "
+                   "where no ball of the table touches it there, shallow where it faces up flatter than 10 deg and no "
+                   "raster pass (--scallop) reached it, else the status of the nearest CC point (or raster contact)"}
 
 
 def facing_down(mesh, max_tilt):
@@ -643,7 +660,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         passes.sort(key=lambda p: (p["rank"], p["shallow"], p["contour"]))
     gentle = None
     if machine is not None and machine.chain.type != "3-axis":
-        gentle = 0.5 * machine.chain.singular
+        gentle = machine.chain.singular
     builder = _PathBuilder(tip, axis, side, safe_z, params.lead,
                            approach=rapid_stock.allowance + rapid_stock.clearance + params.tol,
                            radius=np.array([t.radius for t in tools]), gentle=gentle)
@@ -687,7 +704,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         if ps["shallow"]:
             entry["raster_points"] += int(len(ps["idx"]))
         else:
-            entry["cc_points"] += int(len(np.unique(ps["idx"])))
+            entry["cc_points"] += int(len(np.unique(ps["idx"][ps["idx"] < npts])))
             entry["contours"].add(ps["contour"])
     for entry in tools_used.values():
         entry["contours"] = len(entry["contours"])
@@ -696,10 +713,17 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     turn = np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1])[feed_move]
     max_turn = float(np.degrees(np.arccos(np.clip(turn.min(), -1, 1)))) if len(turn) else 0.0
     status = np.select([cut, ~fits, point_tool < 0, ~has_axis], [0, 1, 3, 2], 4)
-    contacts = np.concatenate(shallow.contacts) if n_raster else np.zeros((0, 3))
-    point_status = np.r_[status, np.where(raster_cut, 0, 4)].astype(np.int64)
+    if n_raster:  # every contact of a raster pass takes the pass's status
+        contacts = np.concatenate(shallow.contacts)
+        pass_cut = np.add.reduceat(raster_cut, np.r_[0, np.cumsum([len(t) for t in shallow.tips])[:-1]]) > 0
+        contact_status = np.repeat(np.where(pass_cut, 0, 4), [len(c) for c in shallow.contacts])
+    else:
+        contacts, contact_status = np.zeros((0, 3)), np.zeros(0, np.int64)
+    point_status = np.r_[status, contact_status].astype(np.int64)
+    raster_reach = shallow.spacing if shallow is not None else 0.0
     areas = surface_areas(mesh, kern, radii, params.tol, params.max_tilt, params.sample,
-                          np.vstack([con.points, contacts]), point_status, shallow is not None)
+                          np.vstack([con.points, contacts]), point_status, npts if shallow is not None else None,
+                          raster_reach)
     if scallop is not None:
         scallop = {**scallop, "shallow": shallow.report}
     seconds["total"] = time.perf_counter() - t_all
@@ -751,6 +775,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "seconds": {k: round(v, 4) for k, v in seconds.items()},
     }
     detail = dict(surface_points=np.vstack([con.points, contacts]), surface_status=point_status,
+                  raster_from=npts if shallow is not None else -1, raster_reach=raster_reach,
                   contours=con, best=best, contour_tool=contour_tool, point_tool=point_tool, choice=choice,
                   axis=axis[:npts], tip=tip[:npts], ce=ce[:npts], cut=cut, balls=balls, kern=kern, shallow=shallow)
     return tp, summary, detail

@@ -73,7 +73,7 @@ def added_contours(mesh, levels, zmin, zmax, radii, height, sample, arc_step, pi
                                                                            np.r_[levels, zmin]))]
     s_max = float(scallop_spacing(radii.max(), height))
     sin_min = math.sin(math.radians(min_slope))
-    kept, planes, depth = [], 0, 0
+    kept, planes, deepest = [], 0, 0
     for depth in range(1, MAX_DEPTH + 1):
         bands = [band for band in bands if band[0] - band[1] >= 2 * MIN_BAND]
         if not bands:
@@ -103,11 +103,12 @@ def added_contours(mesh, levels, zmin, zmax, radii, height, sample, arc_step, pi
             break
         piece = sub.take(keep)
         kept.append(piece)
+        deepest = depth
         used = np.unique(piece.z)
         planes += len(used)
         bands = [half for (a, b, up, down) in bands if np.any(np.abs(used - 0.5 * (a + b)) < 1e-12)
                  for half in ((a, 0.5 * (a + b), up, False), (0.5 * (a + b), b, False, down))]
     report = {"height": float(height), "radii": [float(r) for r in radii], "planes_added": int(planes),
-              "depth": int(depth), "min_slope_deg": float(min_slope),
+              "depth": int(deepest), "min_slope_deg": float(min_slope),
               "cc_points_added": int(sum(len(k.points) for k in kept))}
     return kept, report

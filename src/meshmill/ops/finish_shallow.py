@@ -33,13 +33,16 @@ COVER = 0.75  # a contact within this share of a larger ball's stepover of its c
 @dataclass
 class ShallowPasses:
     """Raster passes over the shallow areas: ``tips[i] (m, 3)`` tool tips (axis +Z) of pass i cut
-    with ball ``rank[i]`` (into the finish's balls, largest first); ``contacts[i] (m, 3)`` where
-    each tip's ball touches the part; ``direction (3,)`` the lines' direction; ``report``."""
+    with ball ``rank[i]`` (into the finish's balls, largest first); ``contacts[i] (q, 3)`` where the
+    ball touches the part along it (every dropped point, before the tips were simplified: what the
+    pass stands for); ``direction (3,)`` the lines' direction; ``spacing`` the largest distance
+    between neighbouring contacts (the stepover or the sample, mm); ``report``."""
 
     tips: list = field(default_factory=list)
     rank: list = field(default_factory=list)
     contacts: list = field(default_factory=list)
     direction: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    spacing: float = 0.0
     report: dict = field(default_factory=dict)
 
 
@@ -82,6 +85,7 @@ def shallow_fill(mesh, kern, balls, height, min_slope, sample, tol, body_grow, m
     for rank, tool in enumerate(balls):
         R = tool.radius
         step = float(scallop_spacing(R, height)) * cos_keep
+        out.spacing = max(out.spacing, step, sample)
         drop = ToolDrop(tool, kern, floor, body_grow=body_grow)
         kept_contacts, passes, points = [], 0, 0
         for line in _lines(lo - R, hi + R, angle, step, sample):
@@ -101,7 +105,7 @@ def shallow_fill(mesh, kern, balls, height, min_slope, sample, tol, body_grow, m
                     continue
                 keep_pts = simplify_polyline(piece, 0.5 * tol, mask=True)
                 out.tips.append(piece[keep_pts])
-                out.contacts.append(contact[a:b][keep_pts])
+                out.contacts.append(contact[a:b])
                 out.rank.append(rank)
                 kept_contacts.append(contact[a:b])
                 passes += 1
