@@ -288,41 +288,50 @@ def gentle_turns(tp: Toolpath, radius, singular, margin=POLE_MARGIN, step=POLE_S
     simply along its segment)."""
     margin = max(margin, 2.0 * math.degrees(singular))
     through = 0.5 * singular  # an arc this near the pole: the machine flips the tilt instead
+    n = len(tp)
     tilt = np.arccos(np.clip(tp.axis[:, 2], -1.0, 1.0))
     az = np.arctan2(tp.axis[:, 1], tp.axis[:, 0])
     m_rad, step_rad = math.radians(margin), math.radians(step)
-    tips, axes, source = [], [], []
-    held = None
-    for i in range(len(tp)):
-        if i and tilt[i] > singular:
-            r = 0.0 if tp.rapid[i] else float(radius[tp.tool[i]])
-            c0, c1 = tp.tip[i - 1] + r * tp.axis[i - 1], tp.tip[i] + r * tp.axis[i]
-            if tilt[i - 1] > singular:
-                new_axes, centres = around_pole(tp.axis[i - 1], tp.axis[i], c0, c1, r, margin, step, through)
-            elif held is not None and abs((az[i] - held + math.pi) % (2 * math.pi) - math.pi) > 1e-9:
-                turn = (az[i] - held + math.pi) % (2 * math.pi) - math.pi
-                k = max(1, int(math.ceil(abs(turn) / step_rad)))
-                t = min(m_rad, tilt[i])
-                zs = held + turn * np.arange(0, k + 1) / k
-                new_axes = np.column_stack([np.sin(t) * np.cos(zs), np.sin(t) * np.sin(zs), np.full(k + 1, np.cos(t))])
-                if t >= tilt[i] - 1e-12:
-                    new_axes = new_axes[:-1]  # the last is the move's own end
-                f = np.arange(1, len(new_axes) + 1) / (len(new_axes) + 1)
-                centres = c0 + f[:, None] * (c1 - c0)
-            else:
-                new_axes = np.zeros((0, 3))
-            if len(new_axes):
-                tips.append(centres - r * new_axes)
-                axes.append(new_axes)
-                source += [i] * len(new_axes)
-        tips.append(tp.tip[i:i + 1])
-        axes.append(tp.axis[i:i + 1])
-        source.append(i)
-        if tilt[i] > singular:
-            held = az[i]
-    source = np.array(source, np.int64)
-    if len(source) == len(tp):
-        return tp, source
+    off = tilt > singular
+    last_off = np.maximum.accumulate(np.where(off, np.arange(n), -1))  # the last tilted pose so far
+    held = np.full(n, np.nan)  # where C is held before each move
+    held[1:] = np.where(last_off[:-1] >= 0, az[np.maximum(last_off[:-1], 0)], np.nan)
+
+    def wrap(x):
+        return (x + np.pi) % (2 * np.pi) - np.pi
+
+    turned = np.zeros(n, bool)
+    turned[1:] = off[1:] & np.where(off[:-1], np.abs(wrap(az[1:] - az[:-1])) > step_rad + 1e-12,
+                                    np.isfinite(held[1:]) & (np.abs(wrap(az[1:] - np.nan_to_num(held[1:]))) > 1e-9))
+    inserts = {}
+    for i in np.flatnonzero(turned):
+        r = 0.0 if tp.rapid[i] else float(radius[tp.tool[i]])
+        c0, c1 = tp.tip[i - 1] + r * tp.axis[i - 1], tp.tip[i] + r * tp.axis[i]
+        if off[i - 1]:
+            new_axes, centres = around_pole(tp.axis[i - 1], tp.axis[i], c0, c1, r, margin, step, through)
+        else:
+            turn = float(wrap(az[i] - held[i]))
+            k = max(1, int(math.ceil(abs(turn) / step_rad)))
+            t = min(m_rad, tilt[i])
+            zs = held[i] + turn * np.arange(0, k + 1) / k
+            new_axes = np.column_stack([np.sin(t) * np.cos(zs), np.sin(t) * np.sin(zs), np.full(k + 1, np.cos(t))])
+            if t >= tilt[i] - 1e-12:
+                new_axes = new_axes[:-1]  # the last is the move's own end
+            f = np.arange(1, len(new_axes) + 1) / (len(new_axes) + 1)
+            centres = c0 + f[:, None] * (c1 - c0)
+        if len(new_axes):
+            inserts[int(i)] = (centres - r * new_axes, new_axes)
+    if not inserts:
+        return tp, np.arange(n)
+    at = sorted(inserts)
+    pieces = np.split(np.arange(n), at)
+    tips, axes, source = [tp.tip[pieces[0]]], [tp.axis[pieces[0]]], [pieces[0]]
+    for j, piece in zip(at, pieces[1:]):
+        t_new, a_new = inserts[j]
+        tips += [t_new, tp.tip[piece]]
+        axes += [a_new, tp.axis[piece]]
+        source += [np.full(len(t_new), j), piece]
+    source = np.concatenate(source)
     return Toolpath(np.vstack(tips), np.vstack(axes), tp.rapid[source], tp.tool[source]), source
 
 
