@@ -477,3 +477,32 @@ def test_leaving_the_pole_the_axis_tilts_out_where_c_is_held_and_turns_gently(tm
                    "--clearance", "75", "--out", str(tmp_path / "p.nc")])
         err = capsys.readouterr().err
         assert (rc == 0 and "stray" not in err) if ok else (rc == 2 or "stray" in err)
+
+
+def test_a_crease_too_sharp_for_any_ball_to_touch_is_not_cut(tools):
+    """Two facets folding back on each other (a 178 deg concave crease): the ball touching both
+    would sit far out along the bisector, beyond the slicer's cap; such a ball touches nothing and
+    its point fits no ball (no passes floating 10 R away from the part)."""
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.geometry.slicing import MIN_HALF_COS
+
+    # a block whose top has a slit 0.1 mm wide at the top, 10 mm deep (walls 0.3 deg off vertical)
+    v = np.array([[-10, -10, 0], [10, -10, 0], [10, 10, 0], [-10, 10, 0],
+                  [-10, -10, 20], [-0.05, -10, 20], [0, -10, 10], [0.05, -10, 20], [10, -10, 20],
+                  [-10, 10, 20], [-0.05, 10, 20], [0, 10, 10], [0.05, 10, 20], [10, 10, 20]], float)
+    f = [[0, 2, 1], [0, 3, 2],  # bottom
+         [0, 1, 8], [0, 8, 7], [0, 7, 6], [0, 6, 5], [0, 5, 4],  # front (y = -10)
+         [3, 9, 10], [3, 10, 11], [3, 11, 12], [3, 12, 13], [3, 13, 2],  # back (y = 10)
+         [0, 4, 9], [0, 9, 3], [1, 2, 13], [1, 13, 8],  # sides
+         [4, 5, 10], [4, 10, 9], [7, 8, 13], [7, 13, 12],  # top, either side of the slit
+         [5, 6, 11], [5, 11, 10], [6, 7, 12], [6, 12, 11]]  # the slit's walls
+    m = mesh_from_arrays(v, np.array(f), "slit")
+    tp, s, d = finish(m, tools, FinishParams(step_down=2.0))
+    con = d["contours"]
+    capped = con.reach >= 1.0 / MIN_HALF_COS - 1e-9
+    assert capped.any() and (d["best"][capped] < 0).all() and not d["cut"][capped].any()
+    # every ball cut touches the part: none floats off it
+    cut = np.nonzero(d["cut"])[0]
+    radius = np.array([b.radius for b in d["balls"]])[d["point_tool"][cut]]
+    assert np.abs(d["kern"].mesh_distances(d["ce"][cut]) - radius).max() <= 0.01 + 1e-9
+    assert s["verify"]["ok"]

@@ -31,7 +31,7 @@ from scipy.spatial import cKDTree
 from ..errors import InputError
 from ..geometry.analysis import sample_surface
 from ..geometry.mesh import Mesh
-from ..geometry.slicing import concat_contours, contour_runs, slice_contours, z_levels
+from ..geometry.slicing import MIN_HALF_COS, concat_contours, contour_runs, slice_contours, z_levels
 from ..kernels.backend import solid_kernels
 from ..tolerances import FLOAT32_ROUNDING, GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE, WRITE_ROUNDING
 from ..tools.table import pack_cylinders
@@ -335,6 +335,32 @@ def gentle_turns(tp: Toolpath, radius, singular, margin=POLE_MARGIN, step=POLE_S
     return Toolpath(np.vstack(tips), np.vstack(axes), tp.rapid[source], tp.tool[source]), source
 
 
+def _largest_balls(kern, con, centre_dir, radii, tol):
+    """``(k,)`` the largest ball (rank into ``radii``) that fits at each CC point of ``con`` and
+    touches the part there, -1 where none does. In a concave crease the ball sits on the bisector
+    touching both facets R·tan(θ/2) from the crease: where the facets end sooner (a crease sharp
+    for its facets' size), or the centre's reach was capped (``MIN_HALF_COS``), that ball floats
+    off the part and cuts nothing; a smaller one, nearer the crease, may touch."""
+    best = kern.largest_ball(con.points, centre_dir, radii, tol)
+    best[con.reach >= 1.0 / MIN_HALF_COS - 1e-9] = -1
+    crease = np.nonzero((best >= 0) & (con.reach > 1.0 + 1e-9))[0]
+    for _ in range(len(radii)):
+        if not len(crease):
+            break
+        r = radii[best[crease]]
+        floats = kern.mesh_distances(con.points[crease] + r[:, None] * centre_dir[crease]) > r + tol
+        crease = crease[floats]
+        for t in np.unique(best[crease]) + 1:
+            sel = crease[best[crease] + 1 == t]
+            if t >= len(radii):
+                best[sel] = -1
+                continue
+            res = kern.largest_ball(con.points[sel], centre_dir[sel], radii[t:], tol)
+            best[sel] = np.where(res >= 0, t + res, -1)
+        crease = crease[best[crease] >= 0]
+    return best
+
+
 def _stretch_ranks(best, s, min_run):
     """Ball ranks ``(n,)`` along a run (``best`` each point's largest ball, ``s`` arc length, mm)
     with no stretch of one ball shorter than ``min_run`` (unless the run is): the shortest such
@@ -558,7 +584,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     if params.scallop is not None:
         def piece_tools(c):
             cd = c.normals * c.reach[:, None]
-            return _run_tools(kern.largest_ball(c.points, cd, radii, params.tol), c, cd, radii, params, kern)[0]
+            return _run_tools(_largest_balls(kern, c, cd, radii, params.tol), c, cd, radii, params, kern)[0]
 
         added, scallop = added_contours(mesh, levels, zmin, zmax, radii, params.scallop, params.sample, arc_step,
                                         piece_tools, SCALLOP_MIN_SLOPE)
@@ -570,7 +596,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     say("tools")
     t = time.perf_counter()
     centre_dir = con.normals * con.reach[:, None]  # ball centre = CC + R·centre_dir
-    best = kern.largest_ball(con.points, centre_dir, radii, params.tol)
+    best = _largest_balls(kern, con, centre_dir, radii, params.tol)
     fits = best >= 0
     if params.whole_contours:
         contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tol, kern)
