@@ -5,13 +5,13 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DATA   := src/meshmill/data
 
-.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge bench-gpu bench-choice bench-post bench-safety clean
+.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge bench-gpu bench-choice bench-post bench-safety bench-startup clean
 
 venv: $(STAMP)
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install -q -e '.[dev]'
+	$(BIN)/python -m pip install -q -e '.[dev,report,optimise]'
 	touch $(STAMP)
 
 demo: venv
@@ -54,6 +54,9 @@ bench-post: venv
 
 bench-safety: venv
 	$(BIN)/python bench/safety.py
+
+bench-startup: venv
+	$(BIN)/python bench/startup.py
 
 clean:
 	rm -rf $(VENV) demo-out bench/out .pytest_cache

@@ -38,9 +38,9 @@ from meshmill.choice.orientation import azimuth_in_frame, heuristic_axis
 from meshmill.choice.rectangle import (choose_tool, length_ball_principal, length_toric_steepest,
                                        parallel_passes_length, parallel_passes_time, pca_rectangle,
                                        critical_slope, time_ball_principal, time_toric_steepest)
-from meshmill.choice.scallop import stepover
-from meshmill.choice.surface import bezier, cell_samples, load_patch, mesh_samples, mesh_surface, patch_mesh
-from meshmill.choice.zigzag import frame_rotation
+from meshmill.pathing.scallop import stepover
+from meshmill.geometry.patches import bezier, cell_samples, load_patch, mesh_samples, mesh_surface, patch_mesh
+from meshmill.pathing.zigzag import frame_rotation
 from meshmill.geometry.mesh import mesh_from_arrays
 from meshmill.machine.config import load_machine
 from meshmill.ops.choose import ChooseParams, Chooser, tool_pair, zone_ids
@@ -106,7 +106,7 @@ def one_zone(ch, tool, theta):
 
 
 def ch2_rows():
-    kin = seed_machine().kinematics
+    kin = seed_machine().motion
     rows = {}
     # Table 2.1: 56 mm along Y (principal), 28 mm up a 60 deg slope in XZ
     c, s = math.cos(math.radians(60)), math.sin(math.radians(60))
@@ -167,7 +167,7 @@ def print_ch2(rows):
 
 def cross_rows():
     """The cross of Fig. 4.11: bar 80 x 30, arms 10 x 40 above and below, horizontal, ball R 5."""
-    kin = seed_machine().kinematics
+    kin = seed_machine().motion
     w, h, q, p = 80.0, 30.0, 10.0, 40.0
     sod = float(stepover(SH, 5.0))
     x_t = 2 * parallel_passes_time(q, p, sod, kin) + parallel_passes_time(w, h, sod, kin)

@@ -24,7 +24,7 @@ from meshmill.machine.config import load_machine
 from meshmill.machine.post import post_program
 from meshmill.tools.table import load_tools
 from meshmill.toolpath.cldata import read_apt
-from meshmill.toolpath.gcode import read_gcode
+from meshmill.machine.gcode import read_gcode
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DATA = os.path.join(HERE, "..", "src", "meshmill", "data")

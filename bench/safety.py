@@ -40,8 +40,9 @@ sys.path.insert(0, os.path.join(ROOT, "src"))
 from meshmill.geometry.mesh import load_mesh  # noqa: E402
 from meshmill.geometry.shapes import box  # noqa: E402
 from meshmill.kernels.backend import solid_kernels  # noqa: E402
-from meshmill.ops.simulate import read_toolpath, simulate  # noqa: E402
-from meshmill.ops.verify import StockCheck, verify_toolpath  # noqa: E402
+from meshmill.machine.pathfile import read_toolpath  # noqa: E402
+from meshmill.ops.simulate import simulate  # noqa: E402
+from meshmill.pathing.verify import StockCheck, verify_toolpath  # noqa: E402
 from meshmill.tools.table import load_tools  # noqa: E402
 
 TOOLS = """# bench/safety.py: a roughing end mill, balls and a bull-nose, with holders (mm)

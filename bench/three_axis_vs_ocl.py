@@ -27,7 +27,7 @@ import time
 import numba
 import numpy as np
 
-from meshmill.geometry.bvh import build_bvh
+from meshmill.kernels.bvh import build_bvh
 from meshmill.geometry.mesh import load_mesh
 from meshmill.kernels import cpu
 from meshmill.ops.waterline import WaterlineParams, waterline

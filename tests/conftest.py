@@ -1,6 +1,10 @@
 import numpy as np
 import pytest
 
+# numba must see NUMBA_ENABLE_CUDASIM before it is imported: test_cuda_parity.py and test_cuda_ptx.py
+# run this folder in a fresh process
+collect_ignore = ["cudasim"]
+
 TOOLS_TOML = """
 [[tools]]
 name = "B20"
@@ -118,3 +122,16 @@ def winding_number(points, vertices, faces, chunk=256):
                + np.einsum("pmi,pmi->pm", c, a) * lb)
         out.append(2.0 * np.arctan2(num, den).sum(axis=1) / (4.0 * np.pi))
     return np.concatenate(out)
+
+
+@pytest.fixture
+def part(tmp_path):
+    """The overhang column (:func:`meshmill.geometry.shapes.overhang_column`) as an STL file."""
+    import trimesh
+
+    from meshmill.geometry.shapes import overhang_column
+
+    m = overhang_column()
+    p = tmp_path / "part.stl"
+    trimesh.Trimesh(m.vertices, m.faces, process=False).export(p)
+    return p

@@ -8,9 +8,9 @@ import pytest
 
 from meshmill.choice.machining import Machinist, ZonePlan
 from meshmill.choice.orientation import accessible, heuristic_axis, heuristic_tilts, pca_frame
-from meshmill.choice.scallop import effective_radius, flat_bottom_stepover, stepover, stepover_exact
-from meshmill.choice.surface import bezier, cell_samples, load_patch, patch_mesh
-from meshmill.choice.zigzag import SurfaceSetup, frame_rotation
+from meshmill.pathing.scallop import effective_radius, flat_bottom_stepover, stepover, stepover_exact
+from meshmill.geometry.patches import bezier, cell_samples, load_patch, patch_mesh
+from meshmill.pathing.zigzag import SurfaceSetup, frame_rotation
 from meshmill.cli import main
 from meshmill.machine.config import load_machine
 from meshmill.machine.timing import path_time
@@ -154,6 +154,7 @@ def test_merge_small_zones_join_their_longest_border():
 
 
 @pytest.mark.parametrize("name, seed_bull, seed_ball", [("choi", 71.8, 76.8), ("rubio", 91.3, 79.7)])
+@pytest.mark.slow
 def test_whole_surface_black_box_against_the_seed(name, seed_bull, seed_ball):
     """Seed Tables of §2.10 (its simulator): bull-nose along the steepest slope and ball along the
     principal direction, V 5 m/min, A 6 m/s², J 40 m/s³, sh 0.01 mm. Ours keeps the scallop at
@@ -177,6 +178,7 @@ def test_whole_surface_black_box_against_the_seed(name, seed_bull, seed_ball):
         assert bull < ball  # the seed's choice on Choi
 
 
+@pytest.mark.slow
 def test_choose_end_to_end_on_a_patch_with_nomad(tmp_path):
     params = ChooseParams(scallop=SH, zones=2, grid=16, mesh_step=1.0, sample=1.0, optimise=6)
     tp, summary, zones, chooser = choose("rubio", [BALL, BULL], load_machine("seed-002"), params)
@@ -190,6 +192,7 @@ def test_choose_end_to_end_on_a_patch_with_nomad(tmp_path):
     assert summary["total_s"] == pytest.approx(sum(z["measured_s"] for z in summary["zones"]), rel=0.05)
 
 
+@pytest.mark.slow
 def test_choose_3plus2_is_accessible_and_verified():
     params = ChooseParams(scallop=SH, zones=2, axes="3+2", grid=16, mesh_step=1.0, sample=1.0)
     tp, summary, zones, chooser = choose("choi", [BALL, BULL], load_machine("seed-002"), params)
@@ -221,6 +224,7 @@ def bump_stl(path):
     return str(path)
 
 
+@pytest.mark.slow
 def test_cli_choose_on_a_mesh_writes_a_path_time_reads(tmp_path, capsys):
     out = tmp_path / "ch"
     rc = main(["choose", bump_stl(tmp_path / "bump.stl"), "--tool-pair", "6,1", "--scallop", "0.02",
@@ -266,6 +270,7 @@ def test_cli_choose_bad_input(tmp_path, capsys, monkeypatch, args, message):
     assert rc == 2 and len(err) == 1 and message in err[0]
 
 
+@pytest.mark.slow
 def test_3plus2_never_slower_than_3_axis_and_transits_stay_clear():
     machine = load_machine("seed-002")
     patch = load_patch("choi")
@@ -315,6 +320,7 @@ def test_coarse_open_mesh_is_machined_to_its_edges(tmp_path):
     assert summary["verify"]["ok"] and summary["covered"] > 0.95 and not summary["incomplete_zones"]
 
 
+@pytest.mark.slow
 def test_encode_decode_round_trip_and_heuristic_mode():
     from meshmill.choice.optimise import Problem, optimise_plan
     machine = load_machine("seed-002")

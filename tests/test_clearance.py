@@ -7,7 +7,7 @@ from meshmill.geometry.mesh import mesh_from_arrays
 from meshmill.geometry.shapes import box, sphere
 from meshmill.kernels import cpu
 from meshmill.kernels.backend import solid_kernels
-from meshmill.ops.verify import move_poses
+from meshmill.pathing.verify import move_poses
 from meshmill.toolpath.model import Toolpath
 from meshmill.tools.table import pack_cylinders, pack_rings, tool_from_entry
 
@@ -56,6 +56,7 @@ def _ridge():
 
 
 @pytest.mark.parametrize("part", ["box", "ridge", "sphere"])
+@pytest.mark.slow
 def test_every_clear_interval_is_clear_at_every_pose(part):
     mesh = {"box": box([-10, -10, 0], [10, 10, 10]), "ridge": _ridge(), "sphere": sphere(8.0, 12, 24)}[part]
     top = mesh.bounds[1, 2]

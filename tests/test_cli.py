@@ -4,20 +4,10 @@ import subprocess
 import sys
 
 import numpy as np
-import pytest
 import trimesh
 
 from meshmill.cli import main
 from conftest import one_line_error
-from meshmill.geometry.shapes import overhang_column
-
-
-@pytest.fixture
-def part(tmp_path):
-    m = overhang_column()
-    p = tmp_path / "part.stl"
-    trimesh.Trimesh(m.vertices, m.faces, process=False).export(p)
-    return p
 
 
 def test_finish_then_verify(tmp_path, part, tools_file, capsys):

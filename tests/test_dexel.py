@@ -33,6 +33,7 @@ def mesh_volume(m):
     return np.einsum("ij,ij->", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6
 
 
+@pytest.mark.slow
 def test_sphere_and_torus_volumes_at_0_3mm():
     s = dexelize(sphere(10.0, rings=180, segments=360), 0.3)
     exact = 4 / 3 * math.pi * 1000

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshmill.geometry.bvh import build_bvh
+from meshmill.kernels.bvh import build_bvh
 from meshmill.geometry.mesh import load_mesh
 from meshmill.geometry.shapes import box, revolve, sphere
 from meshmill.kernels import cpu
@@ -74,6 +74,7 @@ coord = st.one_of(st.floats(-4, 4, allow_nan=False), st.integers(-2, 2).map(floa
 @settings(max_examples=200, deadline=None)
 @given(st.lists(st.tuples(coord, coord, coord), min_size=3, max_size=3), st.tuples(coord, coord),
        st.sampled_from(list(CUTTERS)))
+@pytest.mark.slow
 def test_triangle_drop_against_dense_samples(pts, xy, kind):
     R, r = CUTTERS[kind]
     tri = np.array(pts, np.float64)
@@ -107,6 +108,7 @@ ocl = pytest.importorskip("opencamlib", reason="OpenCAMLib is a test-only peer")
 
 
 @pytest.mark.parametrize("part", ["pycam-textbox", "beet_mm", "mount_rush", "sphere_on_plate"])
+@pytest.mark.slow
 def test_equals_opencamlib_batch_drop_cutter(part):
     path = PARTS / f"{part}.stl"
     if not path.exists():
@@ -139,7 +141,7 @@ def test_equals_opencamlib_batch_drop_cutter(part):
 def test_a_wider_body_that_touches_nothing_keeps_the_cutters_contact():
     from meshmill.geometry.mesh import mesh_from_arrays
     from meshmill.kernels.backend import solid_kernels
-    from meshmill.ops.dropcutter import ToolDrop
+    from meshmill.pathing.dropcutter import ToolDrop
     from meshmill.tools.table import tool_from_entry
 
     # a plane rising at 30 deg; the shank (grown wider than the ball) starts far above what it

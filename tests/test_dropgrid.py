@@ -2,11 +2,11 @@
 import numpy as np
 import pytest
 
-from meshmill.geometry.bvh import build_bvh
+from meshmill.kernels.bvh import build_bvh
 from meshmill.geometry.mesh import Mesh
 from meshmill.geometry.shapes import box, revolve
-from meshmill.ops.dropcutter import ToolDrop
-from meshmill.ops.dropgrid import DropGrid, tier_sizes
+from meshmill.pathing.dropcutter import ToolDrop
+from meshmill.pathing.dropgrid import DropGrid, tier_sizes
 from meshmill.tools.table import tool_from_entry
 
 TOOLS = {

@@ -140,7 +140,7 @@ def _ball_centres(tp, tools):
 
 def test_a_wound_open_propeller_keeps_every_ball_centre_outside_its_solid(tools):
     from conftest import propeller_like, winding_number
-    from meshmill.geometry.bvh import build_bvh
+    from meshmill.kernels.bvh import build_bvh
     from meshmill.geometry.mesh import mesh_from_arrays
     from meshmill.geometry.shapes import box
     from meshmill.kernels import cpu
@@ -196,6 +196,7 @@ def test_an_open_sheet_is_finished_without_dipping_under_its_edge(tools):
     assert dev["gouge_max"] < 0.05 and summary["rapid_moves_cutting"] == 0 and summary["colliding_moves"] == 0
 
 
+@pytest.mark.slow
 def test_rapids_keep_clear_of_the_stock_the_finish_starts_from(tools):
     from meshmill.ops.simulate import simulate
 
@@ -355,7 +356,7 @@ def test_axis_search_keeps_a_shank_bottom_hovering_over_the_part_out_of_the_allo
     from meshmill.geometry.mesh import mesh_from_arrays
     from meshmill.geometry.shapes import box
     from meshmill.kernels.backend import solid_kernels
-    from meshmill.ops.verify import StockCheck, _Measure
+    from meshmill.pathing.verify import StockCheck, _Measure
     from meshmill.tools.table import Tool, pack_cylinders
 
     parts = [box([-10, -10, -5], [1, 10, 0]), box([1, -10, -5], [10, 10, 2.7])]

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from meshmill.errors import InputError
-from meshmill.toolpath.gcode import read_gcode
+from meshmill.machine.gcode import read_gcode
 
 TOL = 0.001
 
@@ -204,7 +204,7 @@ def test_dwell_does_not_move(tmp_path, tools):
 
 
 def test_start_known_once_x_y_and_z_are_given(tmp_path, tools):
-    from meshmill.toolpath.gcode import read_gcode
+    from meshmill.machine.gcode import read_gcode
 
     (tmp_path / "p.nc").write_text("G21 G90\nT1 M6\nG0 Z5\nG0 X1 Y2\nG1 Z-1\nG1 X4\n")
     tp, _ = read_gcode(tmp_path / "p.nc", tools)

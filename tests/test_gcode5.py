@@ -12,9 +12,9 @@ from meshmill.geometry.shapes import box
 from meshmill.machine.config import load_machine
 from meshmill.machine.kinematics import forward
 from meshmill.machine.post import post_program
-from meshmill.ops.simulate import read_toolpath
+from meshmill.machine.pathfile import read_toolpath
 from meshmill.toolpath.cldata import write_apt
-from meshmill.toolpath.gcode import read_gcode
+from meshmill.machine.gcode import read_gcode
 from meshmill.toolpath.model import Toolpath
 
 CHORD = 0.001  # mm, the reader's chord_tol
@@ -433,7 +433,7 @@ def test_cli_bad_input(tmp_path, tools_file, capsys):
 
 def test_a_retract_before_a_tool_change_leaves_z_unknown_until_given(tmp_path):
     """G91 G28 Z0 before a tool change: the moves after it join the path once Z is given again."""
-    from meshmill.toolpath.gcode import read_gcode
+    from meshmill.machine.gcode import read_gcode
     from meshmill.tools.table import Tool
 
     tools = [Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1), Tool("B4", "ball", 4.0, 2.0, 10.0, 30.0, 4.0, number=2)]

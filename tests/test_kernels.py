@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import brute_point_triangle_dist
-from meshmill.geometry.bvh import build_bvh
+from meshmill.kernels.bvh import build_bvh
 from meshmill.geometry.shapes import sphere
 from meshmill.kernels import cpu
 from meshmill.kernels.geom import STACK_SIZE

@@ -8,13 +8,15 @@ import pytest
 from meshmill.cli import main
 from conftest import one_line_error
 from meshmill.errors import InputError
-from meshmill.machine.config import Machine, load_machine, shipped_machines
-from meshmill.machine.timing import Kinematics, path_time, programmed_feeds, segment_time, tool_times
+from meshmill.machine.config import load_machine, shipped_machines
+from meshmill.machine.model import Machine
+from meshmill.machine.model import MotionLimits
+from meshmill.machine.timing import path_time, programmed_feeds, segment_time, tool_times
 from meshmill.toolpath.cldata import write_apt
 from meshmill.toolpath.model import Toolpath
 
-SEED = Kinematics.seed()  # V 83.3 mm/s, A 6000 mm/s², J 40000 mm/s³: A²/J = 900 > V
-FAST = Kinematics(feed=500.0, accel=4000.0, jerk=50000.0, rapid=500.0)  # A²/J = 320 < V
+SEED = MotionLimits.seed()  # V 83.3 mm/s, A 6000 mm/s², J 40000 mm/s³: A²/J = 900 > V
+FAST = MotionLimits(feed=500.0, accel=4000.0, jerk=50000.0, rapid=500.0)  # A²/J = 320 < V
 
 
 # --- segment_time -----------------------------------------------------------------------------------
@@ -103,7 +105,7 @@ def test_segment_time_against_a_simulated_s_curve():
 # --- path_time ----------------------------------------------------------------------------------------
 
 def seed_machine(corner_deg=5.0, tool_change=8.0):
-    return Machine(name="seed", kinematics=SEED, corner_angle=math.radians(corner_deg), tool_change=tool_change,
+    return Machine(name="seed", motion=SEED, corner_angle=math.radians(corner_deg), tool_change=tool_change,
                    reorient=3.0)
 
 
@@ -179,7 +181,7 @@ def test_per_move_feed():
     with pytest.raises(ValueError):
         path_time(line, rapid, m, feed=np.array([1.0, -1.0, 1.0]))
     with pytest.raises(ValueError):
-        path_time(line, rapid, SEED)  # bare Kinematics need a corner angle
+        path_time(line, rapid, SEED)  # bare MotionLimits need a corner angle
 
 
 def test_tool_times_add_tool_changes():
@@ -231,10 +233,10 @@ reorient_s = 3
 def test_machine_files_load():
     assert {"generic-3axis", "seed-002"} <= set(shipped_machines())
     seed = load_machine("seed-002")
-    assert seed.kinematics == Kinematics.seed()
+    assert seed.motion == MotionLimits.seed()
     assert seed.corner_angle == pytest.approx(math.radians(5)) and seed.tool_change == 8 and seed.reorient == 3
     generic = load_machine("generic-3axis")
-    assert generic.kinematics.rapid > generic.kinematics.feed and generic.path.endswith("generic-3axis.toml")
+    assert generic.motion.rapid > generic.motion.feed and generic.path.endswith("generic-3axis.toml")
     assert generic.summary()["feed_mm_min"] == pytest.approx(4000)
 
 
@@ -301,7 +303,7 @@ def test_machine_file_values(tmp_path):
     p = tmp_path / "m.toml"
     p.write_text(MACHINE_TOML.replace("tool_change_s = 8", "tool_change_s = 0"))
     m = load_machine(p)
-    assert m.name == "test VMC" and m.tool_change == 0.0 and m.kinematics.feed == pytest.approx(5000 / 60)
+    assert m.name == "test VMC" and m.tool_change == 0.0 and m.motion.feed == pytest.approx(5000 / 60)
     p.write_text(MACHINE_TOML.replace('name = "test VMC"\n', ""))
     assert load_machine(p).name == "m"
 
@@ -313,12 +315,12 @@ def test_programmed_feeds(tmp_path):
     cl.write_text("LOADTL/1\nRAPID\nGOTO/0,0,10\nGOTO/0,0,5\nFEDRAT/600\nGOTO/0,0,0\n$$ FEDRAT/1\n"
                   "FEDRAT/ IPM, 10 $$ inch\nGOTO/1,0,0\nFEDRAT/MMPR, 0.1\nGOTO/2,0,0\nFINI\n")
     feed, warnings = programmed_feeds(cl, np.array([3, 4, 6, 9, 11]), gcode=False)
-    assert np.isnan(feed[[0, 1, 4]]).all() and feed[2] == pytest.approx(10.0) and feed[3] == pytest.approx(254 / 60)
+    assert np.isnan(feed[[0, 1, 4]]).all() and feed[2] == pytest.approx(600.0) and feed[3] == pytest.approx(254.0)
     assert len(warnings) == 1 and "line 10" in warnings[0]
     nc = tmp_path / "f.nc"
     nc.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F300 (FAST)\nX10\nG20\nX1 F10 ; inch\nG0 Z1\n")
     feed, warnings = programmed_feeds(nc, np.array([2, 3, 4, 6, 7]), gcode=True)
-    assert np.isnan(feed[0]) and np.allclose(feed[1:], [5.0, 5.0, 254 / 60, 254 / 60]) and not warnings
+    assert np.isnan(feed[0]) and np.allclose(feed[1:], [300.0, 300.0, 254.0, 254.0]) and not warnings
 
 
 # --- meshmill time -------------------------------------------------------------------------------------
@@ -446,9 +448,9 @@ def test_g93_does_not_inherit_the_feed_per_minute(tmp_path):
     nc.write_text("G94 G1 X10 F600\nG93 G1 X20 F30\nX30\nG94 X40 F1200\n")
     tip = np.array([[0, 0, 0], [10, 0, 0], [20, 0, 0], [30, 0, 0], [40, 0, 0]], float)
     feed, _ = programmed_feeds(nc, [0, 1, 2, 3, 4], True, tip)
-    assert feed[1] == pytest.approx(10.0)  # 600 mm/min
-    assert feed[2] == pytest.approx(10.0 * 30 / 60.0)  # 10 mm in 1/30 min
-    assert np.isnan(feed[3]) and feed[4] == pytest.approx(20.0)
+    assert feed[1] == pytest.approx(600.0)  # mm/min
+    assert feed[2] == pytest.approx(10.0 * 30)  # 10 mm in 1/30 min
+    assert np.isnan(feed[3]) and feed[4] == pytest.approx(1200.0)
 
 
 def test_time_on_a_head_table_machine(tmp_path, capsys):

@@ -6,7 +6,7 @@ import pytest
 import trimesh
 
 from meshmill.cli import main
-from meshmill.geometry.bvh import build_bvh
+from meshmill.kernels.bvh import build_bvh
 from meshmill.geometry.mesh import mesh_from_arrays
 from meshmill.geometry.shapes import box, sphere
 from meshmill.kernels.cpu import mesh_distances
@@ -61,6 +61,7 @@ def tool_points(tip, R, n_ring=720, spacing=0.1, height=10.0):
     return np.concatenate([disc] + side) + tip
 
 
+@pytest.mark.slow
 def test_no_plunge_comes_closer_than_the_allowance():
     m = sphere(20.0, rings=24, segments=48, center=(0, 0, 0))
     allowance = 1.0
@@ -156,6 +157,7 @@ def test_five_axis_plunges_keep_the_allowance():
     assert (np.linalg.norm(np.maximum(np.maximum(lo - rap, rap - hi), 0.0), axis=1) >= 0.5 - 1e-6).all()
 
 
+@pytest.mark.slow
 def test_region_mode_reaches_under_an_overhang_and_removes_more():
     from meshmill.ops.plunge import plunge5
     from meshmill.ops.simulate import simulate

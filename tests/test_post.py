@@ -382,8 +382,8 @@ def test_inverse_time_feeds(tools, name):
         # the cut at 3000 mm/min; the rapids that turn the rotaries are G1 at the rapid rate
         minutes = [max(np.linalg.norm(tips[1] - tips[0]) / tip_feed,
                        np.abs(joints[3:] - before[3:]).max() / (machine.rotary_rapid * 60.0),
-                       np.abs(joints[:3] - before[:3]).max() / (machine.kinematics.rapid * 60.0))
-                   for tip_feed in (3000.0, machine.kinematics.rapid * 60.0)]
+                       np.abs(joints[:3] - before[:3]).max() / (machine.motion.rapid * 60.0))
+                   for tip_feed in (3000.0, machine.motion.rapid * 60.0)]
         assert any(f == pytest.approx(1.0 / m, rel=2e-3, abs=1e-4) for m in minutes)
         checked += 1
     assert checked > 100

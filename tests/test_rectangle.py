@@ -25,11 +25,11 @@ from meshmill.choice.rectangle import (
     time_toric_steepest,
     zone_time_surrogate,
 )
-from meshmill.choice.scallop import effective_radius
+from meshmill.pathing.scallop import effective_radius
 from meshmill.errors import InputError
-from meshmill.machine.timing import Kinematics
+from meshmill.machine.model import MotionLimits
 
-KIN = Kinematics.seed()
+KIN = MotionLimits.seed()
 R, CORNER, SH = 5.0, 2.0, 0.01
 TOOL = (R, CORNER, SH)
 deg = np.radians
@@ -208,7 +208,7 @@ def test_segment_timed_passes_stay_right_outside_the_closed_forms_cases():
     short = n * (4 * np.cbrt(3.0 / (2 * KIN.jerk)) + conn)
     assert parallel_passes_segment_time(3.0, 28.0, sod, KIN) == pytest.approx(short, rel=1e-12)
     # V > A²/J and long passes: A and V reached, case 1 (eq. 1.13)
-    fast = Kinematics(feed=1000.0, accel=6000.0, jerk=40000.0, rapid=1000.0)
+    fast = MotionLimits(feed=1000.0, accel=6000.0, jerk=40000.0, rapid=1000.0)
     v, a, j = fast.feed, fast.accel, fast.jerk
     expected = n * (2000.0 / v + a / j + v / a + 4 * np.cbrt(sod / (2 * j)))
     assert parallel_passes_segment_time(2000.0, 28.0, sod, fast) == pytest.approx(expected, rel=1e-12)
@@ -244,7 +244,7 @@ def test_times_are_equal_at_the_critical_slope(mu, chi):
 def test_critical_slope_when_the_cubic_has_three_real_roots():
     """Δ = 4p³ - 27q² ≥ 0 needs h below about the stepover (here V = 10 mm/s, χ = 0.01 mm²):
     the trigonometric form still gives the one positive root."""
-    slow = Kinematics(feed=10.0, accel=6000.0, jerk=40000.0, rapid=10.0)
+    slow = MotionLimits(feed=10.0, accel=6000.0, jerk=40000.0, rapid=10.0)
     s_c = critical_slope(4.0, 0.01, *TOOL, slow)
     assert 0.0 < s_c < np.pi / 2
     t2 = time_ball_principal(4.0, 0.01, R, SH, slow)
@@ -314,7 +314,7 @@ def test_choice_warns_where_the_closed_forms_do_not_hold():
     flat = choose_tool(planar_choice(56.0**2 / 12, 28.0**2 / 12, 0.0, 0.0, deg(30.0)), *TOOL, KIN)
     assert flat.tool == "toric" and flat.azimuth == pytest.approx(deg(30.0), abs=1e-9)
     assert any("horizontal" in w for w in flat.warnings) and any("flat bottom" in w for w in flat.warnings)
-    fast = Kinematics(feed=1000.0, accel=6000.0, jerk=40000.0, rapid=1000.0)
+    fast = MotionLimits(feed=1000.0, accel=6000.0, jerk=40000.0, rapid=1000.0)
     rect = planar_choice(56.0**2 / 12, 28.0**2 / 12, deg(60.0), 0.0, deg(90.0))
     assert any("A_max" in w for w in choose_tool(rect, *TOOL, fast).warnings)
     # the mean pointwise slope and the plane's slope straddle s_c: the choice is flagged

@@ -68,7 +68,7 @@ def test_report_is_self_contained(report):
 
 
 def test_report_thins_big_paths_and_says_so(runs, tmp_path, monkeypatch):
-    from meshmill import report as rep
+    from meshmill import htmlreport as rep
 
     monkeypatch.setattr(rep, "MAX_PATH_POINTS", 50)
     info = rep.write_report([str(runs / "finish")], str(tmp_path / "r.html"))
@@ -76,7 +76,7 @@ def test_report_thins_big_paths_and_says_so(runs, tmp_path, monkeypatch):
 
 
 def test_thinned_path_keeps_rapid_moves_apart(runs, monkeypatch):
-    from meshmill import report as rep
+    from meshmill import htmlreport as rep
 
     run = rep.read_run(str(runs / "plunge"))
     monkeypatch.setattr(rep, "MAX_PATH_POINTS", len(run.toolpath) // 5)
@@ -100,7 +100,7 @@ def test_report_bad_input_is_one_line(runs, tmp_path, capsys):
 
 
 def test_deviation_colours_bound_the_tolerance_classes():
-    from meshmill.report import deviation_colours
+    from meshmill.htmlreport import deviation_colours
 
     scale, lim = deviation_colours(0.01)
     assert lim == pytest.approx(0.03)
@@ -114,6 +114,7 @@ def test_deviation_colours_bound_the_tolerance_classes():
 
 
 @pytest.mark.skipif(not os.path.exists(CHROMIUM), reason="no system Chromium (apt-get install chromium)")
+@pytest.mark.slow
 def test_report_loads_in_a_real_browser(report, tmp_path):
     pw = pytest.importorskip("playwright.sync_api")
     out, info = report

@@ -41,6 +41,7 @@ def inside_tool(p, tip, x, R, r, F):
 
 @pytest.mark.parametrize("tool", [BALL, FLAT, BULL])
 @pytest.mark.parametrize("turn", [0.0, 0.01])
+@pytest.mark.slow
 def test_swept_interval_matches_dense_sampling(tool, turn):
     """Line against the swept volume of a move (split as the simulation splits turning moves)
     equals the union of densely sampled poses, within the sampling and SWEEP_TOL."""
@@ -295,6 +296,7 @@ def test_dexel_command(tmp_path, capsys):
         assert "no usable CUDA GPU" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_ball_fast_path_cuts_what_the_whole_tool_cuts():
     """Ball-end moves are cut with the ball alone unless material lies where only the flutes
     reach: on random lines with random material, both give the same material left."""
@@ -352,6 +354,7 @@ def test_subtract_cases_and_growing_room():
     np.testing.assert_array_equal(st.to_model().iv[2], before.iv[2])
 
 
+@pytest.mark.slow
 def test_review_cases_turning_flat_empty_stock_and_bad_axes():
     # a flat cutter whose axis turns by 1e-6 rad along a long move cuts the whole slot
     d = dexelize(box((0, 0, 0), (40, 20, 10)), 0.2)

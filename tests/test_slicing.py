@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 
-from meshmill.geometry.bvh import build_bvh
+from meshmill.kernels.bvh import build_bvh
 from meshmill.geometry.mesh import mesh_from_arrays
 from meshmill.geometry.shapes import box, revolve, sphere
 from meshmill.geometry.slicing import slice_contours, z_levels

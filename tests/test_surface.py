@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from meshmill.choice.surface import (_basis, bezier, cell_samples, load_patch, make_patch, mesh_samples, mesh_surface,
+from meshmill.geometry.patches import (_basis, bezier, cell_samples, load_patch, make_patch, mesh_samples, mesh_surface,
                                      patch_mesh)
 from meshmill.errors import InputError
 from meshmill.geometry.mesh import mesh_from_arrays
@@ -110,7 +110,7 @@ def test_patch_mesh_keeps_its_chord_tolerance():
     fine = patch_mesh(patch, 5.0, chord_tol=0.0025)
     assert fine.chord_error <= 0.0025 and fine.step < 1.0
     # measured independently: random points of the patch against the triangles
-    from meshmill.geometry.bvh import build_bvh
+    from meshmill.kernels.bvh import build_bvh
     from meshmill.kernels.backend import MeshKernels
     rng = np.random.default_rng(3)
     u, v = rng.random(300), rng.random(300)

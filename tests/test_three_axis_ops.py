@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from meshmill.errors import InputError
-from meshmill.geometry.bvh import build_bvh
+from meshmill.kernels.bvh import build_bvh
 from meshmill.geometry.mesh import load_mesh
 from meshmill.geometry.shapes import box, revolve, sphere
-from meshmill.ops.dropcutter import ToolDrop
+from meshmill.pathing.dropcutter import ToolDrop
 from meshmill.ops.raster import RasterParams, raster, stepover_for_scallop
 from meshmill.ops.waterline import WaterlineParams, waterline
 from meshmill.tools.table import tool_from_entry
@@ -112,6 +112,7 @@ ocl = pytest.importorskip("opencamlib", reason="OpenCAMLib is a test-only peer")
 
 
 @pytest.mark.parametrize("part, frac", [("pycam-textbox", 0.7), ("sphere_on_plate", 0.37), ("beet_mm", 0.45)])
+@pytest.mark.slow
 def test_waterline_near_opencamlib(cutters, part, frac):
     path = PARTS / f"{part}.stl"
     if not path.exists():
@@ -156,7 +157,7 @@ def _box_distance_xy(xy, lo, hi):
 
 def test_raster_keeps_the_holder_out_of_the_allowance(cutters):
     from meshmill.geometry.mesh import mesh_from_arrays
-    from meshmill.ops.verify import StockCheck, verify_toolpath
+    from meshmill.pathing.verify import StockCheck, verify_toolpath
 
     # a plate with a tower much taller than R6's gauge length (holder radius 15 from 40 mm up)
     plate, tower = box([0, 0, 0], [60, 40, 2]), box([25, 15, 0], [35, 25, 70])

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from meshmill.geometry.shapes import box
-from meshmill.ops.verify import verify_toolpath
+from meshmill.pathing.verify import verify_toolpath
 from meshmill.toolpath.model import Toolpath
 from meshmill.tools.table import tool_from_entry
 
@@ -134,7 +134,7 @@ def test_a_tool_buried_in_the_part_is_a_gouge(tools):
 
 def test_rapids_keep_clear_of_the_stock(tools):
     from meshmill.kernels.backend import solid_kernels
-    from meshmill.ops.verify import StockCheck
+    from meshmill.pathing.verify import StockCheck
 
     part = box([0, 0, 0], [20, 20, 10])
     # B10 passes at rapid 0.3 mm over the top: clear of the part, inside a 0.5 mm allowance
@@ -176,7 +176,7 @@ def test_an_open_sheet_has_material_below_it(tools):
 
 def test_shank_and_holder_of_feed_moves_stay_out_of_the_stock(tools):
     from meshmill.kernels.backend import solid_kernels
-    from meshmill.ops.verify import StockCheck
+    from meshmill.pathing.verify import StockCheck
 
     m = box([0, 0, 0], [10, 10, 100])
     # B6's holder (radius 16 from 45 mm up) runs 0.3 mm from the wall x = 0, the ball far from it:

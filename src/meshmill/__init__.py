@@ -1,2 +1,26 @@
-"""meshmill: exact, fast, verified multi-axis milling tool paths from triangle meshes."""
+"""meshmill: exact, fast, verified multi-axis milling tool paths from triangle meshes.
+
+The operations are functions of :mod:`meshmill.api`, reachable from here (``meshmill.finish``,
+``meshmill.load_part``, ...); they are imported on first use, so ``import meshmill`` is quick.
+"""
 __version__ = "0.1.0"
+
+API = ("load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline", "plunge",
+       "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report")
+__all__ = [*API, "InputError", "__version__"]
+
+
+def __getattr__(name):
+    if name in API:
+        from . import api
+
+        return getattr(api, name)
+    if name == "InputError":
+        from .errors import InputError
+
+        return InputError
+    raise AttributeError(f"module 'meshmill' has no attribute '{name}'")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import time
@@ -14,6 +13,7 @@ import time
 from . import __version__, memory
 from .errors import InputError
 from .runfiles import RunFiles
+from .runfolder import FOLDER_OUTPUTS
 from .tolerances import GOUGE_TOL, HOLDER_CLEARANCE
 
 
@@ -23,18 +23,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 _status_line = [False]  # a progress line is open on the terminal (to be ended before other text)
-_run = [None]  # the result files of the command running (RunFiles), committed when it succeeds
-
-# the files each command writes into its --out folder, the summary last
-FOLDER_OUTPUTS = {
-    "finish": ("contours.npz", "toolpath.cl", "part.stl", "summary.json"),
-    "raster": ("toolpath.cl", "part.stl", "summary.json"),
-    "waterline": ("toolpath.cl", "part.stl", "summary.json"),
-    "plunge": ("toolpath.cl", "part.stl", "summary.json"),
-    "simulate": ("deviation.npz", "machined.stl", "deviation.json", "summary.json"),
-    "analyze": ("analysis.npz", "summary.json"),
-    "choose": ("tools.toml", "toolpath.cl", "zones.npz", "summary.json"),
-}
+_run = [None]  # the result files of the command running (RunFiles): earlier results go at once
 
 
 def _quiet(args):
@@ -85,14 +74,6 @@ def _finish_json(args, summary):
         sys.stdout.write("\n")
 
 
-def _device(args):
-    """The backend for ``--device`` (auto: CUDA when a usable GPU is present); the commands say it
-    with their results."""
-    from .kernels.backend import resolve
-
-    return resolve(args.device)
-
-
 def _add_setup(parser):
     """``--units``, ``--up``, ``--origin``: how the part file is set up on the machine."""
     from .geometry.placement import ORIGINS, UNITS
@@ -115,45 +96,26 @@ def _add_device(parser):
                              "auto: the GPU when a usable one is present (auto)")
 
 
-def _setup(args):
-    """The :class:`~meshmill.geometry.placement.Setup` of ``--units``, ``--up`` and ``--origin``."""
-    from .geometry.placement import Setup
+def _load_part(args, path, placed=True):
+    """The part ``path`` placed into the work frame by ``--units``, ``--up``, ``--scale``,
+    ``--origin`` and ``--flip`` (``placed=False``: a file already in the work frame, a stock),
+    its warnings said."""
+    from . import api
 
-    setup = Setup(units=getattr(args, "units", "mm"), up=getattr(args, "up", "+Z"),
-                  origin=getattr(args, "origin", "file"), scale=getattr(args, "scale", 1.0))
-    setup.check()
-    return setup
-
-
-def _load_part(args, path, flip=None, placed=True):
-    """The part ``path`` (its faces turned over with ``--flip``) placed into the work frame by
-    ``--units``, ``--up`` and ``--origin`` (``placed=False``: a file already in the work frame, a
-    stock), its warnings said."""
-    from .geometry.mesh import load_mesh
-
-    mesh = load_mesh(path, flip=getattr(args, "flip", False) if flip is None else flip,
-                     setup=_setup(args) if placed else None)
+    if placed:
+        mesh = api.load_part(path, units=args.units, up=args.up, origin=args.origin, scale=args.scale,
+                             flip=getattr(args, "flip", False))
+    else:
+        mesh = api.load_part(path)
     for w in mesh.warnings:
         _say(args, f"warning: {w}")
     return mesh
 
 
-def _write_part(path, mesh):
-    """The placed part as a binary STL (mm, work frame), for any program to check a path against."""
-    import trimesh
-
-    trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(path, file_type="stl")
-
-
-def _stock_mesh(args):
-    """The closed stock mesh of ``--stock FILE``, or None."""
+def _stock(args):
+    """The stock mesh of ``--stock FILE`` (its warnings said), or None."""
     path = getattr(args, "stock", None)
-    if path in (None, "box"):
-        return None
-    stock = _load_part(args, path, flip=False, placed=False)
-    if not stock.closed:
-        raise InputError(f"{path}: the stock mesh is open (not watertight)")
-    return stock
+    return None if path in (None, "box") else _load_part(args, path, placed=False)
 
 
 def _add_stock(parser, allowance_flag="--stock-allowance", default=None):
@@ -172,40 +134,27 @@ def _add_stock(parser, allowance_flag="--stock-allowance", default=None):
 
 def _tools_beside(args):
     """The tool table of ``--tools``, else the ``tools.toml`` beside ``args.toolpath`` (as choose
-    writes it); sets ``args.tools`` to the file read."""
-    from .tools.table import load_tools
+    writes it)."""
+    from . import api
 
-    if args.tools is None:
-        beside = os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "tools.toml")
-        if not os.path.exists(beside):
+    path = args.tools
+    if path is None:
+        path = os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "tools.toml")
+        if not os.path.exists(path):
             raise InputError(f"no --tools given and no tools.toml beside {args.toolpath}: give the tool table")
-        args.tools = beside
-    return load_tools(args.tools)
-
-
-def _write_json(path, data):
-    try:
-        with open(path, "w") as fh:
-            json.dump(data, fh, indent=2, default=float)
-            fh.write("\n")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot write ({exc.strerror})") from None
+    return api.load_tools(path)
 
 
 def _results(paths) -> RunFiles:
-    """The result files of this run (earlier results under their names are removed now; the new
-    ones appear when the command succeeds)."""
+    """The result files of this run: earlier results under their names are removed now, whatever
+    fails next; the new ones appear when the command saves them."""
     _run[0] = RunFiles(paths)
     return _run[0]
 
 
-def _folder_results(command, out) -> tuple[str, RunFiles]:
-    """``(folder, RunFiles)`` of a command that writes :data:`FOLDER_OUTPUTS` into ``out`` (made
-    once a run, by :func:`main` before the command checks its options)."""
-    paths = [os.path.abspath(os.path.join(out, name)) for name in FOLDER_OUTPUTS[command]]
-    if _run[0] is not None and _run[0].paths == paths:
-        return out, _run[0]
-    return out, _results(paths)
+def _default_out(command):
+    return {"finish": "out", "raster": "out", "waterline": "out", "plunge": "out", "simulate": "sim",
+            "analyze": "analysis", "choose": "choose"}[command]
 
 
 def _clear_after_usage_error(argv):
@@ -213,8 +162,7 @@ def _clear_after_usage_error(argv):
     own: remove the results in the folder its ``--out`` names (or the default folder)."""
     if not argv or argv[0] not in FOLDER_OUTPUTS:
         return
-    out = {"finish": "out", "raster": "out", "waterline": "out", "plunge": "out", "simulate": "sim",
-           "analyze": "analysis", "choose": "choose"}[argv[0]]
+    out = _default_out(argv[0])
     for i, a in enumerate(argv):
         if a == "--out" and i + 1 < len(argv):
             out = argv[i + 1]
@@ -227,49 +175,22 @@ def _clear_after_usage_error(argv):
             pass
 
 
+def _options(args, *names):
+    """``{name: args.name}``: the API's keyword arguments of the same names as the options."""
+    return {n: getattr(args, n) for n in names}
+
+
 def cmd_finish(args):
-    import numpy as np
+    from . import api
 
-    from .ops.finish import FinishParams, finish
-    from .tools.table import load_tools
-    from .toolpath.cldata import write_apt
-
-    out, run = _folder_results("finish", args.out)
-    t0 = time.perf_counter()
-    tools = load_tools(args.tools)
+    tools = api.load_tools(args.tools)
     mesh = _load_part(args, args.part)
-    load_s = time.perf_counter() - t0
-    params = FinishParams(step_down=args.step_down, sample=args.sample, max_tilt=args.max_tilt,
-                          tilt_step=args.tilt_step, order=args.order, safe_z=args.safe_z, tol=args.tolerance,
-                          clearance=args.clearance, lead=args.lead, stock_allowance=args.stock_allowance,
-                          min_run=args.min_run, whole_contours=args.whole_contours, scallop=args.scallop)
-    params.check()
-    stock = _stock_mesh(args)
-    device = _device(args)
-    machine = None
-    if args.machine:
-        from .machine.config import load_machine
-
-        machine = load_machine(args.machine)
-    tp, summary, detail = finish(mesh, tools, params, progress=_progress(args), device=device, stock=stock,
-                                 machine=machine)
-    summary["device"] = device
-    summary["tools_file"] = os.path.abspath(args.tools)
-    con = detail["contours"]
-    from .ops.finish import AREA_STATUS
-
-    np.savez_compressed(run.tmp(os.path.join(out, "contours.npz")), points=con.points, offsets=con.offsets, z=con.z,
-                        closed=con.closed, machinable=detail["contour_tool"] >= 0,
-                        surface_points=detail["surface_points"], surface_status=detail["surface_status"],
-                        status_names=np.array(AREA_STATUS), raster_from=detail["raster_from"],
-                        raster_reach=detail["raster_reach"])
-    summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
-    summary["seconds"]["load"] = round(load_s, 4)
-    summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
-    write_apt(run.tmp(os.path.join(out, "toolpath.cl")), tp, tools, partno=os.path.basename(args.part))
-    _write_part(run.tmp(os.path.join(out, "part.stl")), mesh)
-    _write_json(run.tmp(os.path.join(out, "summary.json")), summary)
-    run.commit()
+    res = api.finish(mesh, tools, stock=_stock(args), progress=_progress(args),
+                     **_options(args, "step_down", "sample", "max_tilt", "tilt_step", "order", "safe_z", "tolerance",
+                                "clearance", "lead", "machine", "scallop", "min_run", "whole_contours",
+                                "stock_allowance", "device"))
+    res.save(args.out)
+    summary = res.summary
     v = summary["verify"]
     _say(args, f"contours {summary['contours']} (machinable {summary['machinable_contours']}), "
                f"CC points {summary['cc_points']}, left out {summary['points_left_out']}, "
@@ -278,127 +199,72 @@ def cmd_finish(args):
         _say(args, f"  {name}: {entry['contours']} contour(s), {entry['cc_points']} CC points")
     _say(args, f"verify: {'OK' if v['ok'] else 'PROBLEMS'} ({v['poses_checked']} poses, max gouge "
                f"{v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
-    _say(args, f"wrote {os.path.join(out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
+    _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
                f"(device {summary['device']})")
     _finish_json(args, summary)
-    return 0 if v["ok"] else 1
+    return 0 if res.ok else 1
 
 
-def _three_axis(args, run):
-    """Shared tail of raster, waterline and plunge: load, run, write toolpath.cl and summary.json."""
-    from .tools.table import load_tools
-    from .toolpath.cldata import write_apt
+def _three_axis(args, run, **options):
+    """raster, waterline and plunge: load, run ``run`` (the API's function), save, say."""
+    from . import api
 
-    out, files = _folder_results(args.command, args.out)
-    t0 = time.perf_counter()
-    tools = load_tools(args.tools)
+    tools = api.load_tools(args.tools)
     mesh = _load_part(args, args.part)
-    load_s = time.perf_counter() - t0
-    device = _device(args)
-    tp, summary = run(mesh, tools, device)
-    summary["device"] = device
-    summary["tools_file"] = os.path.abspath(args.tools)
-    summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
-    summary["seconds"]["load"] = round(load_s, 4)
-    summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
-    write_apt(files.tmp(os.path.join(out, "toolpath.cl")), tp, tools, partno=os.path.basename(args.part))
-    _write_part(files.tmp(os.path.join(out, "part.stl")), mesh)
-    _write_json(files.tmp(os.path.join(out, "summary.json")), summary)
-    files.commit()
+    res = run(mesh, tools, tool=args.tool, device=args.device, progress=_progress(args), **options)
+    res.save(args.out)
+    summary = res.summary
+    if "simulation" in summary:
+        s = summary["simulation"]
+        _say(args, f"simulated at {s['step']:g} mm: removed {s['removed_volume']:.1f} of {s['stock_volume']:.1f} mm^3, "
+                   f"{s['remaining_volume']:.1f} mm^3 left over the part")
     v = summary["verify"]
     _say(args, f"{summary['cl_points']} CL points, {summary['moves']} moves; verify: {'OK' if v['ok'] else 'PROBLEMS'} "
                f"(max gouge {v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
-    _say(args, f"wrote {os.path.join(out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
+    _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
                f"(device {summary['device']})")
     _finish_json(args, summary)
-    return 0 if v["ok"] else 1
+    return 0 if res.ok else 1
 
 
 def cmd_raster(args):
-    from .ops.raster import RasterParams, raster
+    from . import api
 
-    params = RasterParams(stepover=args.stepover, scallop=args.scallop, angle=args.angle, sample=args.sample,
-                          tol=args.tolerance, stock_allowance=args.stock_allowance, clearance=args.clearance)
-    params.check()
-    return _three_axis(args, lambda mesh, tools, device: raster(mesh, tools, args.tool, params, progress=_progress(args),
-                                                                 device=device, stock=_stock_mesh(args)))
+    return _three_axis(args, api.raster, stock=_stock(args),
+                       **_options(args, "stepover", "scallop", "angle", "sample", "tolerance", "clearance",
+                                  "stock_allowance"))
 
 
 def cmd_waterline(args):
-    from .ops.waterline import WaterlineParams, waterline
+    from . import api
 
-    params = WaterlineParams(step_down=args.step_down, sample=args.sample, tol=args.tolerance,
-                             stock_allowance=args.stock_allowance, clearance=args.clearance)
-    params.check()
-
-    def run(mesh, tools, device):
-        tp, summary, _ = waterline(mesh, tools, args.tool, params, progress=_progress(args), device=device,
-                                   stock=_stock_mesh(args))
-        return tp, summary
-
-    return _three_axis(args, run)
+    return _three_axis(args, api.waterline, stock=_stock(args),
+                       **_options(args, "step_down", "sample", "tolerance", "clearance", "stock_allowance"))
 
 
 def cmd_plunge(args):
-    from .ops.plunge import PlungeParams, plunge3, plunge5
+    from . import api
 
-    params = PlungeParams(radial_step=args.radial_step, engagement=args.engagement, allowance=args.allowance,
-                          clearance=args.clearance, theta_step=args.theta_step, delta_step=args.delta_step,
-                          regions=args.regions)
-    run = plunge3 if args.axes == 3 else plunge5
-    if args.simulate is not None and not (math.isfinite(args.simulate) and args.simulate > 0):
-        raise InputError(f"--simulate must be a positive dexel step in mm, got {args.simulate}")
-
-    def plunge_and_simulate(mesh, tools, device):
-        params.device = device
-        tp, summary = run(mesh, tools, args.tool, params, progress=_progress(args))
-        if args.simulate is not None:
-            from .ops.simulate import simulate
-
-            dev, sim, *_ = simulate(mesh, tp, tools, args.simulate, stock="box", progress=_progress(args),
-                                    device=device)
-            v = sim["volumes_mm3"]
-            summary["simulation"] = {"step": args.simulate, "stock_volume": v["stock"], "removed_volume": v["removed"],
-                                     "remaining_volume": v["remaining"], "gouged_volume": v["gouged"],
-                                     "gouge_max": dev["gouge_max"], "seconds": sim["seconds"]["total"]}
-            _say(args, f"simulated at {args.simulate:g} mm: removed {v['removed']:.1f} of {v['stock']:.1f} mm^3, "
-                       f"{v['remaining']:.1f} mm^3 left over the part")
-        return tp, summary
-
-    return _three_axis(args, plunge_and_simulate)
+    return _three_axis(args, api.plunge, **_options(args, "allowance", "axes", "radial_step", "engagement",
+                                                      "theta_step", "delta_step", "regions", "clearance", "simulate"))
 
 
 def cmd_verify(args):
-    from .kernels.backend import solid_kernels
-    from .machine.config import load_machine
-    from .ops.simulate import read_toolpath
-    from .ops.verify import StockCheck, verify_toolpath
-    from .tools.table import load_tools
+    from . import api
 
-    run = _results([args.out]) if args.out else None
-    if not (math.isfinite(args.step) and args.step >= 1e-4):
-        raise InputError(f"--step must be a finite number of at least 0.0001 mm, got {args.step}")
-    if not (math.isfinite(args.tolerance) and args.tolerance >= 0):
-        raise InputError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
-    if not (math.isfinite(args.stock_allowance) and args.stock_allowance >= 0):
-        raise InputError(f"--allowance must be a number of mm >= 0, got {args.stock_allowance}")
-    tools = load_tools(args.tools)
-    machine = load_machine(args.machine) if args.machine else None
+    if args.out:
+        _results([args.out])
+    tools = api.load_tools(args.tools)
     mesh = _load_part(args, args.part)
-    stock = _stock_mesh(args)
-    tp, warnings = read_toolpath(args.toolpath, tools, machine=machine)
-    for w in warnings:
+    stock = _stock(args)
+    tp = api.load_toolpath(args.toolpath, tools, machine=args.machine)
+    for w in tp.warnings:
         _say(args, f"warning: {w}")
-    device = _device(args)
-    floor = min(mesh.bounds[0, 2], stock.bounds[0, 2]) if stock is not None else None
-    check = StockCheck(allowance=0.0 if stock is not None else args.stock_allowance,
-                       kern=solid_kernels(stock, device) if stock is not None else None)
-    report = verify_toolpath(solid_kernels(mesh, device, floor), tp, tools, args.tolerance, args.step,
-                             worst=args.worst, stock=check)
-    report.pop("problem_moves")
-    if run:
-        _write_json(run.tmp(args.out), report)
-        run.commit()
+    res = api.verify(mesh, tp, tools, stock=stock, allowance=args.stock_allowance,
+                     **_options(args, "tolerance", "step", "worst", "device"))
+    if args.out:
+        res.save(args.out)
+    report = res.report
     pieces = 0 < report["lines"] < report["moves"]  # G-code: arcs and rotary blocks are read as several moves
 
     def count(n, kind):
@@ -408,44 +274,35 @@ def cmd_verify(args):
     print(f"{report['moves']} moves" + (f" from {report['lines']} program lines" if pieces else "")
           + f", {report['poses_checked']} poses checked: "
           f"{count(report['gouging_moves'], 'gouge')} gouging, {count(report['colliding_moves'], 'collision')} colliding, "
-          f"{count(report['rapid_moves_touching'], 'rapid')} rapid into the {'stock' if stock is not None or args.stock_allowance else 'part'}; max gouge {report['max_gouge']:.4f} mm, "
-          f"max collision {report['max_collision']:.4f} mm (tolerance {report['tolerance']} mm; device {device})")
+          f"{count(report['rapid_moves_touching'], 'rapid')} rapid into the {'stock' if res.stock_checked else 'part'}; "
+          f"max gouge {report['max_gouge']:.4f} mm, "
+          f"max collision {report['max_collision']:.4f} mm (tolerance {report['tolerance']} mm; device {res.device})")
     for line in report["worst"]:
         print("  " + line)
-    print("OK" if report["ok"] else "PROBLEMS FOUND")
-    return 0 if report["ok"] else 1
+    print("OK" if res.ok else "PROBLEMS FOUND")
+    return 0 if res.ok else 1
 
 
 def cmd_dexel(args):
-    from .ops.simulate import dexel_model
-    from .simulation.dexel import export_td, save_npz
+    from . import api
 
-    if args.index != "bvh" and args.device == "auto":
-        args.device = "cpu"  # the seed's indexes run on the CPU only
     out = args.out or os.path.splitext(os.path.basename(args.part))[0] + ".dexel.npz"
     if not out.lower().endswith((".td", ".npz")):
         out += ".npz"
-    folder = os.path.dirname(os.path.abspath(out))
-    run = _results([out, os.path.join(folder, "summary.json")])
+    _results([out, os.path.join(os.path.dirname(os.path.abspath(out)), "summary.json")])
     mesh = _load_part(args, args.part)
-    device = _device(args)
-    model, summary = dexel_model(mesh, args.step, args.index, args.partitions, args.init, args.minibatch,
-                                 args.kmax, progress=_progress(args), device=device)
-    model.name = os.path.basename(args.part)
-    if out.lower().endswith(".td"):
-        export_td(run.tmp(out), model)
-    else:
-        save_npz(run.tmp(out), model)
-    summary["part"] = {"file": os.path.abspath(args.part), **mesh.summary()}
-    summary["file"] = os.path.abspath(out)
-    _write_json(run.tmp(os.path.join(folder, "summary.json")), summary)
-    run.commit()
+    res = api.dexel(mesh, progress=_progress(args),
+                    **_options(args, "step", "index", "partitions", "kmax", "init", "minibatch", "device"))
+    res.save(out)
+    summary = res.summary
     for w in summary["warnings"]:
         _say(args, f"warning: {w}")
     d = summary["dexels"]
     _say(args, f"dexels X {d['X']:,}, Y {d['Y']:,}, Z {d['Z']:,}; volume {summary['volume_mm3']:.3f} mm^3 "
-               f"(mesh {_mesh_volume(mesh):.3f}); cast in {model.info['cast_seconds']:.2f} s with {model.info['index']}")
-    _say(args, f"wrote {out} and {os.path.join(folder, 'summary.json')} (device {device})")
+               f"(mesh {_mesh_volume(mesh):.3f}); cast in {res.model.info['cast_seconds']:.2f} s with "
+               f"{res.model.info['index']}")
+    _say(args, f"wrote {out} and {os.path.join(os.path.dirname(os.path.abspath(out)), 'summary.json')} "
+               f"(device {summary['device']})")
     _finish_json(args, summary)
     return 0
 
@@ -458,42 +315,18 @@ def _mesh_volume(mesh):
 
 
 def cmd_simulate(args):
-    import numpy as np
+    from . import api
 
-    from .machine.config import load_machine
-    from .ops.simulate import read_toolpath, simulate
-    from .tools.table import load_tools
-
-    out, run = _folder_results("simulate", args.out)
-    if not (math.isfinite(args.step) and args.step > 0):
-        raise InputError(f"--step must be a positive number of mm, got {args.step}")
-    tools = load_tools(args.tools)
+    tools = api.load_tools(args.tools)
     design = _load_part(args, args.design)
-    stock = "box"
-    if args.stock not in (None, "box"):
-        stock = _load_part(args, args.stock, flip=False, placed=False)
-        if not stock.closed:
-            raise InputError(f"{args.stock}: the stock mesh is open (not watertight)")
-    machine = load_machine(args.machine) if args.machine else None
-    tp, warnings = read_toolpath(args.toolpath, tools, args.tool, machine)
-    for w in warnings:
+    stock = _stock(args)
+    tp = api.load_toolpath(args.toolpath, tools, tool=args.tool, machine=args.machine)
+    for w in tp.warnings:
         _say(args, f"warning: {w}")
-    device = _device(args)
-    deviation, summary, _, (verts, faces), samples = simulate(
-        design, tp, tools, args.step, stock=stock, allowance=args.allowance, tolerance=args.tolerance,
-        mode=args.mode, progress=_progress(args), device=device)
-    summary["device"] = device
-    summary["tools_file"] = os.path.abspath(args.tools)
-    np.savez_compressed(run.tmp(os.path.join(out, "deviation.npz")), points=samples["points"], e=samples["e"])
-    summary["design"] = {"file": os.path.abspath(args.design), **design.summary()}
-    summary["toolpath"] = {"file": os.path.abspath(args.toolpath), "warnings": warnings}
-    if len(faces):
-        import trimesh
-
-        trimesh.Trimesh(verts, faces, process=False).export(run.tmp(os.path.join(out, "machined.stl")))
-    _write_json(run.tmp(os.path.join(out, "deviation.json")), deviation)
-    _write_json(run.tmp(os.path.join(out, "summary.json")), summary)
-    run.commit()
+    res = api.simulate(design, tp, tools, stock="box" if stock is None else stock, progress=_progress(args),
+                       **_options(args, "step", "allowance", "tolerance", "mode", "device"))
+    res.save(args.out)
+    summary, deviation = res.summary, res.deviation
     for w in summary["warnings"]:
         _say(args, f"warning: {w}")
     _end_status()
@@ -506,53 +339,20 @@ def cmd_simulate(args):
     _say(args, f"gouge max {deviation['gouge_max']:.4f} mm at {deviation['gouge_at']}; excess max "
                f"{deviation['excess_max']:.4f} mm; removed {deviation['removed_volume']:.1f} mm^3, remaining "
                f"{deviation['remaining_volume']:.1f} mm^3")
-    _say(args, f"wrote deviation.json, summary.json, machined.stl in {out} ({summary['seconds']['total']:.1f} s, "
-               f"device {device})")
+    _say(args, f"wrote deviation.json, summary.json, machined.stl in {args.out} ({summary['seconds']['total']:.1f} s, "
+               f"device {summary['device']})")
     _finish_json(args, summary)
-    return 1 if summary["rapid_moves_cutting"] or summary["colliding_moves"] else 0
+    return 0 if res.ok else 1
 
 
 def cmd_analyze(args):
-    import numpy as np
+    from . import api
 
-    from .geometry import analysis
-    from .geometry.bvh import build_bvh
-
-    out, run = _folder_results("analyze", args.out)
-    try:
-        direction = [float(v) for v in args.direction.split(",")]
-    except ValueError:
-        raise InputError(f"--direction must be three numbers X,Y,Z, got '{args.direction}'") from None
-    if len(direction) != 3:
-        raise InputError(f"--direction must be three numbers X,Y,Z, got '{args.direction}'")
     mesh = _load_part(args, args.part)
-    t0 = time.perf_counter()
-    bvh = build_bvh(mesh.vertices, mesh.faces)
-    tri = analysis.triangle_parameters(mesh)
-    normals = analysis.vertex_normals(mesh, args.weighting)
-    flags = analysis.visibility(mesh, direction, args.weighting, bvh)
-    seconds = {"visibility": round(time.perf_counter() - t0, 4)}
-    summary = {
-        "part": {"file": os.path.abspath(args.part), **mesh.summary()},
-        "direction": analysis.unit_direction(direction).round(9).tolist(),
-        "weighting": args.weighting,
-        "area_mm2": {"total": float(tri["area"].sum()), "min": float(tri["area"].min()), "max": float(tri["area"].max())},
-        "boundary_edges": int((tri["neighbours"] < 0).sum()),
-        **{k: int(v.sum()) for k, v in flags.items()},
-    }
-    arrays = {"vertex_normals": normals, **tri, **flags}
-    if args.theta_step is not None:
-        t1 = time.perf_counter()
-        dirs = analysis.hemisphere(args.theta_step, args.delta_step)
-        share, reached = analysis.accessibility_map(mesh, dirs, bvh)
-        seconds["map"] = round(time.perf_counter() - t1, 4)
-        summary["map"] = {"directions": len(dirs), "best_direction": dirs[int(np.argmax(share))].round(9).tolist(),
-                          "best_share": float(share.max()), "never_reached_triangles": int((reached == 0).sum())}
-        arrays.update(map_directions=dirs, map_share=share, triangles_reached=reached)
-    summary["seconds"] = seconds
-    np.savez_compressed(run.tmp(os.path.join(out, "analysis.npz")), **arrays)
-    _write_json(run.tmp(os.path.join(out, "summary.json")), summary)
-    run.commit()
+    res = api.analyze(mesh, progress=_progress(args),
+                      **_options(args, "direction", "weighting", "theta_step", "delta_step", "device"))
+    res.save(args.out)
+    summary, seconds = res.summary, res.summary["seconds"]
     _say(args, f"{summary['visible_triangles']} of {len(mesh.faces)} triangles visible along {summary['direction']}, "
                f"{summary['accessible_triangles']} accessible; {summary['accessible_vertices']} of {len(mesh.vertices)} "
                f"vertices accessible ({seconds['visibility']:.2f} s)")
@@ -560,21 +360,14 @@ def cmd_analyze(args):
         m = summary["map"]
         _say(args, f"map over {m['directions']} directions: best {m['best_direction']} reaches {100 * m['best_share']:.1f} % "
                    f"of the area; {m['never_reached_triangles']} triangles reached by none")
-    _say(args, f"wrote analysis.npz and summary.json in {out}")
+    _say(args, f"wrote analysis.npz and summary.json in {args.out}")
     return 0
 
 
 def cmd_report(args):
-    from .report import write_report
+    from . import api
 
-    out = args.out
-    folder = os.path.dirname(os.path.abspath(out))
-    if not os.path.isdir(folder):
-        raise InputError(f"{folder}: no such folder for --out")
-    run = _results([out])
-    info = write_report(args.folders, run.tmp(out), progress=_progress(args))
-    run.commit()
-    info["file"] = os.path.abspath(out)
+    info = api.report(args.folders, args.out, progress=_progress(args))
     for r in info["runs"]:
         for n in r["notes"]:
             _say(args, f"note: {r['folder']}: {n}")
@@ -590,58 +383,21 @@ def _clock(seconds):
 
 
 def cmd_time(args):
-    import numpy as np
+    from . import api
 
-    from .machine.config import load_machine
-    from .machine.timing import programmed_feeds, rotary_seconds, tool_times
-    from .ops.simulate import TOOLPATH_GCODE, read_toolpath
-
-    run = _results([args.out]) if args.out else None
-    if args.feed is not None and not (math.isfinite(args.feed) and args.feed > 0):
-        raise InputError(f"--feed must be a positive number of mm/min, got {args.feed}")
-    machine = load_machine(args.machine)
-    tools = _tools_beside(args)
-    is_gcode = os.path.splitext(args.toolpath)[1].lower() in TOOLPATH_GCODE
-    tp, warnings = read_toolpath(args.toolpath, tools, args.tool, machine if is_gcode else None)
-    feed_move = ~tp.rapid[1:]
-    nominal = f"the machine's {machine.kinematics.feed * 60.0:g} mm/min"
-    if args.feed is not None:
-        feed, unset = np.full(len(tp), args.feed / 60.0), 0
-        notes = [f"feed {args.feed:g} mm/min (--feed) on every feed move"]
-    else:
-        feed, more = programmed_feeds(args.toolpath, tp.line, is_gcode, tp.tip)
-        warnings += more
-        unset = int((feed_move & np.isnan(feed[1:])).sum())
-        if not unset:
-            notes = ["feeds as programmed"]
-        elif unset == feed_move.sum():
-            notes = [f"no feed programmed: every feed move at {nominal}"]
-        else:
-            notes = [f"{unset} of {feed_move.sum()} feed moves without a programmed feed: {nominal}"]
-    rotary = None
-    if np.ptp(tp.axis, axis=0).max() > 1e-9:
-        if machine.chain.type == "3-axis":
-            notes.append("the tool axis turns along the path: rotary-axis motion is not timed on a 3-axis machine")
-        else:
-            try:
-                rotary = rotary_seconds(machine, tp.tip, tp.axis, tools, tp.tool)
-                notes.append(f"rotary axes at {machine.rotary_rapid * 60.0:g} deg/min bound each move's time")
-            except InputError as exc:
-                notes.append(f"rotary-axis motion is not timed ({exc})")
-    times = tool_times(tp.tip, tp.rapid, tp.tool, machine, feed, rotary)
-    summary = {"operation": "time", "toolpath": os.path.abspath(args.toolpath), "moves": len(tp),
-               "machine": machine.summary(), "tools_file": os.path.abspath(args.tools), "notes": notes,
-               "feed_moves": int(feed_move.sum()), "feed_moves_at_machine_feed": unset,
-               "tools": {tools[t].name: entry for t, entry in times["tools"].items()}, "total": times["total"]}
-    if run:
-        _write_json(run.tmp(args.out), summary)
-        run.commit()
-    for w in warnings:
+    if args.out:
+        _results([args.out])
+    machine = api.load_machine(args.machine)
+    res = api.machining_time(args.toolpath, machine, _tools_beside(args), feed=args.feed, tool=args.tool)
+    if args.out:
+        res.save(args.out)
+    summary = res.summary
+    for w in res.warnings:
         _say(args, f"warning: {w}")
     if args.json:
         _finish_json(args, summary)
         return 0
-    print(f"machine: {machine.name}; {'; '.join(notes)}")
+    print(f"machine: {machine.name}; {'; '.join(summary['notes'])}")
     print(f"{'tool':<12}{'cutting s':>11}{'rapid s':>10}{'changes':>8}{'change s':>10}{'total s':>11}"
           f"{'cutting mm':>13}{'rapid mm':>11}{'stops':>9}")
     for name, e in [*summary["tools"].items(), ("total", summary["total"])]:
@@ -652,56 +408,15 @@ def cmd_time(args):
 
 
 def cmd_post(args):
-    import numpy as np
-
-    from .machine.config import load_machine
-    from .machine.post import post_program
-    from .machine.timing import programmed_feeds
-    from .toolpath.cldata import MAX_COORDINATE, read_apt
+    from . import api
 
     out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "program.nc")
-    run = _results([out])
-    if args.feed is not None and not (math.isfinite(args.feed) and args.feed > 0):
-        raise InputError(f"--feed must be a positive number of mm/min, got {args.feed}")
-    if not (math.isfinite(args.tolerance) and args.tolerance > 0):
-        raise InputError(f"--tolerance must be a positive number of mm, got {args.tolerance}")
-    machine = load_machine(args.machine)
-    tools = _tools_beside(args)
-    tp, warnings = read_apt(args.toolpath, tools)
-    feed, more = programmed_feeds(args.toolpath, tp.line, False)
-    warnings += more
-    unset = ~tp.rapid & np.isnan(feed)
-    fill = (f"--feed {args.feed:g} mm/min" if args.feed is not None
-            else f"the machine's {machine.kinematics.feed * 60.0:g} mm/min")
-    if args.feed is not None:
-        feed[unset] = args.feed / 60.0
-    if not unset.any():
-        feeds = "feeds as programmed"
-    elif unset.sum() == (~tp.rapid).sum():
-        feeds = f"no feed programmed: {fill}"
-    else:
-        feeds = f"{unset.sum()} of {(~tp.rapid).sum()} feed moves without a programmed feed: {fill}"
-    origin = None
-    if args.origin is not None:
-        try:
-            origin = [float(v) for v in args.origin.split(",")]
-        except ValueError:
-            origin = []
-        if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
-            raise InputError(f"--origin wants X,Y,Z in mm (the program's zero in machine coordinates), got '{args.origin}'")
-    if args.clearance is not None and not abs(args.clearance) <= MAX_COORDINATE:
-        raise InputError(f"--clearance must be a Z in mm (|Z| <= {MAX_COORDINATE:g}), got {args.clearance}")
-    lines, report = post_program(tp, tools, machine, feed=feed, tolerance=args.tolerance, origin=origin,
-                                 clearance=args.clearance)
-    try:
-        with open(run.tmp(out), "w") as fh:
-            fh.write("\n".join(lines) + "\n")
-    except OSError as exc:
-        raise InputError(f"{out}: cannot write ({exc.strerror})") from None
-    run.commit()
-    report = {"operation": "post", "toolpath": os.path.abspath(args.toolpath), "program": os.path.abspath(out),
-              "tools_file": os.path.abspath(args.tools), "feeds": feeds, **report}
-    report["warnings"] = warnings + report["warnings"]
+    _results([out])
+    machine = api.load_machine(args.machine)
+    res = api.post(args.toolpath, machine, _tools_beside(args),
+                   **_options(args, "feed", "tolerance", "origin", "clearance"))
+    res.save(out)
+    report = res.report
     for w in report["warnings"]:
         _say(args, f"warning: {w}")
     if args.json:
@@ -720,45 +435,19 @@ def cmd_post(args):
                if report["rewinds"] else "")
     print(f"wrote {out}: {report['blocks']} blocks for {report['moves']} CL moves on {machine.name} "
           f"({report['dialect']}, {report['mode']}, {report['feed_mode']}); {shape}; axes {ranges}{rewinds}; "
-          f"tools {', '.join(report['tools'])}, {report['tool_changes']} tool change(s); {feeds}.")
+          f"tools {', '.join(report['tools'])}, {report['tool_changes']} tool change(s); {report['feeds']}.")
     return 0
 
 
 def cmd_choose(args):
-    import numpy as np
+    from . import api
 
-    from .machine.config import load_machine
-    from .ops.choose import ChooseParams, choose, load_surface, tool_pair
-    from .tools.table import load_tools, write_tools
-    from .toolpath.cldata import write_apt
-
-    out, run = _folder_results("choose", args.out)
-    if (args.tool_pair is None) == (args.tools is None):
-        raise InputError("give exactly one of --tool-pair and --tools")
-    if args.zones == "auto":
-        zones = None
-    else:
-        try:
-            zones = int(args.zones)
-        except ValueError:
-            raise InputError(f"--zones must be 'auto' or an integer, got '{args.zones}'") from None
-    params = ChooseParams(scallop=args.scallop, zones=zones, axes=args.axes, optimise=args.optimise, grid=args.grid,
-                          mesh_step=args.mesh_step, sample=args.sample, cluster=args.cluster, metric=args.metric,
-                          k_max=args.k_max, min_zone=args.min_zone, seed=args.seed)
-    params.check()
-    tools = tool_pair(args.tool_pair) if args.tool_pair else load_tools(args.tools)
-    machine = load_machine(args.machine)
-    device = _device(args)
-    surface = load_surface(args.surface, params, flip=args.flip)
-    tp, summary, zones, chooser = choose(surface, tools, machine, params, progress=_progress(args), device=device)
-    summary["tools_file"] = os.path.abspath(os.path.join(out, "tools.toml"))
-    write_tools(run.tmp(os.path.join(out, "tools.toml")), chooser.tools)
-    write_apt(run.tmp(os.path.join(out, "toolpath.cl")), tp, chooser.tools, partno=os.path.basename(args.surface))
-    s = chooser.samples
-    np.savez_compressed(run.tmp(os.path.join(out, "zones.npz")), grid_shape=np.array(s.grid_shape), zones=zones,
-                        points=s.points, normals=s.normals, valid=s.valid)
-    _write_json(run.tmp(os.path.join(out, "summary.json")), summary)
-    run.commit()
+    res = api.choose(args.surface, progress=_progress(args),
+                     **_options(args, "scallop", "tool_pair", "tools", "zones", "k_max", "axes", "optimise", "machine",
+                                "cluster", "metric", "grid", "mesh_step", "sample", "min_zone", "seed", "flip",
+                                "device"))
+    res.save(args.out)
+    summary = res.summary
     v = summary["verify"]
     if not _quiet(args):
         _end_status()
@@ -773,7 +462,8 @@ def cmd_choose(args):
                   f"{z['predicted_s']:>13.1f}{z['measured_s']:>12.1f}{z['cutting_mm']:>9.0f}{z['planes']:>8}"
                   f"{z['coverage']:>10.3f}")
         print(f"K = {summary['k']} ({len(summary['zones'])} zones), total {summary['total_s']:.1f} s with "
-              f"{summary['tool_changes']} tool change(s) and {summary['reorientations']} re-orientation(s) on {machine.name}")
+              f"{summary['tool_changes']} tool change(s) and {summary['reorientations']} re-orientation(s) on "
+              f"{res.machine.name}")
         if summary["optimisation"]:
             o = summary["optimisation"]
             print(f"NOMAD: rule-based {o['rule_s']:.1f} s -> {o['optimum_s']:.1f} s after {o['black_box_evaluations']} "
@@ -783,10 +473,10 @@ def cmd_choose(args):
             _say(args, f"warning: zone {z['zone']} ({z['cells']} cells) is not machined: no candidate covers it "
                        f"(best {100 * z['coverage']:.0f} % of its cells{', no passes' if not z['planes'] else ''})")
     _say(args, f"verify: {'OK' if v['ok'] else 'PROBLEMS'} (max gouge {v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
-    _say(args, f"wrote {os.path.join(out, 'toolpath.cl')}, tools.toml, zones.npz and summary.json in "
-               f"{summary['seconds']['total']:.1f} s (device {device})")
+    _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')}, tools.toml, zones.npz and summary.json in "
+               f"{summary['seconds']['total']:.1f} s (device {res.device})")
     _finish_json(args, summary)
-    return 0 if v["ok"] and not summary["incomplete_zones"] else 1
+    return 0 if res.ok else 1
 
 
 def build_parser():
@@ -937,6 +627,7 @@ def build_parser():
     n.add_argument("--theta-step", type=float, default=None, help="also map accessibility over the hemisphere, degrees")
     n.add_argument("--delta-step", type=float, default=10.0, help="azimuth step of the map, degrees (10)")
     n.add_argument("--out", default="analysis", help="output folder (analysis)")
+    _add_device(n)
     n.add_argument("--quiet", action="store_true", help="print nothing but errors")
     n.set_defaults(func=cmd_analyze)
 
@@ -1014,6 +705,12 @@ def build_parser():
     return p
 
 
+def _flags(exc) -> str:
+    """An error's message with the parameters it names as this command's flags (``step_down`` ->
+    ``--step-down``: the API's keyword arguments are the options' names)."""
+    return getattr(exc, "flags_message", None) or str(exc)
+
+
 def main(argv=None) -> int:
     _status_line[0] = False
     _run[0] = None
@@ -1030,11 +727,11 @@ def main(argv=None) -> int:
         return 2
     try:
         if args.command in FOLDER_OUTPUTS:
-            _folder_results(args.command, args.out)  # earlier results go now, whatever fails next
+            _results([os.path.join(args.out, n) for n in FOLDER_OUTPUTS[args.command]])  # earlier results go now
         return args.func(args)
     except InputError as exc:
         _end_status()
-        print(f"meshmill: error: {exc}", file=sys.stderr)
+        print(f"meshmill: error: {_flags(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         _end_status()

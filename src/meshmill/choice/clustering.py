@@ -34,6 +34,7 @@ from scipy.cluster.hierarchy import cut_tree, linkage
 from sklearn.cluster import KMeans
 
 from ..errors import InputError
+from ..pathing.zigzag import wrap_axial
 
 METRICS = ("euclidean", "mahalanobis", "std", "std2", "pca")
 SHAPE_FACTORS = ("ratio2", "one_minus_ratio2")
@@ -94,10 +95,6 @@ def _checked_choice(value, allowed, what):
 
 # ---------------------------------------------------------------- axial angles and feature spaces
 
-
-def wrap_axial(theta):
-    """Axial angle(s) rad reduced to [-pi/2, pi/2)."""
-    return (np.asarray(theta, dtype=float) + np.pi / 2) % np.pi - np.pi / 2
 
 
 def embed_features(features):

@@ -14,13 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..machine.timing import path_time
-from ..ops.dropcutter import SAFE_ABOVE, StockClearance, verified_path
-from ..ops.raster import drop_refined
-from ..ops.verify import DEFAULT_STEP, StockCheck
+from ..pathing.dropcutter import SAFE_ABOVE, StockClearance, verified_path
+from ..pathing.dropcutter import drop_refined
+from ..pathing.verify import DEFAULT_STEP, StockCheck
 from ..tolerances import HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import link_passes, simplify_polyline
 from ..toolpath.model import Toolpath
-from .zigzag import SurfaceSetup, frame_rotation
+from ..pathing.zigzag import SurfaceSetup, frame_rotation
 
 UP = (0.0, 0.0, 1.0)
 MIN_COVERAGE = 0.9  # a zone machined over less than this fraction of its cells is not machined
@@ -44,7 +44,7 @@ class ZonePlan:
 class ZoneResult:
     """One machined zone: its ``plan``, ``toolpath`` (part frame, linked), times from
     :func:`path_time` (``time``), ``planes``, ``coverage`` (see
-    :meth:`~meshmill.choice.zigzag.ZonePasses.coverage`) and the feed moves left out."""
+    :meth:`~meshmill.pathing.zigzag.ZonePasses.coverage`) and the feed moves left out."""
 
     zone: int
     plan: ZonePlan
@@ -87,9 +87,9 @@ class PlanResult:
 
 
 class Machinist:
-    """Evaluates plans on one surface: ``smesh`` (:class:`~meshmill.choice.surface.SurfaceMesh`),
-    ``samples`` (:class:`~meshmill.choice.surface.Samples`, the zoning grid), candidate
-    ``tools``, ``scallop`` mm, ``machine`` (:class:`~meshmill.machine.config.Machine`), drop
+    """Evaluates plans on one surface: ``smesh`` (:class:`~meshmill.geometry.patches.SurfaceMesh`),
+    ``samples`` (:class:`~meshmill.geometry.patches.Samples`, the zoning grid), candidate
+    ``tools``, ``scallop`` mm, ``machine`` (:class:`~meshmill.machine.model.Machine`), drop
     spacing ``sample`` mm. Setups (BVH per cutter and axis) are cached."""
 
     def __init__(self, smesh, samples, tools, scallop, machine, sample=0.5, device="cpu"):

@@ -26,9 +26,9 @@ import numpy as np
 
 from ..errors import InputError
 from .machining import UP, ZonePlan
-from .clustering import wrap_axial
+from ..pathing.zigzag import wrap_axial
 from .orientation import accessible, azimuth_in_frame, heuristic_axis, heuristic_tilts
-from .zigzag import frame_rotation
+from ..pathing.zigzag import frame_rotation
 
 SURROGATE_FACTOR = 4  # surrogate evaluations per black-box evaluation of the budget
 TRANSIT_S = 2.0  # s: the surrogate's cost of a zone (retract, rapid, approach)
@@ -151,8 +151,8 @@ def _mads(f, x0, lo, hi, kinds, evals, quad, seed, history):
     """Minimise ``f`` (None: failed) with PyNomad from ``x0``; returns ``(x, f)``."""
     try:
         import PyNomad
-    except ImportError:  # pragma: no cover - a dependency of the package
-        raise InputError("--optimise needs the PyNomadBBO package (pip install PyNomadBBO)") from None
+    except ImportError:
+        raise InputError("--optimise needs PyNomadBBO: pip install 'meshmill[optimise]'") from None
 
     failure = []
 

@@ -23,8 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..machine.timing import Kinematics, segment_time
-from .scallop import effective_radius, flat_bottom_stepover, stepover
+from ..machine.model import MotionLimits
+from ..machine.timing import segment_time
+from ..pathing.scallop import effective_radius, flat_bottom_stepover, stepover
 
 # |XY part| of a unit vector below which it counts as vertical (no azimuth)
 _VERTICAL = 1e-12
@@ -144,26 +145,26 @@ def pca_rectangle(points, normals=None) -> PcaRectangle:
 # Parallel passes over a rectangle (§1.6.2, §2.2)
 
 
-def pass_time(length, kin: Kinematics):
+def pass_time(length, kin: MotionLimits):
     """Time ``(...)`` s of a pass of ``length`` mm that reaches the feed V (case 2, eq. 1.14):
     length/V + 2 sqrt(V/J)."""
     return length / kin.feed + 2.0 * np.sqrt(kin.feed / kin.jerk)
 
 
-def connection_time(length, kin: Kinematics):
+def connection_time(length, kin: MotionLimits):
     """Time ``(...)`` s of a connection of ``length`` mm that reaches neither V nor A
     (case 3, eq. 1.15): 4 ∛(length/(2J))."""
     return 4.0 * np.cbrt(np.asarray(length, float) / (2.0 * kin.jerk))
 
 
-def parallel_passes_time(length_along, width_across, sod, kin: Kinematics):
+def parallel_passes_time(length_along, width_across, sod, kin: MotionLimits):
     """Closed-form zigzag time ``(...)`` s: (width/sod) passes of ``length_along`` mm, each followed
     by a connection of ``sod`` mm, passes in case 2 and connections in case 3:
     (width/sod)(length/V + 2 sqrt(V/J) + 4 ∛(sod/(2J))). The pass count is not rounded."""
     return _scalar_or_array(width_across / sod * (pass_time(length_along, kin) + connection_time(sod, kin)))
 
 
-def parallel_passes_segment_time(length_along, width_across, sod, kin: Kinematics):
+def parallel_passes_segment_time(length_along, width_across, sod, kin: MotionLimits):
     """As ``parallel_passes_time`` ``(...)`` s, with each pass and connection timed by the exact
     rest-to-rest segment time, right in every kinematic case (short passes, long connections,
     A reached)."""
@@ -222,7 +223,7 @@ def stepover_ball(radius, scallop):
     return float(stepover(scallop, radius))
 
 
-def time_toric_steepest(mu, chi, slope, radius, corner, scallop, kin: Kinematics):
+def time_toric_steepest(mu, chi, slope, radius, corner, scallop, kin: MotionLimits):
     """T1 ``(...)`` s (eq. 2.4): torus fed along the steepest slope, w/sod1 passes of length h."""
     w, h = _sides(mu, chi)
     return parallel_passes_time(h, w, stepover_toric_steepest(slope, radius, corner, scallop), kin)
@@ -234,7 +235,7 @@ def length_toric_steepest(mu, chi, slope, radius, corner, scallop):
     return parallel_passes_length(h, w, stepover_toric_steepest(slope, radius, corner, scallop))
 
 
-def time_ball_principal(mu, chi, radius, scallop, kin: Kinematics):
+def time_ball_principal(mu, chi, radius, scallop, kin: MotionLimits):
     """T2 ``(...)`` s (eq. 2.5): ball fed along the principal direction, h/sod2 passes of length w."""
     w, h = _sides(mu, chi)
     return parallel_passes_time(w, h, stepover_ball(radius, scallop), kin)
@@ -246,7 +247,7 @@ def length_ball_principal(mu, chi, radius, scallop):
     return parallel_passes_length(w, h, stepover_ball(radius, scallop))
 
 
-def critical_slope(mu, chi, radius, corner, scallop, kin: Kinematics):
+def critical_slope(mu, chi, radius, corner, scallop, kin: MotionLimits):
     """s_c ``(...)`` rad where T1 = T2 (eqs. 2.6-2.10): below it the torus along the steepest slope
     is faster, above it the ball along the principal direction.
 
@@ -272,7 +273,7 @@ def critical_slope(mu, chi, radius, corner, scallop, kin: Kinematics):
     return _scalar_or_array(np.where(sod1 <= stepover_ball(radius, scallop), np.pi / 2, s_c))
 
 
-def critical_shape_factor(slope, chi, radius, corner, scallop, kin: Kinematics):
+def critical_shape_factor(slope, chi, radius, corner, scallop, kin: MotionLimits):
     """μ_c ``(...)`` where T1 = T2 at this slope (annex A eq. 8): above it the ball along the
     principal direction is faster. sod1 is capped by the flat bottom as in T1."""
     chi = np.asarray(chi, float)
@@ -310,7 +311,7 @@ class ToolChoice:
     warnings: list[str]
 
 
-def choose_tool(rect: PcaRectangle, radius, corner, scallop, kin: Kinematics) -> ToolChoice:
+def choose_tool(rect: PcaRectangle, radius, corner, scallop, kin: MotionLimits) -> ToolChoice:
     """Ball tool (radius R) along the principal direction or bull-nose tool (R, corner r) along the
     steepest slope for the PCA rectangle ``rect`` (§2.4.1): ball when the plane's slope is above
     s_c(μ̃) at χ̃ (a tie goes to the torus). Scallop height ``scallop`` mm."""
@@ -372,7 +373,7 @@ def choose_tool(rect: PcaRectangle, radius, corner, scallop, kin: Kinematics) ->
 # Annex E: zigzag at any angle over a rectangle (surrogate 3)
 
 
-def rectangle_time(width, height, alpha, p, kin: Kinematics):
+def rectangle_time(width, height, alpha, p, kin: MotionLimits):
     """Zigzag time ``(...)`` s over a ``width`` × ``height`` mm rectangle, passes at angle ``alpha``
     rad to the width side and ``p`` mm apart (annex E). Passes in case 2, connections along the
     sides in case 3, pass counts not rounded.
@@ -411,7 +412,7 @@ def rectangle_time(width, height, alpha, p, kin: Kinematics):
     return _scalar_or_array(central + 2.0 * corner)
 
 
-def zone_time_surrogate(rect: PcaRectangle, theta, radius, corner, scallop, kin: Kinematics):
+def zone_time_surrogate(rect: PcaRectangle, theta, radius, corner, scallop, kin: MotionLimits):
     """Surrogate 3 ``(...)`` s: zigzag time over ``rect`` with the feed azimuth ``theta (...)`` rad
     in XY. The feed is lifted into the PCA plane (F_p normalised) and α = angle(F_p, S_I); the
     stepover p is eq. 2.3 with R_eff (eq. 1.5) at the plane's slope and the XY angle between theta

@@ -19,8 +19,8 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.cpu_dexel import rays_blocked
-from .bvh import build_bvh
+from ..kernels.backend import bind
+from ..kernels.bvh import build_bvh
 from .mesh import Mesh
 
 RAY_START = 1e-6  # mm, relative to the part's size: see ray_start()
@@ -90,11 +90,13 @@ def unit_direction(direction) -> np.ndarray:
     return d / norm
 
 
-def visibility(mesh: Mesh, direction, weighting="area", bvh=None) -> dict:
+def visibility(mesh: Mesh, direction, weighting="area", bvh=None, device="cpu") -> dict:
     """Visibility and accessibility along ``direction (3,)``: ``visible_vertices (n,)``,
-    ``accessible_vertices (n,)``, ``visible_triangles (m,)``, ``accessible_triangles (m,)`` bool."""
+    ``accessible_vertices (n,)``, ``visible_triangles (m,)``, ``accessible_triangles (m,)`` bool.
+    ``bvh``: the mesh's BVH or its :class:`~meshmill.kernels.backend.MeshKernels` (rays cast on
+    ``device``)."""
     d = unit_direction(direction)
-    bvh = bvh or build_bvh(mesh.vertices, mesh.faces)
+    kern = bind(bvh or build_bvh(mesh.vertices, mesh.faces), device)
     t = triangle_parameters(mesh)
     vis_v = vertex_normals(mesh, weighting) @ d > 0.0
     vis_t = t["normal"] @ d > 0.0
@@ -104,10 +106,10 @@ def visibility(mesh: Mesh, direction, weighting="area", bvh=None) -> dict:
     need_v[mesh.faces[vis_t].ravel()] = True
     free_v = np.zeros(len(mesh.vertices), bool)
     idx = np.nonzero(need_v)[0]
-    free_v[idx] = ~rays_blocked(mesh.vertices[idx], d, start, bvh.arrays)
+    free_v[idx] = ~kern.rays_blocked(mesh.vertices[idx], d, start)
     free_c = np.zeros(len(mesh.faces), bool)
     tidx = np.nonzero(vis_t)[0]
-    free_c[tidx] = ~rays_blocked(t["centroid"][tidx], d, start, bvh.arrays)
+    free_c[tidx] = ~kern.rays_blocked(t["centroid"][tidx], d, start)
     acc_t = vis_t & free_c & free_v[mesh.faces].all(axis=1)
     return {"visible_vertices": vis_v, "accessible_vertices": vis_v & free_v, "visible_triangles": vis_t,
             "accessible_triangles": acc_t}
@@ -127,15 +129,15 @@ def hemisphere(theta_step: float, delta_step: float) -> np.ndarray:
     return np.array(dirs)
 
 
-def accessibility_map(mesh: Mesh, directions: np.ndarray, bvh=None) -> tuple[np.ndarray, np.ndarray]:
+def accessibility_map(mesh: Mesh, directions: np.ndarray, bvh=None, device="cpu") -> tuple[np.ndarray, np.ndarray]:
     """For each of ``directions (k, 3)``: the area share of the mesh accessible along it ``(k,)``,
-    and per triangle how many of the directions reach it ``(m,) int``."""
-    bvh = bvh or build_bvh(mesh.vertices, mesh.faces)
+    and per triangle how many of the directions reach it ``(m,) int`` (rays cast on ``device``)."""
+    kern = bind(bvh or build_bvh(mesh.vertices, mesh.faces), device)
     area = triangle_parameters(mesh)["area"]
     share = np.empty(len(directions))
     reached = np.zeros(len(mesh.faces), np.int64)
     for i, d in enumerate(directions):
-        acc = visibility(mesh, d, bvh=bvh)["accessible_triangles"]
+        acc = visibility(mesh, d, bvh=kern)["accessible_triangles"]
         share[i] = float(area[acc].sum() / area.sum())
         reached += acc
     return share, reached

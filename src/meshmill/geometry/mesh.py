@@ -13,6 +13,7 @@ are read with trimesh.
 from __future__ import annotations
 
 import os
+import time
 import warnings
 from dataclasses import dataclass, field
 
@@ -21,15 +22,11 @@ import numpy as np
 
 from ..errors import InputError
 from .placement import Placement, Setup
+from .solid import CLOSED, HOLES, SHEET, bounded_solid
 from ..tolerances import DEGENERATE_AREA, TESSELLATION_ANGLE, TESSELLATION_TOL, WELD_DIGITS
 
 BREP = {".step": "step", ".stp": "step", ".iges": "iges", ".igs": "iges"}  # CAD solids, tessellated on reading
 SUPPORTED = (".stl", ".obj", ".ply", *BREP)
-CLOSED, HOLES, SHEET = 0, 1, 2  # kinds of connected pieces
-# an open piece is a sheet (a surface with material behind it) when its boundary loops enclose at
-# least this share of its area (its vector area: zero for a closed piece, the projected area of a
-# flat sheet); below it, a solid with holes
-SHEET_SHARE = 0.2
 SHEET_DEPTH = 10.0  # mm: the material below a sheet reaches at least this far below its lowest point
 STRAY_SIZE = 0.01  # a separate body smaller than this share of the part across ...
 STRAY_AREA = 0.001  # ... and of its area is a stray fragment, dropped
@@ -49,6 +46,8 @@ class Mesh:
     piece: np.ndarray | None = None  # (m,) connected piece of each face (across manifold edges)
     piece_kind: np.ndarray | None = None  # (p,) int8 per piece: CLOSED, HOLES or SHEET
     placement: Placement | None = None  # how the file was set up into the work frame (None: as read)
+    source: str = ""  # the file it was read from (absolute path; "" for arrays)
+    load_seconds: float = 0.0  # reading and checking it took
     _solids: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -91,8 +90,6 @@ class Mesh:
         """The :class:`~meshmill.geometry.solid.Solid` this mesh bounds, sheets down to ``floor``
         (default: as deep again below the mesh's lowest point as the mesh is tall, and at least
         ``SHEET_DEPTH``: a sheet is the top of a block whose bottom is not known); built once per floor."""
-        from .solid import bounded_solid
-
         lo, hi = self.bounds[:, 2]
         floor = float(lo - max(SHEET_DEPTH, hi - lo)) if floor is None else float(floor)
         if floor not in self._solids:
@@ -294,6 +291,15 @@ def _orient(mesh: Mesh, name: str, flip: bool) -> None:
 
 
 def load_mesh(path, flip=False, setup: Setup | None = None) -> Mesh:
+    """Read STL/OBJ/PLY ``path`` (:func:`read_mesh`) with its ``source`` and ``load_seconds``."""
+    t0 = time.perf_counter()
+    mesh = read_mesh(path, flip, setup)
+    mesh.source = os.path.abspath(os.fspath(path))
+    mesh.load_seconds = time.perf_counter() - t0
+    return mesh
+
+
+def read_mesh(path, flip=False, setup: Setup | None = None) -> Mesh:
     """Read STL/OBJ/PLY ``path`` into a checked :class:`Mesh` (raises :class:`InputError`);
     ``flip`` turns every face over; ``setup`` places it into the work frame (default: as the file
     is, in mm, with a warning where its size or place suggests otherwise)."""

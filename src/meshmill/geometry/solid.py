@@ -23,8 +23,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..tolerances import DEGENERATE_AREA
-from .bvh import build_bvh
-from .mesh import CLOSED, HOLES, SHEET, SHEET_SHARE
+from ..kernels.bvh import build_bvh
+
+CLOSED, HOLES, SHEET = 0, 1, 2  # kinds of connected pieces
+# an open piece is a sheet (a surface with material behind it) when its boundary loops enclose at
+# least this share of its area (its vector area: zero for a closed piece, the projected area of a
+# flat sheet); below it, a solid with holes
+SHEET_SHARE = 0.2
 
 
 @dataclass

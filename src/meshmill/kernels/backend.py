@@ -52,7 +52,7 @@ def implementation(device: str):
 
 class MeshKernels:
     """The mesh kernels of one backend bound to the mesh of ``bvh`` (a
-    :class:`~meshmill.geometry.bvh.BVH`) and, for the checks that tell inside from outside, to
+    :class:`~meshmill.kernels.bvh.BVH`) and, for the checks that tell inside from outside, to
     ``inside`` (:attr:`meshmill.geometry.solid.Solid.inside`); on CUDA their arrays are copied to
     the GPU once, here, and stay there for every call. Arguments and results are host numpy
     arrays, as documented in :mod:`meshmill.kernels.cpu`."""
@@ -104,6 +104,36 @@ class MeshKernels:
         return self.impl.rays_blocked(origins, direction, tmin, self.mesh)
 
 
+class LineCaster:
+    """Dexel line casting (seed 000) of one backend bound to one mesh ``index``: ``("bvh",
+    BVH.arrays)``, or on the CPU also the seed's cells and k-means partitions (``("boxes", ...)``,
+    :func:`meshmill.kernels.cpu_dexel.cast_lines`)."""
+
+    def __init__(self, index, device: str = "cpu"):
+        if device == "cuda" and index[0] != "bvh":
+            raise InputError("the cells and k-means indexes run on the CPU only: use --index bvh with --device cuda")
+        self.impl = implementation(device)
+        if device == "cuda":
+            from types import SimpleNamespace
+
+            self.index = self.impl.to_device(SimpleNamespace(arrays=index[1]))
+        else:
+            self.index = index
+
+    def cast_lines(self, a, lu, lv, step, nu, nv):
+        """``(dense (lines, cap, 2), count (lines,))``: the material intervals of the ``nu x nv``
+        lines along axis ``a`` from ``(lu, lv)``, ``step`` mm apart."""
+        return self.impl.cast_lines(a, lu, lv, step, nu, nv, self.index)
+
+
+def cutter_rise(rho, radius, corner_radius) -> float:
+    """Height (mm) of a cutter's profile above its tip at ``rho`` mm from its axis (flat, ball or
+    bull-nose of ``radius`` and ``corner_radius``), on the host."""
+    from . import cpu
+
+    return cpu.cut.profile(rho, radius, corner_radius)
+
+
 def bind(bvh_or_kernels, device: str = "cpu") -> MeshKernels:
     """``bvh_or_kernels`` itself if it is a :class:`MeshKernels`, else that BVH bound to ``device``."""
     if isinstance(bvh_or_kernels, MeshKernels):
@@ -115,7 +145,7 @@ def solid_kernels(mesh, device: str = "cpu", floor=None) -> MeshKernels:
     """The kernels of ``device`` bound to the solid ``mesh`` bounds (its check mesh and inside
     arrays, :meth:`meshmill.geometry.mesh.Mesh.solid`), sheets down to ``floor`` (default: the
     mesh's lowest point)."""
-    from ..geometry.bvh import build_bvh
+    from .bvh import build_bvh
 
     solid = mesh.solid(floor)
     return MeshKernels(build_bvh(solid.vertices, solid.faces), device, inside=solid.inside)

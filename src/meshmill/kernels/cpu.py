@@ -13,7 +13,7 @@ from numba import prange
 
 from . import clearance, cutters
 from .clearance import WORK_SIZE
-from .cpu_dexel import cut_tiles, move_constants, rays_blocked  # noqa: F401  (one module offers every kernel)
+from .cpu_dexel import cast_lines, cut_tiles, move_constants, rays_blocked  # noqa: F401  (one module offers every kernel)
 from .cutters import NO_BODY
 from .geom import INF, STACK_SIZE, build
 

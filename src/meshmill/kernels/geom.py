@@ -5,7 +5,7 @@
 CUDA. The functions take plain scalars and arrays only, allocate nothing (callers hand in the
 traversal ``stack``, an int32 array of ``STACK_SIZE``) and return scalars.
 
-Mesh arrays (see :mod:`meshmill.geometry.bvh`), all in BVH order, millimetres:
+Mesh arrays (see :mod:`meshmill.kernels.bvh`), all in BVH order, millimetres:
 
 - ``tris (m, 9) float64``: the three vertices of every triangle, x0 y0 z0 x1 y1 z1 x2 y2 z2;
 - ``node_lo, node_hi (k, 3) float64``: node boxes;

@@ -80,7 +80,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from .config import LINEAR
+from .model import LINEAR
 
 LIMIT_TOLERANCE = 1e-9  # mm or deg: a value this far beyond its travel still counts as inside
 VERTICAL_TOLERANCE = 1e-6  # rad: a 3-axis machine takes a tool axis this close to +Z as vertical

@@ -1,7 +1,7 @@
 """G-code for a real machine from a CL tool path (``meshmill post``).
 
 :func:`post_program` writes a :class:`~meshmill.toolpath.model.Toolpath` as the lines of an NC
-program for a :class:`~meshmill.machine.config.Machine`, in the format of its ``[gcode]`` section
+program for a :class:`~meshmill.machine.model.Machine`, in the format of its ``[gcode]`` section
 (:class:`~meshmill.machine.config.GcodeFormat`). Units: mm, degrees, seconds; F in mm/min (G94)
 or 1/min (G93).
 
@@ -10,7 +10,7 @@ Three modes, by the machine's chain and ``tcp``:
 - **3-axis**: the tool tip is programmed (the control adds the tool length: ``tool_length``, e.g.
   ``G43 H1``). A tilted tool axis is refused.
 - **5-axis joints** (table-table or head-table, no TCP): the joints of every pose come from
-  :func:`meshmill.machine.kinematics.inverse`. The control moves the joints linearly from block to
+  :func:`meshmill.machine.motion.inverse`. The control moves the joints linearly from block to
   block, so where the rotaries turn the tip leaves the straight CL move; feed moves are split
   (:class:`_Linearisation`) until the tip of the joint-linear motion stays within the tolerance of
   the CL segment. A rapid that turns a rotary is linearised too and written as G1 at the rapid
@@ -134,7 +134,7 @@ def _tool_runs(tool):
 def _move_feeds(feed, k, machine):
     """Feed (k,) mm/s per move: ``feed`` (None, a number or (k,) with NaN where none is
     programmed), the machine's nominal feed where it gives none."""
-    nominal = machine.kinematics.feed
+    nominal = machine.motion.feed
     if feed is None:
         return np.full(k, nominal)
     out = np.broadcast_to(np.asarray(feed, np.float64), (k,)).copy()
@@ -191,7 +191,7 @@ def _three_axis_runs(tp, feed, machine):
         joints = _round_joints(tip, machine.gcode)
         straight = rapid & _dogleg_corner(joints, machine)
         rapid &= ~straight
-        f = np.where(straight, machine.kinematics.rapid, feed[a:b])
+        f = np.where(straight, machine.motion.rapid, feed[a:b])
         runs.append(_Run(tool, joints, rapid, np.where(rapid, np.nan, f), length, np.arange(a, b), zeros, zeros.copy()))
     return runs
 
@@ -211,7 +211,7 @@ def _dogleg_corner(joints, machine, before=None):
 # --- 5-axis ----------------------------------------------------------------------------------------
 
 def _solve(machine, tp, first, tip, axis, tool_length, tcp, start):
-    """:func:`~meshmill.machine.kinematics.inverse` of the poses ``tip (m, 3)``, ``axis (m, 3)``
+    """:func:`~meshmill.machine.motion.inverse` of the poses ``tip (m, 3)``, ``axis (m, 3)``
     of CL moves ``first``, ``first + 1``, ...: ``(joints (m, n) rounded as written, rewound (m,))``;
     a pose beyond the travel is an InputError naming its CL move."""
     try:
@@ -439,7 +439,7 @@ def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp, clearance=None):
         # a dog-leg G0 would leave the CL line: G1 along it at the rapid rate
         straight = tp.rapid[a:b] & np.r_[False, _dogleg_corner(joints[1:], machine, before)] & ~turns
         rapid = tp.rapid[a:b] & ~turns & ~straight
-        f_move = np.where(turns | straight, machine.kinematics.rapid, feed[a:b])
+        f_move = np.where(turns | straight, machine.motion.rapid, feed[a:b])
         cut = np.flatnonzero(~rapid[1:]) + 1 if not tcp else np.zeros(0, np.int64)
         deviation = np.zeros(b - a)
         unit = axis / np.linalg.norm(axis, axis=1, keepdims=True)
@@ -526,7 +526,7 @@ def _rewind(blocks, tp, machine, move, joints, unwound, feed, clearance, tool, t
     if rise > 0.0:
         blocks.add(up, False, feed, rise, move, rewind=True)
     if np.count_nonzero(up_unwound != up) > 1:  # a swing: joint-linear, as checked, at the rapid rate
-        blocks.add(up_unwound, False, machine.kinematics.rapid, 0.0, move, rewind=True)
+        blocks.add(up_unwound, False, machine.motion.rapid, 0.0, move, rewind=True)
     else:  # C alone turns: a G0 of one axis is the same in every control
         blocks.add(up_unwound, True, np.nan, 0.0, move, rewind=True)
     if rise > 0.0:
@@ -613,7 +613,7 @@ def _feed_values(run, machine, inverse_time):
         return np.where(run.rapid, np.nan, run.feed * 60.0)
     linear = np.abs(np.diff(run.joints[:, :3], axis=0, prepend=run.joints[:1, :3])).max(axis=1)
     seconds = np.maximum.reduce([run.tip_length / run.feed, angle_step(run.joints) / machine.rotary_rapid,
-                                 linear / machine.kinematics.rapid, np.full(len(linear), MIN_BLOCK_S)])
+                                 linear / machine.motion.rapid, np.full(len(linear), MIN_BLOCK_S)])
     with np.errstate(divide="ignore"):
         return np.where(run.rapid, np.nan, 60.0 / seconds)
 

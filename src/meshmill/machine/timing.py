@@ -15,27 +15,10 @@ from __future__ import annotations
 
 import os
 import re
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..toolpath.cldata import read_text
-
-
-@dataclass(frozen=True)
-class Kinematics:
-    """Limits of the machine's linear motion: ``feed`` and ``rapid`` in mm/s, ``accel`` mm/s²,
-    ``jerk`` mm/s³."""
-
-    feed: float
-    accel: float
-    jerk: float
-    rapid: float
-
-    @staticmethod
-    def seed() -> "Kinematics":
-        """The seed's standard machine: V = 5 m/min, A = 6 m/s², J = 40 m/s³ (rapid 20 m/min)."""
-        return Kinematics(feed=5000.0 / 60.0, accel=6000.0, jerk=40000.0, rapid=20000.0 / 60.0)
 
 
 def segment_time(length, v_max, accel, jerk):
@@ -60,16 +43,16 @@ MIN_MOVE = 1e-6  # mm: a shorter move has no direction; it takes no time and nev
 
 
 def _limits(machine, corner_angle):
-    """``(Kinematics, corner angle rad)`` of a Machine or of bare Kinematics and an angle."""
-    kinematics = getattr(machine, "kinematics", machine)
+    """``(MotionLimits, corner angle rad)`` of a Machine or of bare MotionLimits and an angle."""
+    motion = getattr(machine, "motion", machine)
     if corner_angle is None:
-        if kinematics is machine:
-            raise ValueError("corner_angle is needed with bare Kinematics")
+        if motion is machine:
+            raise ValueError("corner_angle is needed with bare MotionLimits")
         corner_angle = machine.corner_angle
-    return kinematics, float(corner_angle)
+    return motion, float(corner_angle)
 
 
-def _runs(tip, rapid, kinematics, corner_angle, feed=None, tool=None, rotary_s=None):
+def _runs(tip, rapid, motion, corner_angle, feed=None, tool=None, rotary_s=None):
     """The path's rest-to-rest runs: ``(length (r,) mm, seconds (r,), rapid (r,) bool, tool (r,)
     or None)``.
 
@@ -89,13 +72,13 @@ def _runs(tip, rapid, kinematics, corner_angle, feed=None, tool=None, rotary_s=N
     length = length[end - 1]
     direction = step[end - 1] / length[:, None]
     is_rapid = np.asarray(rapid, bool)[end]
-    speed = np.where(is_rapid, kinematics.rapid, kinematics.feed)
+    speed = np.where(is_rapid, motion.rapid, motion.feed)
     if feed is not None:
         programmed = np.asarray(feed, np.float64)[end]
         given = ~np.isnan(programmed)
         if (programmed[given] <= 0).any() or np.isinf(programmed).any():
             raise ValueError("feed must be a positive finite number of mm/s (or NaN)")
-        speed = np.where(given & ~is_rapid, np.minimum(programmed, kinematics.rapid), speed)
+        speed = np.where(given & ~is_rapid, np.minimum(programmed, motion.rapid), speed)
     cross = np.cross(direction[1:], direction[:-1])
     turn = np.arctan2(np.sqrt(np.einsum("ij,ij->i", cross, cross)),
                       np.einsum("ij,ij->i", direction[1:], direction[:-1]))
@@ -107,7 +90,7 @@ def _runs(tip, rapid, kinematics, corner_angle, feed=None, tool=None, rotary_s=N
     first = np.flatnonzero(starts)
     run_length = np.add.reduceat(length, first)
     cruise = np.add.reduceat(length / speed, first)
-    seconds = segment_time(run_length, run_length / cruise, kinematics.accel, kinematics.jerk)
+    seconds = segment_time(run_length, run_length / cruise, motion.accel, motion.jerk)
     if rotary_s is not None:
         # the rotaries' moves that the linear axes' (kept) moves carry, run by run
         rot = np.asarray(rotary_s, np.float64)
@@ -129,14 +112,14 @@ def path_time(tip, rapid, machine, corner_angle=None, feed=None, rotary_s=None) 
     """Machining time of a tool path, rest-to-rest run by run (see :func:`_runs`).
 
     ``tip (k, 3)`` mm, ``rapid (k,) bool`` (move i ends at ``tip[i]``), ``machine`` a
-    :class:`~meshmill.machine.config.Machine` or :class:`Kinematics`, ``corner_angle`` radians
+    :class:`~meshmill.machine.model.Machine` or :class:`~meshmill.machine.model.MotionLimits`, ``corner_angle`` radians
     (default: the machine's), ``feed (k,)`` mm/s per feed move (NaN: the machine's feed; capped at
     the rapid rate), ``rotary_s (k,)`` the least seconds the rotary axes need for each move (see
     :func:`rotary_seconds`). Returns ``total_s``, ``cutting_s``, ``rapid_s``, ``cutting_mm``,
     ``rapid_mm`` and ``stops`` (rest-to-rest runs, each ending at rest).
     """
-    kinematics, corner_angle = _limits(machine, corner_angle)
-    length, seconds, is_rapid, _ = _runs(tip, rapid, kinematics, corner_angle, feed, rotary_s=rotary_s)
+    motion, corner_angle = _limits(machine, corner_angle)
+    length, seconds, is_rapid, _ = _runs(tip, rapid, motion, corner_angle, feed, rotary_s=rotary_s)
     return _totals(length, seconds, is_rapid)
 
 
@@ -146,8 +129,8 @@ def tool_times(tip, rapid, tool, machine, feed=None, rotary_s=None) -> dict:
     consecutive moves adds ``machine.tool_change`` seconds to the incoming tool (``tool_changes``,
     ``tool_change_s``, included in ``total_s``); the first tool is in the spindle at the start."""
     tool = np.asarray(tool)
-    kinematics, corner_angle = _limits(machine, None)
-    length, seconds, is_rapid, run_tool = _runs(tip, rapid, kinematics, corner_angle, feed, tool, rotary_s)
+    motion, corner_angle = _limits(machine, None)
+    length, seconds, is_rapid, run_tool = _runs(tip, rapid, motion, corner_angle, feed, tool, rotary_s)
     changed_to = tool[1:][tool[1:] != tool[:-1]]
     used, first = np.unique(tool, return_index=True)
     tools = {}
@@ -237,7 +220,7 @@ def _gcode_feeds(text):
 
 
 def programmed_feeds(path, line, gcode, tip=None) -> tuple[np.ndarray, list[str]]:
-    """Feed rates ``(k,)`` mm/s that a tool-path file programs for its moves, NaN where none is in
+    """Feed rates ``(k,)`` mm/min that a tool-path file programs for its moves, NaN where none is in
     force. ``line (k,)``: the source line of each move (:attr:`Toolpath.line`); ``gcode``: the
     file is G-code (``F`` words, mm/min or inch/min under G20; under G93 1 / the block's minutes,
     turned into the block's tip length per that time with ``tip (k, 3)``) rather than APT
@@ -250,7 +233,7 @@ def programmed_feeds(path, line, gcode, tip=None) -> tuple[np.ndarray, list[str]
     line = np.asarray(line)
     modal = [(n, f) for n, f, kind in found if kind != "inverse"]
     lines = np.array([0] + [n for n, _ in modal], np.int64)
-    values = np.array([np.nan] + [np.nan if f is None else f / 60.0 for _, f in modal])
+    values = np.array([np.nan] + [np.nan if f is None else f for _, f in modal])
     feed = values[np.searchsorted(lines, line, side="right") - 1]
     bad = [n for n, f, kind in found if f is None and kind != "reset"]
     warnings = []
@@ -261,7 +244,7 @@ def programmed_feeds(path, line, gcode, tip=None) -> tuple[np.ndarray, list[str]
         step = np.concatenate([[0.0], np.linalg.norm(np.diff(np.asarray(tip, np.float64), axis=0), axis=1)])
         for n, f in blocks:
             mine = line == n
-            feed[mine] = step[mine].sum() * f / 60.0 if step[mine].sum() > 0 else np.nan
+            feed[mine] = step[mine].sum() * f if step[mine].sum() > 0 else np.nan
     word = "F word" if gcode else "FEDRAT"
     if bad:
         warnings.append(f"{os.path.basename(path)}: {len(bad)} {word}(s) not honoured (first at line {bad[0]}): "

@@ -34,10 +34,10 @@ from ..choice import clustering
 from ..choice.machining import UP, Machinist, ZonePlan
 from ..choice.orientation import accessible, azimuth_in_frame, heuristic_axis
 from ..choice.rectangle import choose_tool, pca_rectangle, zone_time_surrogate
-from ..choice.surface import cell_samples, load_patch, mesh_samples, mesh_surface, patch_mesh
+from ..geometry.patches import cell_samples, load_patch, mesh_samples, mesh_surface, patch_mesh
 from ..geometry.mesh import SUPPORTED, load_mesh
-from ..choice.zigzag import frame_rotation
-from .verify import DEFAULT_STEP, verify_toolpath
+from ..pathing.zigzag import frame_rotation
+from ..pathing.verify import DEFAULT_STEP, verify_toolpath
 
 CLUSTERS = ("kmeans", "rpcl", "ward")
 HEURISTIC_TILTS = (0.0, 15.0, -15.0, 30.0, -30.0)  # degrees about X_II tried in 3+2
@@ -254,7 +254,7 @@ class Chooser:
         tool = self.tools[plan.tool]
         try:
             return float(zone_time_surrogate(rect, plan.theta, tool.radius, tool.corner_radius, self.params.scallop,
-                                             self.machine.kinematics))
+                                             self.machine.motion))
         except InputError:  # a vertical plane: no feed direction in XY lies in it
             return math.inf
 
@@ -301,7 +301,7 @@ class Chooser:
         out = []
         for bull in (t for t in self.tools if t.type == "bull"):
             ball = next((b for b in balls if b.diameter == bull.diameter), None)
-            choice = choose_tool(rect, bull.radius, bull.corner_radius, self.params.scallop, self.machine.kinematics)
+            choice = choose_tool(rect, bull.radius, bull.corner_radius, self.params.scallop, self.machine.motion)
             out.append({
                 "ball": ball.name if ball else None, "bull": bull.name,
                 "choice": (ball.name if ball else f"a ball of diameter {bull.diameter:g} (not in the table)")

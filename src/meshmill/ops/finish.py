@@ -14,7 +14,7 @@
    shank and holder keep ``clearance``. Points without a free axis are left out with a lift.
 4. Passes with lead-in/out along the outward side and retracts along the tool axis (or vertically)
    to the safe plane, ordered by contour or grouped by tool.
-5. The finished path is verified (:mod:`meshmill.ops.verify`); moves that fail are repaired by
+5. The finished path is verified (:mod:`meshmill.pathing.verify`); moves that fail are repaired by
    splitting passes or changing the link, and whatever cannot be repaired is left out. The path
    written is the verified one.
 """
@@ -38,7 +38,7 @@ from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
 from .finish_levels import added_contours
 from .finish_shallow import shallow_facets, shallow_fill
-from .verify import DEFAULT_STEP, StockCheck, verify_toolpath
+from ..pathing.verify import DEFAULT_STEP, StockCheck, verify_toolpath
 
 REPAIR_ROUNDS = 7
 # Ways into and out of a pass, tried in this order: (lead along the outward side, vertical retract
@@ -539,7 +539,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     stage starts; ``stock``: a closed :class:`Mesh` of the material the finish starts from (else
     the part with ``params.stock_allowance`` on it), which rapids keep ``params.clearance`` from.
     ``detail`` holds per-point arrays for reports and tests. ``machine``: the 5-axis
-    :class:`~meshmill.machine.config.Machine` the path is for: no move swings the axis past the
+    :class:`~meshmill.machine.model.Machine` the path is for: no move swings the axis past the
     pole of its rotaries (:func:`around_pole`).
     """
     params.check()

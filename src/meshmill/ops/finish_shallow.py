@@ -22,9 +22,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..toolpath.linking import simplify_polyline
-from .dropcutter import ToolDrop
+from ..pathing.dropcutter import ToolDrop
 from .finish_levels import scallop_spacing
-from .raster import drop_refined
+from ..pathing.dropcutter import drop_refined
 
 MARGIN_DEG = 5.0  # the raster keeps contacts up to this much steeper than the shallow limit (overlap)
 COVER = 0.75  # a contact within this share of a larger ball's stepover of its contacts is that ball's

@@ -43,8 +43,8 @@ from ..geometry.shapes import box
 from ..kernels.backend import solid_kernels
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE
 from ..toolpath.model import Toolpath
-from .dropcutter import pick_tool
-from .verify import DEFAULT_STEP, StockCheck, verify_toolpath
+from ..pathing.dropcutter import pick_tool
+from ..pathing.verify import DEFAULT_STEP, StockCheck, verify_toolpath
 
 ARC_STEP = math.radians(5.0)  # largest angle of a chord of the 5-axis linking moves
 REACH_SAMPLES = 64  # positions along a plunge line looked at before the first contact is bisected

@@ -3,7 +3,7 @@
 Lines at ``angle`` from X cover the part's box widened by the cutter radius, ``stepover`` apart
 (or the stepover that leaves a scallop of ``scallop`` mm: sod = 2·sqrt(2·h·R_eff - h²), seed 002).
 Every line, and the link to the next one, is dropped onto the mesh with the exact drop-cutter
-(cutter, shank and holder: :class:`meshmill.ops.dropcutter.ToolDrop`) at
+(cutter, shank and holder: :class:`meshmill.pathing.dropcutter.ToolDrop`) at
 ``sample`` spacing, refined where the surface leaves the chord by more than half the tolerance,
 and simplified where points are collinear within half the tolerance. The tool tip never goes
 below the part's lowest point. The path is verified like any other.
@@ -22,11 +22,11 @@ from ..kernels.backend import solid_kernels
 from ..geometry.mesh import Mesh
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
-from ..choice.scallop import stepover
-from .dropcutter import ToolDrop, body_grow, check_stock_params, pick_tool, safe_height, stock_check, verified_path
-from .verify import DEFAULT_STEP
+from ..pathing.scallop import stepover
+from ..pathing.dropcutter import (ToolDrop, body_grow, check_stock_params, drop_refined, pick_tool, safe_height,
+                                  stock_check, verified_path)
+from ..pathing.verify import DEFAULT_STEP
 
-REFINE_ROUNDS = 6  # each halves the spacing where the chord leaves the surface
 CL_BYTES = 200  # one dropped point of a pass, its contact and its share of the tool path and verification
 
 
@@ -67,7 +67,7 @@ def effective_radius(tool) -> float:
 
 
 def stepover_for_scallop(scallop: float, r_eff: float) -> float:
-    """sod = 2·sqrt(2·h·R_eff - h²), mm (:func:`meshmill.choice.scallop.stepover`)."""
+    """sod = 2·sqrt(2·h·R_eff - h²), mm (:func:`meshmill.pathing.scallop.stepover`)."""
     return float(stepover(scallop, r_eff))
 
 
@@ -97,27 +97,6 @@ def raster_lines(bounds, radius, stepover, angle_deg, sample):
             pieces.append(a_end + f * (b_start - a_end))
         pieces.append(line)
     return pieces, n_lines, float((t1 - t0) / max(n_lines - 1, 1))
-
-
-def drop_refined(xy, drop: ToolDrop, chord_tol, min_step):
-    """Drop the tool along the polyline ``xy (k, 2)``, adding midpoints where the tip height
-    leaves the chord by more than ``chord_tol``; returns tips ``(m, 3)``."""
-    z = drop(xy)
-    for _ in range(REFINE_ROUNDS):
-        if len(xy) < 2:
-            break
-        mid = 0.5 * (xy[:-1] + xy[1:])
-        idx = np.nonzero(np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step)[0]
-        if len(idx) == 0:
-            break
-        zm = drop(mid[idx])
-        off = np.abs(zm - 0.5 * (z[idx] + z[idx + 1])) > chord_tol
-        if not off.any():
-            break
-        ins = idx[off]
-        xy = np.insert(xy, ins + 1, mid[ins], axis=0)
-        z = np.insert(z, ins + 1, zm[off])
-    return np.column_stack([xy, z])
 
 
 def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=None,

@@ -2,7 +2,6 @@
 what a tool path cuts from a stock and compare it with the design (``meshmill simulate``)."""
 from __future__ import annotations
 
-import os
 import time
 
 import numpy as np
@@ -15,8 +14,6 @@ from ..simulation.deviation import deviations, difference_volume, surface_parame
 from ..simulation.dexel import MAX_PARTITIONS, DexelModel, dexelize, lattice, material_mesh, uneven_lines_warning
 from ..simulation.surface import machined_mesh
 
-TOOLPATH_APT = (".cl", ".apt", ".cls", ".aptsource")
-TOOLPATH_GCODE = (".nc", ".ngc", ".gcode", ".tap", ".g", ".txt")
 DEVIATION_KEYS = ("Sa", "Sq", "Sp", "Sv", "Sz", "gouge_max", "excess_max", "within_tolerance",
                   "removed_volume", "remaining_volume")
 
@@ -48,28 +45,6 @@ def dexel_model(mesh, step, index="bvh", partitions="1", init="k-means++", minib
     summary["index"] = model.info
     summary["warnings"] = uneven_lines_warning(model)
     return model, summary
-
-
-def read_toolpath(path, tools, tool_name=None, machine=None):
-    """A tool path from an APT CL file or G-code, chosen by the file's extension, and warnings.
-    ``machine`` (:class:`~meshmill.machine.config.Machine` or None) is the one G-code is read for
-    (5-axis words through its kinematics); a CL file holds tips and axes already, and is read
-    without it (with a warning that it is not used)."""
-    ext = os.path.splitext(os.fspath(path))[1].lower()
-    if ext in TOOLPATH_APT:
-        from ..toolpath.cldata import read_apt
-
-        tp, warnings = read_apt(path, tools)
-        if machine is not None:
-            warnings.append(f"{os.path.basename(path)}: an APT CL file gives tool tips and axes; the machine "
-                            f"({machine.name}) is not used")
-        return tp, warnings
-    if ext in TOOLPATH_GCODE:
-        from ..toolpath.gcode import read_gcode
-
-        return read_gcode(path, tools, tool_name=tool_name, machine=machine)
-    raise InputError(f"{path}: unknown tool-path format '{ext}' (APT CL: {', '.join(TOOLPATH_APT)}; "
-                     f"G-code: {', '.join(TOOLPATH_GCODE)})")
 
 
 def _stock_bounds(design, stock, allowance):

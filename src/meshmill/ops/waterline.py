@@ -5,7 +5,7 @@ the drop height of the whole tool there is above z, so the waterline loops at z 
 ``drop(x, y) = z``. The drop-cutter heights live on one grid over the part (``sample`` apart, like
 the fibres of other programs, widened by the tool's reach) shared by every level, and are computed
 only in the blocks of the grid where bounds of the drop height cannot tell inside from outside
-(:mod:`meshmill.ops.dropgrid`). Per level, marching squares (the cell centre deciding saddles) gives the
+(:mod:`meshmill.pathing.dropgrid`). Per level, marching squares (the cell centre deciding saddles) gives the
 crossings, which are moved onto the level set by a bracketed search with the exact drop-cutter:
 each loop point keeps ``drop <= z`` (no gouge) and either its height is within 1e-6 mm of z or the
 level set lies within 1e-4 mm of it toward the material (always so at a vertical wall, where the
@@ -30,9 +30,9 @@ from ..geometry.mesh import Mesh
 from ..geometry.slicing import z_levels
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
-from .dropcutter import ToolDrop, body_grow, check_stock_params, pick_tool, safe_height, stock_check, verified_path
-from .dropgrid import DropGrid
-from .verify import DEFAULT_STEP
+from ..pathing.dropcutter import ToolDrop, body_grow, check_stock_params, pick_tool, safe_height, stock_check, verified_path
+from ..pathing.dropgrid import DropGrid
+from ..pathing.verify import DEFAULT_STEP
 
 REFINE_ROUNDS = 8  # chord refinement rounds of a loop
 NODE_BYTES = 64  # one node of the drop grid: heights, contacts, bounds and the level masks

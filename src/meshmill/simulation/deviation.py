@@ -26,7 +26,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..geometry.bvh import build_bvh
+from ..kernels.bvh import build_bvh
 from ..kernels.backend import MeshKernels
 from .dexel import DexelModel
 

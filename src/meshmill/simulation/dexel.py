@@ -16,16 +16,16 @@ import math
 import os
 import time
 from dataclasses import dataclass, field
-from types import SimpleNamespace
 
 import numba
 import numpy as np
 
 from .. import memory
 from ..errors import InputError
-from ..geometry.bvh import build_bvh
+from ..kernels.bvh import build_bvh
 from ..kernels import cpu_dexel
-from ..kernels.cpu_dexel import MAX_HITS, cast_lines
+from ..kernels.backend import LineCaster
+from ..kernels.cpu_dexel import MAX_HITS
 from . import partition
 
 LINE_BYTES = 200  # one line while casting (its dense rows, count and CSR share) and its intervals after
@@ -216,20 +216,12 @@ def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", min
     bvh = idx[1] if idx[0] == "bvh" else None
     info["index_seconds"] = round(time.perf_counter() - t0, 4)
     info["device"] = device
-    if device == "cuda":
-        if index != "bvh":
-            raise InputError("the cells and k-means indexes run on the CPU only: use --index bvh with --device cuda")
-        from ..kernels import cuda as gpu
-
-        bvh_dev = gpu.to_device(SimpleNamespace(arrays=idx[1]))
+    caster = LineCaster(idx, device)
     starts, ivs = [], []
     t1 = time.perf_counter()
     for a in range(3):
         u, v = (a + 1) % 3, (a + 2) % 3
-        if device == "cuda":
-            dense, count = gpu.cast_lines(a, lo[u], lo[v], step, n[u], n[v], bvh_dev)
-        else:
-            dense, count = cast_lines(a, lo[u], lo[v], step, n[u], n[v], idx)
+        dense, count = caster.cast_lines(a, lo[u], lo[v], step, n[u], n[v])
         if (count == -2).any():
             raise InputError(f"{int((count == -2).sum())} line(s) along {'XYZ'[a]} cross the surface more than "
                              f"{MAX_HITS} times: the mesh is too intricate for one line (or has many stacked shells)")

@@ -1,7 +1,7 @@
 """The tool-path model shared by every operation: a sequence of moves."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -10,17 +10,24 @@ import numpy as np
 class Toolpath:
     """Moves in order. ``tip (k, 3)`` tool tip (mm), ``axis (k, 3)`` unit tool axis (tip to
     spindle), ``rapid (k,) bool``, ``tool (k,) int`` 0-based index into the tool table;
-    ``line (k,) int`` source line of each move when read from a file (0 otherwise)."""
+    ``line (k,) int`` source line of each move when read from a file (0 otherwise); ``feed (k,)``
+    mm/min, the feed each move is programmed at (NaN where unset: the machine's, or the post's
+    ``feed``); ``source``: the file it was read from ("" otherwise), ``warnings``: what its reader noticed."""
 
     tip: np.ndarray
     axis: np.ndarray
     rapid: np.ndarray
     tool: np.ndarray
     line: np.ndarray | None = None
+    feed: np.ndarray | None = None
+    source: str = ""
+    warnings: list = field(default_factory=list)
 
     def __post_init__(self):
         if self.line is None:
             self.line = np.zeros(len(self.tip), np.int64)
+        if self.feed is None:
+            self.feed = np.full(len(self.tip), np.nan)
 
     def __len__(self):
         return len(self.tip)
@@ -35,6 +42,7 @@ class Toolpath:
             rapid=np.concatenate([p.rapid for p in parts]),
             tool=np.concatenate([p.tool for p in parts]),
             line=np.concatenate([p.line for p in parts]),
+            feed=np.concatenate([p.feed for p in parts]),
         )
 
     def cutting_length(self) -> float:

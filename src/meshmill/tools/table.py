@@ -199,7 +199,15 @@ def tool_from_entry(entry: dict, number: int, where: str) -> Tool:
                 number=number, rpm=float(rpm))
 
 
-def load_tools(path) -> list[Tool]:
+class ToolTable(list):
+    """The tools of a table file, in order (a list of :class:`Tool`), and the file's ``path``."""
+
+    def __init__(self, tools=(), path=""):
+        super().__init__(tools)
+        self.path = os.path.abspath(path) if path else ""
+
+
+def load_tools(path) -> ToolTable:
     """Read a TOML tool table (``[[tools]]`` entries) into tools numbered from 1."""
     path = os.fspath(path)
     if not os.path.exists(path):
@@ -214,7 +222,7 @@ def load_tools(path) -> list[Tool]:
     names = [t.name for t in tools]
     if len(set(names)) != len(names):
         raise InputError(f"{path}: tool names must be unique")
-    return tools
+    return ToolTable(tools, path)
 
 
 def write_tools(path, tools) -> None:

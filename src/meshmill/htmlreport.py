@@ -10,13 +10,12 @@ and the report says where.
 from __future__ import annotations
 
 import html
-import json
 import os
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from .errors import InputError
+from .runfolder import Run, read_run, summary_path
 
 MAX_PATH_POINTS = 150_000  # per tool path shown; more are thinned (every k-th move)
 MAX_MESH_FACES = 150_000  # per mesh shown; more are thinned (every k-th triangle)
@@ -24,107 +23,6 @@ AXIS_GLYPHS = 300  # tool-axis glyphs per 5-axis path
 AXIS_GLYPH_LENGTH = 0.08  # of the part's diagonal
 PATH_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf")
 RAPID_COLOUR = "#b0b0b0"
-
-
-@dataclass
-class Run:
-    """One run folder: its ``summary`` and what the views need (``None`` where absent)."""
-
-    folder: str
-    kind: str
-    summary: dict
-    part: object = None  # Mesh
-    toolpath: object = None  # Toolpath
-    tools: list = field(default_factory=list)
-    contours: dict | None = None
-    deviation: dict | None = None
-    samples: dict | None = None  # deviation points and values
-    machined: tuple | None = None  # (vertices, faces)
-    zones: dict | None = None  # choose: the sampling grid's cells and their zones
-    notes: list = field(default_factory=list)
-
-
-def _json(path):
-    try:
-        with open(path) as fh:
-            return json.load(fh)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
-
-
-def summary_path(folder: str) -> str:
-    """``folder``'s ``summary.json`` (raises :class:`InputError` when it is not a run folder)."""
-    if not os.path.isdir(folder):
-        raise InputError(f"{folder}: no such folder")
-    path = os.path.join(folder, "summary.json")
-    if not os.path.exists(path):
-        raise InputError(f"{folder}: no summary.json (not a folder written by a meshmill command)")
-    return path
-
-
-def read_run(folder: str, meshes: dict | None = None) -> Run:
-    """Read a run folder (raises :class:`InputError` when it is not one); ``meshes`` keeps the
-    parts already loaded, by file, for runs on the same part."""
-    from .geometry.mesh import SUPPORTED, load_mesh
-    from .geometry.placement import Setup
-    from .tools.table import load_tools
-    from .toolpath.cldata import read_apt
-
-    path = summary_path(folder)
-    s = _json(path)
-    kind = s.get("operation") or ("simulate" if "volumes_mm3" in s else "dexel" if "dexels" in s else None)
-    if kind is None:
-        raise InputError(f"{path}: not a meshmill summary (no 'operation')")
-    run = Run(folder=folder, kind=kind, summary=s)
-    part_file = (s.get("part") or s.get("design") or s.get("surface") or {}).get("file")
-    if part_file and not part_file.lower().endswith(SUPPORTED):
-        part_file = None  # a patch (choose): its sampled cells stand for it
-    if part_file and os.path.exists(part_file):
-        meshes = {} if meshes is None else meshes
-        placed = os.path.join(folder, "part.stl")  # the part as the run placed it (work frame)
-        key = placed if os.path.exists(placed) else part_file
-        if key not in meshes:
-            entry = s.get("part") or s.get("design") or s.get("surface") or {}
-            if key == placed:
-                meshes[key] = load_mesh(placed)
-            else:  # set up as the run did
-                setup = entry.get("setup") or {}
-                meshes[key] = load_mesh(part_file, flip=bool(entry.get("flipped")),
-                                        setup=Setup(setup.get("units", "mm"), setup.get("up", "+Z"),
-                                                    setup.get("origin", "file"), setup.get("model_scale", 1.0)))
-        run.part = meshes[key]
-    elif part_file:
-        run.notes.append(f"the part {part_file} is gone: not shown")
-    if s.get("tools_file") and os.path.exists(s["tools_file"]):
-        run.tools = load_tools(s["tools_file"])
-    cl = os.path.join(folder, "toolpath.cl") if kind != "simulate" else (s.get("toolpath") or {}).get("file")
-    if cl and os.path.exists(cl) and cl.lower().endswith((".cl", ".apt", ".cls")):
-        if run.tools:
-            run.toolpath, _ = read_apt(cl, run.tools)
-        else:
-            run.notes.append("the summary names no tool table that still exists: the tool path is not shown")
-    run.zones = _npz(os.path.join(folder, "zones.npz"))
-    run.contours = _npz(os.path.join(folder, "contours.npz"))
-    if kind == "simulate":
-        run.deviation = _json(os.path.join(folder, "deviation.json"))
-        run.samples = _npz(os.path.join(folder, "deviation.npz"))
-        m = os.path.join(folder, "machined.stl")
-        if os.path.exists(m):
-            import trimesh
-
-            t = trimesh.load(m, force="mesh")  # processed: the STL's repeated corners merged
-            run.machined = (np.asarray(t.vertices, float), np.asarray(t.faces, np.int64))
-    return run
-
-
-def _npz(path):
-    """The arrays of the .npz file at ``path`` by name, or None when there is none."""
-    if not os.path.exists(path):
-        return None
-    with np.load(path) as z:
-        return {k: z[k] for k in z.files}
 
 
 def _thin_mesh(vertices, faces, limit, what, notes):
@@ -287,7 +185,10 @@ def _scene(title, go, traces):
 
 def run_figures(run: Run) -> list:
     """``[(title, plotly Figure)]`` of one run."""
-    import plotly.graph_objects as go
+    try:
+        import plotly.graph_objects as go
+    except ImportError:
+        raise InputError("the HTML report needs plotly: pip install 'meshmill[report]'") from None
 
     figs, notes = [], run.notes
     base = []
@@ -385,8 +286,11 @@ def _table(rows):
 
 def write_report(folders: list[str], out: str, progress=None) -> dict:
     """Write the report of ``folders`` to ``out``; returns what it holds (runs, views, notes)."""
-    import plotly
-    from plotly.offline import get_plotlyjs
+    try:
+        import plotly
+        from plotly.offline import get_plotlyjs
+    except ImportError:
+        raise InputError("the HTML report needs plotly: pip install 'meshmill[report]'") from None
 
     say = progress or (lambda _: None)
     for f in folders:  # every folder checked before any progress: a bad one is one line

@@ -6,8 +6,7 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from ..kernels import cpu
-from ..kernels.backend import bind
+from ..kernels.backend import bind, cutter_rise
 from ..toolpath.linking import link_passes
 from .verify import StockCheck, verify_toolpath
 
@@ -121,7 +120,7 @@ class ToolDrop:
         if delta < R:
             flat = R - r  # the flat bottom's radius: no rise inside it
             for rho0 in {max(flat, delta + 0.4 * (R - delta)), max(flat, delta + 0.75 * (R - delta))}:
-                rise = cpu.cut.profile(rho0, R, r)
+                rise = cutter_rise(rho0, R, r)
                 lower = np.maximum(lower, self.kern.drop_cutter(xy, rho0 - delta, 0.0, self.floor + rise)[0] - rise)
         return upper, lower
 
@@ -185,3 +184,25 @@ def verified_path(passes, tool_index, tools, kern, safe_z, tol, step, stock: Sto
         passes = new
     report["moves_left_out"] = left_out
     return tp, report, passes
+
+
+REFINE_ROUNDS = 6  # each halves the spacing where the chord leaves the surface
+def drop_refined(xy, drop: ToolDrop, chord_tol, min_step):
+    """Drop the tool along the polyline ``xy (k, 2)``, adding midpoints where the tip height
+    leaves the chord by more than ``chord_tol``; returns tips ``(m, 3)``."""
+    z = drop(xy)
+    for _ in range(REFINE_ROUNDS):
+        if len(xy) < 2:
+            break
+        mid = 0.5 * (xy[:-1] + xy[1:])
+        idx = np.nonzero(np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step)[0]
+        if len(idx) == 0:
+            break
+        zm = drop(mid[idx])
+        off = np.abs(zm - 0.5 * (z[idx] + z[idx + 1])) > chord_tol
+        if not off.any():
+            break
+        ins = idx[off]
+        xy = np.insert(xy, ins + 1, mid[ins], axis=0)
+        z = np.insert(z, ins + 1, zm[off])
+    return np.column_stack([xy, z])

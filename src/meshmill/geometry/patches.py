@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 
 from .. import memory
 from ..errors import InputError
-from ..geometry.mesh import Mesh, mesh_from_arrays
+from .mesh import Mesh, mesh_from_arrays
 from ..tomlfile import read_toml
 
 DATA = os.path.join(os.path.dirname(os.path.dirname(__file__)), "data", "surfaces")
@@ -266,7 +266,7 @@ class SurfaceMesh:
 
     def top_height(self, xy) -> np.ndarray:
         """Height ``(k,)`` of the mesh's top over ``xy (k, 2)`` (a 1 µm ball dropped on it)."""
-        from ..geometry.bvh import build_bvh
+        from ..kernels.bvh import build_bvh
         from ..kernels.backend import MeshKernels
 
         if self._top is None:

@@ -1,5 +1,5 @@
 """G-code (RS-274 / ISO 6983) read into a :class:`Toolpath`: 3-axis, or 5-axis through a machine's
-kinematics (:mod:`meshmill.machine.kinematics`).
+kinematics (:mod:`meshmill.machine.motion`).
 
 Read:
 
@@ -32,7 +32,7 @@ Without a machine, or with a 3-axis one, the tool axis is always +Z and X Y Z ar
 
 With a 5-axis ``machine`` (table-table or head-table): its rotary words (A or B, and C) are read,
 modal like X Y Z, in degrees; each block's axis values are the joints of
-:func:`~meshmill.machine.kinematics.forward`, which gives the tool tip and axis in work coordinates
+:func:`~meshmill.machine.motion.forward`, which gives the tool tip and axis in work coordinates
 (head-table: for the tool length of the current tool, its ``gauge_length + holder_length``, as the
 post-processor computes programs). The control moves the joints linearly from block to block, so
 where the rotaries turn the tip leaves the straight line: such a block becomes as many equal steps
@@ -68,9 +68,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..machine.kinematics import forward
-from .cldata import MAX_COORDINATE, read_text
-from .model import Toolpath
+from .kinematics import forward
+from ..toolpath.cldata import MAX_COORDINATE, read_text
+from ..toolpath.model import Toolpath
 
 MOTION = ("G0", "G1", "G2", "G3")
 IGNORED_G = {"G4", "G17", "G40", "G43", "G49", "G61", "G64", "G80", "G93", "G94"}
@@ -145,7 +145,7 @@ class _Axes:
         if self.machine is None or self.machine.gcode.rapid != "dogleg":
             return None
         m = self.machine
-        return np.array([m.kinematics.rapid] * 3 + [m.rotary_rapid] * (len(self.letters) - 3))
+        return np.array([m.motion.rapid] * 3 + [m.rotary_rapid] * (len(self.letters) - 3))
 
     def refuse_rotary(self, word, where):
         """InputError for a rotary word that is not one of the machine's axes."""
@@ -526,7 +526,7 @@ def _tool_poses(axes, joints, start, tcp, tool_length, reach, chord_tol, where):
 def read_gcode(path, tools, tool_name=None, chord_tol=0.001, machine=None) -> tuple[Toolpath, list[str]]:
     """Read a G-code file (see the module notes); moves refer to ``tools`` by ``T`` words, else to
     ``tool_name`` or the table's only tool. ``machine``: a
-    :class:`~meshmill.machine.config.Machine` whose 5-axis kinematics turn the axis words into tool
+    :class:`~meshmill.machine.model.Machine` whose 5-axis kinematics turn the axis words into tool
     tips and axes (None or a 3-axis machine: X Y Z are the tip, the axis +Z); ``chord_tol`` mm: how
     far arcs and the tip of joint-linear rotary moves may stray from the straight moves that stand
     for them. Returns the tool path (``tip``, ``axis (m, 3)``; ``line`` the source line of each

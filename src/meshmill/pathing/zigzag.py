@@ -20,15 +20,19 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..kernels.backend import solid_kernels
-from ..ops.dropcutter import ToolDrop
+from .dropcutter import ToolDrop
 from ..tolerances import STOCK_ALLOWANCE
-from .clustering import wrap_axial
 from .scallop import stepover, stepover_exact
-from .surface import SurfaceMesh
+from ..geometry.patches import SurfaceMesh
 
 SMOOTH = math.radians(20.0)  # a contact whose normal is farther from its cell's is on an edge
 LINK_STEPOVERS = 4.0  # pieces this many largest stepovers apart (or closer) are linked at feed
 ON_SURFACE = 1e-6  # mm: a point this close to the triangles is on them
+
+
+def wrap_axial(theta):
+    """Axial angle(s) rad reduced to [-pi/2, pi/2)."""
+    return (np.asarray(theta, dtype=float) + np.pi / 2) % np.pi - np.pi / 2
 
 
 def frame_rotation(axis) -> np.ndarray:
@@ -123,7 +127,7 @@ class SurfaceSetup:
         """Zigzag over the cells where ``in_zone (n_cells,) bool`` holds, whose sample ``points
         (n_cells, 3)`` (part frame; cells reach ``margin`` mm beyond them) bound it; planes at
         the axial azimuth ``theta`` rad (machining frame; theta and theta + pi are one
-        direction). The stepover is :func:`~meshmill.choice.scallop.stepover_exact` at the
+        direction). The stepover is :func:`~meshmill.pathing.scallop.stepover_exact` at the
         contacts where the cutter's normal is within ``SMOOTH`` of the surface's (the nearest
         node's, or the cell's sample normal ``normals (n_cells, 3)``; all contacts if none is):
         a tool rolling over an edge or a crease does not set the scallop of the faces beside it."""
