@@ -353,10 +353,14 @@ def verify(part, toolpath, tools, *, tolerance=GOUGE_TOL, step=0.5, stock=None, 
     if isinstance(toolpath, (str, os.PathLike)):
         toolpath = load_toolpath(toolpath, tools, machine=machine)
     device = _device(device)
+    say = progress or (lambda stage: None)
+    say("index")
     floor = min(part.bounds[0, 2], stock.bounds[0, 2]) if stock is not None else None
     check = StockCheck(allowance=0.0 if stock is not None else allowance,
                        kern=solid_kernels(stock, device) if stock is not None else None)
-    report = verify_toolpath(solid_kernels(part, device, floor), toolpath, tools, tolerance, step, worst=worst,
+    kern = solid_kernels(part, device, floor)
+    say("certified check of every move")
+    report = verify_toolpath(kern, toolpath, tools, tolerance, step, worst=worst,
                              stock=check)
     report.pop("problem_moves")
     return VerifyResult(report, device, stock is not None or bool(allowance))
