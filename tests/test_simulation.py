@@ -195,6 +195,19 @@ def test_rapid_move_through_material_is_reported():
     assert summary["rapid_cutting_points"] == [2]
 
 
+def test_cutting_length_in_air_and_in_material():
+    """A feed pass over the stock, a plunge beside it and a pass through its top: the first two cut
+    air, the last material (each move counts whole: it removes material or it does not)."""
+    design = box((0, 0, 0), (20, 20, 10))
+    stock = box((-1, -1, -1), (21, 21, 12))
+    pts = np.array([[-5, 10, 20.0], [25, 10, 20.0], [25, 10, 11.0], [-5, 10, 11.0]])
+    tp = Toolpath(pts, np.tile([0, 0, 1.0], (4, 1)), np.array([True, False, False, False]), np.zeros(4, int))
+    _, summary, *_ = simulate(design, tp, [BALL], 0.25, stock=stock)
+    c = summary["cutting_mm"]
+    assert c["in_air"] == pytest.approx(39.0) and c["in_material"] == pytest.approx(30.0)
+    assert c["air_share"] == pytest.approx(39.0 / 69.0) and summary["rapid_moves_cutting"] == 0
+
+
 def test_five_axis_turning_tool_cuts_a_block():
     """A ball tool tilting from vertical to 30 degrees along one move removes what the same motion
     cut as 3000 short moves removes."""

@@ -339,6 +339,9 @@ def cmd_simulate(args):
     _say(args, f"gouge max {deviation['gouge_max']:.4f} mm at {deviation['gouge_at']}; excess max "
                f"{deviation['excess_max']:.4f} mm; removed {deviation['removed_volume']:.1f} mm^3, remaining "
                f"{deviation['remaining_volume']:.1f} mm^3")
+    c = summary["cutting_mm"]
+    _say(args, f"feed moves: {c['in_material']:.1f} mm in material, {c['in_air']:.1f} mm in air "
+               f"({100 * c['air_share']:.1f} %)")
     _say(args, f"wrote deviation.json, summary.json, machined.stl in {args.out} ({summary['seconds']['total']:.1f} s, "
                f"device {summary['device']})")
     _finish_json(args, summary)

@@ -178,9 +178,9 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
     """Cut the lines of the given ``tiles`` with their moves, in move order within each line.
 
     Moves as in :mod:`meshmill.kernels.carve`, ``box (k, 6)`` their bounds, ``kind (k,)`` bits
-    :data:`RAPID` and :data:`BODY`. Sets ``hit[m]`` when a rapid move removes more than
-    ``hit_min`` mm of a dexel or a body move (shank, holder: it removes nothing) meets that much
-    material, and ``overflow[t]`` when a line of tile t ran out of room: the tile stops there, so
+    :data:`RAPID` and :data:`BODY`. Sets ``hit[m]`` when a move removes more than ``hit_min`` mm
+    of a dexel (a rapid that cuts; a feed move in material, not in air) or a body move (shank,
+    holder: it removes nothing) meets that much material, and ``overflow[t]`` when a line of tile t ran out of room: the tile stops there, so
     rerunning it after growing the line is exact (removal is idempotent, and moves before the stop
     saw the material in path order)."""
     tv = (nv + TILE - 1) // TILE
@@ -212,5 +212,5 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
                     if removed < 0.0:
                         overflow[t] = 1
                         break
-                    elif removed > hit_min and kind[m] & RAPID:
+                    elif removed > hit_min:
                         hit[m] = 1

@@ -318,7 +318,7 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_mov
         if removed < 0.0:
             overflow[t] = 1
             return
-        if removed > hit_min and kind[m] & 1:  # RAPID
+        if removed > hit_min:  # a rapid that cuts, or a feed move in material
             hit[m] = 1
 
 

@@ -154,6 +154,13 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
               for i in result["rapid_cuts"][:1000]]
     errors += [f"move to point {i} (source line {int(toolpath.line[i])}): the shank or holder meets the stock"
                for i in result["collisions"][:1000]]
+    step_mm = np.r_[0.0, np.linalg.norm(np.diff(toolpath.tip, axis=0), axis=1)]
+    feed = ~np.asarray(toolpath.rapid, bool)
+    feed[0] = False
+    in_material = np.zeros(len(toolpath), bool)
+    in_material[result["in_material"]] = True
+    material_mm = float(step_mm[feed & in_material].sum())
+    air_mm = float(step_mm[feed & ~in_material].sum())
     summary = {
         "operation": "simulate",
         "mode": mode,
@@ -166,6 +173,8 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
         "colliding_moves": len(result["collisions"]),
         "colliding_points": result["collisions"][:1000],
         "errors": errors,
+        "cutting_mm": {"in_material": material_mm, "in_air": air_mm,
+                       "air_share": air_mm / (air_mm + material_mm) if air_mm + material_mm > 0 else 0.0},
         "volumes_mm3": {"design": design_model.volume, "stock": stock_volume, "machined": machined.volume,
                         "removed": removed, "remaining": remaining, "gouged": gouged},
         "deviation": deviation,

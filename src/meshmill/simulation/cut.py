@@ -297,7 +297,8 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu") -> dict:
     """Remove every move's swept volume from ``stock`` (in place) on ``device`` (``"cpu"`` or
     ``"cuda"``); body moves (shank, holder) remove nothing. Returns ``{"rapid_cuts": sorted
     tool-path point indices whose rapid move cut material, "collisions": those whose shank or
-    holder met material, "seconds": ...}``."""
+    holder met material, "in_material": those whose feed move removed material (more than
+    :data:`RAPID_CUT` of some dexel; the others cut air), "seconds": ...}``."""
     t0 = time.perf_counter()
     kern = implementation(device)
     boxes = _boxes(moves)
@@ -337,7 +338,8 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu") -> dict:
                 _grow(stock, a, full[overflow[ti * tv + tj] == 1])
         if progress:
             progress(f"cut lines along {'XYZ'[a]}")
-    rapid_cuts = np.unique(moves.source[(hit == 1) & ~moves.body])
+    rapid_cuts = np.unique(moves.source[(hit == 1) & ~moves.body & moves.rapid])
     collisions = np.unique(moves.source[(hit == 1) & moves.body])
+    in_material = np.unique(moves.source[(hit == 1) & ~moves.body & ~moves.rapid])
     return {"rapid_cuts": [int(i) for i in rapid_cuts], "collisions": [int(i) for i in collisions],
-            "seconds": round(time.perf_counter() - t0, 4)}
+            "in_material": in_material, "seconds": round(time.perf_counter() - t0, 4)}
