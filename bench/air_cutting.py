@@ -4,10 +4,13 @@
     .venv/bin/python bench/air_cutting.py --step 0.3
 
 Roughing (3-axis plunge, F6, 1 mm allowance) from the part's box, then a waterline semi-finish (B4,
-1 mm step-down) and the 5-axis finish (step-down 1 mm), each given the stock the one before left
-(`--stock machined.stl` of `simulate`) and simulated from it: the feed length that removes material
-and the length in air (`simulate`'s `cutting_mm`), the removed volume and the machining time on
-table-table-ac. Prints a table and writes bench/out/air_cutting.json.
+1 mm step-down) and a raster (B4, 1 mm stepover), each without and with rest machining (`--rest
+0.05`), and
+the 5-axis finish (step-down 1 mm), each given the stock the one before left (`--stock
+machined.stl` of `simulate`; the two rasters both after the waterline, the finish after the rest
+raster) and simulated from it: the feed length that removes material and the length in air
+(`simulate`'s `cutting_mm`), the removed volume and the machining time on table-table-ac. Prints a
+table and writes bench/out/air_cutting.json.
 """
 from __future__ import annotations
 
@@ -37,25 +40,31 @@ def main():
     ap.add_argument("--step", type=float, default=0.5, help="dexel step of the simulations, mm (0.5)")
     ap.add_argument("--out", default=os.path.join(HERE, "out", "air_cutting"))
     a = ap.parse_args()
-    ops = [("rough", ["plunge", a.part, "--tools", a.tools, "--tool", "F6", "--allowance", "1"]),
-           ("semi", ["waterline", a.part, "--tools", a.tools, "--tool", "B4", "--step-down", "1"]),
-           ("finish", ["finish", a.part, "--tools", a.tools, "--step-down", "1"])]
-    rows, stock = [], None
-    for name, argv in ops:
-        folder, sim = os.path.join(a.out, name), os.path.join(a.out, f"sim-{name}")
+    raster = ["raster", a.part, "--tools", a.tools, "--tool", "B4", "--stepover", "1"]
+    ops = [("rough", None, ["plunge", a.part, "--tools", a.tools, "--tool", "F6", "--allowance", "1"]),
+           ("waterline", "rough", ["waterline", a.part, "--tools", a.tools, "--tool", "B4", "--step-down", "1"]),
+           ("waterline --rest", "rough", ["waterline", a.part, "--tools", a.tools, "--tool", "B4", "--step-down", "1",
+                                          "--rest", "0.05"]),
+           ("raster", "waterline", raster),
+           ("raster --rest", "waterline", [*raster, "--rest", "0.05"]),
+           ("finish", "raster --rest", ["finish", a.part, "--tools", a.tools, "--step-down", "1"])]
+    rows = []
+    for name, after, argv in ops:
+        key = name.replace(" --", "-")
+        folder, sim = os.path.join(a.out, key), os.path.join(a.out, f"sim-{key}")
+        stock = os.path.join(a.out, f"sim-{after.replace(' --', '-')}", "machined.stl") if after else None
         given = ["--stock", stock] if stock else []
         op_s = run(*argv, *given, "--out", folder, "--quiet")
         cl = os.path.join(folder, "toolpath.cl")
         sim_s = run("simulate", "--design", a.part, *given, "--toolpath", cl, "--tools", a.tools, "--step",
                     str(a.step), "--out", sim, "--quiet")
-        run("time", cl, "--machine", "table-table-ac", "--tools", a.tools, "--out", os.path.join(a.out, f"{name}-time.json"))
+        run("time", cl, "--machine", "table-table-ac", "--tools", a.tools, "--out", os.path.join(a.out, f"{key}-time.json"))
         s = json.load(open(os.path.join(sim, "summary.json")))
-        t = json.load(open(os.path.join(a.out, f"{name}-time.json")))
+        t = json.load(open(os.path.join(a.out, f"{key}-time.json")))
         c = s["cutting_mm"]
-        rows.append({"operation": name, "in_material_mm": round(c["in_material"], 1), "in_air_mm": round(c["in_air"], 1),
+        rows.append({"operation": name, "after": after or "box", "in_material_mm": round(c["in_material"], 1), "in_air_mm": round(c["in_air"], 1),
                      "air_share": round(c["air_share"], 4), "removed_mm3": round(s["volumes_mm3"]["removed"], 1),
                      "machining_s": round(t["total"]["total_s"], 1), "op_s": round(op_s, 1), "sim_s": round(sim_s, 1)})
-        stock = os.path.join(sim, "machined.stl")
     keys = list(rows[0])
     print("| " + " | ".join(keys) + " |\n|" + "---|" * len(keys))
     for r in rows:

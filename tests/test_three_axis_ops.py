@@ -175,3 +175,47 @@ def test_raster_keeps_the_holder_out_of_the_allowance(cutters):
         if allowance == 0.0:
             assert "holder (in the stock)" in " ".join(r["worst"])
     assert 15.0 - 1e-9 <= near[0.0] < 15.5 <= near[0.5] + 1e-9
+
+
+def test_rest_raster_cuts_only_where_the_stock_has_material(cutters):
+    """A box whose stock holds material above it only over a 10 mm square: with --rest the raster
+    keeps the pieces of its passes near the square, and removes from the stock what the whole
+    raster removes (simulated: an independent check that no piece in material was left out)."""
+    from meshmill.ops.simulate import simulate
+
+    design = box((0, 0, 0), (40, 40, 10))
+    stock = box((10, 10, 0), (20, 20, 13))
+    tools = [cutters[1]]
+    full, _ = raster(design, tools, "B6", RasterParams(stepover=1.0, sample=0.5), stock=stock)
+    rest, summary = raster(design, tools, "B6", RasterParams(stepover=1.0, sample=0.5, rest=0.05), stock=stock)
+    assert summary["verify"]["ok"] and summary["rest"]["runs"] > 5
+    feed = rest.tip[~rest.rapid]
+    reach = 3.0 + 3.0 + 0.5 + 1e-9  # the cutter's radius, the margin, a sample
+    assert (feed[:, :2] >= 10 - reach).all() and (feed[:, :2] <= 20 + reach).all()
+    assert rest.cutting_length() < 0.2 * full.cutting_length()
+    _, s_full, *_ = simulate(design, full, tools, 0.5, stock=stock)
+    _, s_rest, *_ = simulate(design, rest, tools, 0.5, stock=stock)
+    assert s_rest["volumes_mm3"]["removed"] == pytest.approx(s_full["volumes_mm3"]["removed"], rel=1e-9, abs=1e-6)
+    assert s_rest["cutting_mm"]["air_share"] < s_full["cutting_mm"]["air_share"]
+    with pytest.raises(InputError, match="--rest needs --stock"):
+        raster(design, tools, "B6", RasterParams(stepover=1.0, rest=0.05))
+
+
+def test_rest_waterline_cuts_only_the_loops_in_the_stock(cutters):
+    """Stock only along one wall of a box: with --rest the loops are cut there (and a tool radius
+    round the corners), and remove from the stock what the whole loops remove (simulated)."""
+    from meshmill.ops.simulate import simulate
+
+    design = box((0, 0, 0), (40, 40, 10))
+    stock = box((-5, -5, 0), (45, 2, 10))
+    tools = [cutters[1]]
+    params = dict(step_down=2.5, sample=0.5)
+    full, _, _ = waterline(design, tools, "B6", WaterlineParams(**params), stock=stock)
+    rest, summary, loops = waterline(design, tools, "B6", WaterlineParams(**params, rest=0.05), stock=stock)
+    assert summary["verify"]["ok"] and summary["rest"]["runs"] == summary["rest"]["loops_before"] >= 3  # one run a loop
+    feed = rest.tip[~rest.rapid]
+    assert len(feed) and (feed[:, 1] <= 2 + 3.0 + 3.0 + 0.5).all()  # the stock, its reach, the margin, a sample
+    assert rest.cutting_length() < 0.5 * full.cutting_length()
+    _, s_full, *_ = simulate(design, full, tools, 0.5, stock=stock)
+    _, s_rest, *_ = simulate(design, rest, tools, 0.5, stock=stock)
+    assert s_rest["volumes_mm3"]["removed"] == pytest.approx(s_full["volumes_mm3"]["removed"], rel=1e-9, abs=1e-6)

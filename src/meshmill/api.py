@@ -256,17 +256,18 @@ def finish(part, tools, *, step_down, sample=0.5, max_tilt=60.0, tilt_step=5.0, 
 
 @_named_errors
 def raster(part, tools, *, tool, stepover=None, scallop=None, angle=0.0, sample=0.5, tolerance=GOUGE_TOL,
-           clearance=HOLDER_CLEARANCE, stock=None, stock_allowance=STOCK_ALLOWANCE, device="auto",
+           clearance=HOLDER_CLEARANCE, stock=None, stock_allowance=STOCK_ALLOWANCE, rest=None, device="auto",
            progress=None) -> PathResult:
     """3-axis zigzag finishing with the tool named ``tool``: ``stepover`` mm between passes, or
-    the one a ``scallop`` height gives; ``angle`` degrees from X."""
+    the one a ``scallop`` height gives; ``angle`` degrees from X; ``rest`` mm: with a ``stock``,
+    only the pieces of the passes that remove more than that depth of it (rest machining)."""
     from .ops.raster import RasterParams
     from .ops.raster import raster as run
 
     if (stepover is None) == (scallop is None):
         raise InputError("give exactly one of --stepover and --scallop")
     params = RasterParams(stepover=stepover, scallop=scallop, angle=angle, sample=sample, tol=tolerance,
-                          stock_allowance=stock_allowance, clearance=clearance)
+                          stock_allowance=stock_allowance, clearance=clearance, rest=rest)
     params.check()
     device = _device(device)
     tp, summary = run(part, tools, tool, params, progress=progress, device=device, stock=_load_stock(stock))
@@ -275,13 +276,14 @@ def raster(part, tools, *, tool, stepover=None, scallop=None, angle=0.0, sample=
 
 @_named_errors
 def waterline(part, tools, *, tool, step_down, sample=0.5, tolerance=GOUGE_TOL, clearance=HOLDER_CLEARANCE,
-              stock=None, stock_allowance=STOCK_ALLOWANCE, device="auto", progress=None) -> PathResult:
-    """3-axis Z-level loops with the tool named ``tool``, ``step_down`` mm apart."""
+              stock=None, stock_allowance=STOCK_ALLOWANCE, rest=None, device="auto", progress=None) -> PathResult:
+    """3-axis Z-level loops with the tool named ``tool``, ``step_down`` mm apart; ``rest`` mm:
+    with a ``stock``, only the pieces of the loops that remove more than that depth of it."""
     from .ops.waterline import WaterlineParams
     from .ops.waterline import waterline as run
 
     params = WaterlineParams(step_down=step_down, sample=sample, tol=tolerance, stock_allowance=stock_allowance,
-                             clearance=clearance)
+                             clearance=clearance, rest=rest)
     params.check()
     device = _device(device)
     tp, summary, _ = run(part, tools, tool, params, progress=progress, device=device, stock=_load_stock(stock))

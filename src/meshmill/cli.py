@@ -232,14 +232,14 @@ def cmd_raster(args):
 
     return _three_axis(args, api.raster, stock=_stock(args),
                        **_options(args, "stepover", "scallop", "angle", "sample", "tolerance", "clearance",
-                                  "stock_allowance"))
+                                  "stock_allowance", "rest"))
 
 
 def cmd_waterline(args):
     from . import api
 
     return _three_axis(args, api.waterline, stock=_stock(args),
-                       **_options(args, "step_down", "sample", "tolerance", "clearance", "stock_allowance"))
+                       **_options(args, "step_down", "sample", "tolerance", "clearance", "stock_allowance", "rest"))
 
 
 def cmd_plunge(args):
@@ -531,6 +531,9 @@ def build_parser():
     r.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
                    help=f"distance rapid moves keep from the stock, mm ({HOLDER_CLEARANCE})")
     _add_stock(r)
+    r.add_argument("--rest", type=float, default=None, metavar="MM",
+                   help="rest machining: with --stock, cut only the pieces of the passes that remove more than MM of it "
+                        "(a tool radius of pass kept on each side); the passes through air are left out (off)")
     r.add_argument("--out", default="out", help="output folder (out)")
     _add_device(r)
     r.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -546,6 +549,9 @@ def build_parser():
     w.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
                    help=f"distance rapid moves keep from the stock, mm ({HOLDER_CLEARANCE})")
     _add_stock(w)
+    w.add_argument("--rest", type=float, default=None, metavar="MM",
+                   help="rest machining: with --stock, cut only the pieces of the loops that remove more than MM of it "
+                        "(a tool radius of loop kept on each side) (off)")
     w.add_argument("--out", default="out", help="output folder (out)")
     _add_device(w)
     w.add_argument("--quiet", action="store_true", help="print nothing but errors")

@@ -25,6 +25,7 @@ from ..toolpath.linking import simplify_polyline
 from ..pathing.scallop import stepover
 from ..pathing.dropcutter import (ToolDrop, body_grow, check_stock_params, drop_refined, pick_tool, safe_height,
                                   stock_check, verified_path)
+from ..pathing.rest import in_material, material_runs
 from ..pathing.verify import DEFAULT_STEP
 
 CL_BYTES = 200  # one dropped point of a pass, its contact and its share of the tool path and verification
@@ -39,6 +40,7 @@ class RasterParams:
     tol: float = GOUGE_TOL
     stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
     clearance: float = HOLDER_CLEARANCE  # mm rapids keep from the stock
+    rest: float | None = None  # mm: with a stock, leave out the pass pieces that remove less (rest machining)
 
     def check(self):
         if (self.stepover is None) == (self.scallop is None):
@@ -54,6 +56,8 @@ class RasterParams:
         check_stock_params(self)
         if self.sample < 1e-3:
             raise InputError("--sample must be at least 0.001 mm")
+        if self.rest is not None and not (math.isfinite(self.rest) and self.rest >= 0):
+            raise InputError(f"--rest must be a depth of material >= 0 mm, got {self.rest}")
 
 
 def effective_radius(tool) -> float:
@@ -103,8 +107,12 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
            device: str = "cpu", stock=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary)``.
     ``stock``: a closed :class:`Mesh` of the material it starts from (else the part with
-    ``params.stock_allowance`` on it), which rapids keep ``params.clearance`` from."""
+    ``params.stock_allowance`` on it), which rapids keep ``params.clearance`` from; with
+    ``params.rest`` only the pieces of the passes that remove more than that depth of it are cut
+    (:mod:`meshmill.pathing.rest`), with a tool radius of pass on each side."""
     params.check()
+    if params.rest is not None and stock is None:
+        raise InputError("--rest needs --stock: the material the operation starts from")
     say = progress or (lambda stage: None)
     index, tool = pick_tool(tools, tool_name)
     seconds = {}
@@ -125,13 +133,20 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     xy = np.concatenate(pieces)
     tips = drop_refined(xy, ToolDrop(tool, kern, float(bounds[0, 2]), body_grow=body_grow(stock, params)), 0.5 * params.tol, params.sample / 64)
     dropped = len(tips)
-    tips = simplify_polyline(tips, 0.5 * params.tol)
-    seconds["drop"] = time.perf_counter() - t
     rapid_stock = stock_check(stock, params, device)
+    passes, rest = [tips], None
+    if params.rest is not None:
+        inside = in_material(tips, tool, rapid_stock.kern, params.rest)
+        passes = material_runs(tips, inside, tool.radius)
+        kept = sum(len(p) for p in passes)
+        rest = {"min_depth": params.rest, "points_in_material": int(inside.sum()), "points_left_out": int(dropped - kept),
+                "runs": len(passes)}
+    passes = [simplify_polyline(p, 0.5 * params.tol) for p in passes]
+    seconds["drop"] = time.perf_counter() - t
     safe_z = safe_height(mesh, stock, params)
     say("verify")
     t = time.perf_counter()
-    tp, report, passes = verified_path([tips], index, tools, kern, safe_z, params.tol, DEFAULT_STEP, rapid_stock)
+    tp, report, passes = verified_path(passes, index, tools, kern, safe_z, params.tol, DEFAULT_STEP, rapid_stock)
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
     summary = {
@@ -151,6 +166,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
         "moves_left_out": report["moves_left_out"],
         "moves": int(len(tp)),
         "cutting_length": tp.cutting_length(),
+        **({"rest": rest} if rest is not None else {}),
         "verify": report,
         "seconds": {k: round(v, 4) for k, v in seconds.items()},
     }

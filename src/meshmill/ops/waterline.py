@@ -31,6 +31,7 @@ from ..geometry.slicing import z_levels
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
 from ..pathing.dropcutter import ToolDrop, body_grow, check_stock_params, pick_tool, safe_height, stock_check, verified_path
+from ..pathing.rest import densify, in_material, loop_runs
 from ..pathing.dropgrid import DropGrid
 from ..pathing.verify import DEFAULT_STEP
 
@@ -46,6 +47,7 @@ class WaterlineParams:
     tol: float = GOUGE_TOL
     stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
     clearance: float = HOLDER_CLEARANCE  # mm rapids keep from the stock
+    rest: float | None = None  # mm: with a stock, leave out the loop pieces that remove less (rest machining)
 
     def check(self):
         for name in ("step_down", "sample", "tol"):
@@ -55,6 +57,8 @@ class WaterlineParams:
         if self.sample < 1e-3 or self.step_down < 1e-4:
             raise InputError("--sample must be at least 0.001 mm and --step-down at least 0.0001 mm")
         check_stock_params(self)
+        if self.rest is not None and not (math.isfinite(self.rest) and self.rest >= 0):
+            raise InputError(f"--rest must be a depth of material >= 0 mm, got {self.rest}")
 
 
 @numba.njit(cache=True)
@@ -215,8 +219,12 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     ``(z, (k, 3) array)`` from the top level down: closed loops (first point repeated at the end),
     or pieces of loops where a stretch could not be cut without gouging. ``stock``: a closed
     :class:`Mesh` of the material it starts from (else the part with ``params.stock_allowance`` on
-    it), which rapids keep ``params.clearance`` from."""
+    it), which rapids keep ``params.clearance`` from; with ``params.rest`` only the pieces of the
+    loops that remove more than that depth of it are cut (:mod:`meshmill.pathing.rest`), with a
+    tool radius of loop on each side."""
     params.check()
+    if params.rest is not None and stock is None:
+        raise InputError("--rest needs --stock: the material the operation starts from")
     say = progress or (lambda stage: None)
     index, tool = pick_tool(tools, tool_name)
     reach = max(tool.radius, 0.5 * tool.shank_diameter, 0.5 * tool.holder_diameter)  # outside it: no contact
@@ -286,6 +294,20 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
                 loops.append((float(z), np.column_stack([piece, np.full(len(piece), z)])))
     seconds["levels"] = time.perf_counter() - t_levels - seconds["grid"]
     rapid_stock = stock_check(stock, params, device)
+    rest = None
+    if params.rest is not None:  # the pieces of the loops in the stock's material, at sample spacing
+        pieces, n_in, n_all = [], 0, 0
+        for z, p in loops:
+            dense = densify(p, params.sample)
+            inside = in_material(dense, tool, rapid_stock.kern, params.rest)
+            n_in, n_all = n_in + int(inside.sum()), n_all + len(dense)
+            if inside.all():
+                pieces.append((z, p))  # as it was: whole in material
+            else:
+                pieces += [(z, simplify_polyline(r, 0.25 * params.tol)) for r in loop_runs(dense, inside, tool.radius)]
+        rest = {"min_depth": params.rest, "points_in_material": n_in, "points_tested": n_all, "runs": len(pieces),
+                "loops_before": len(loops)}
+        loops = pieces
     safe_z = safe_height(mesh, stock, params)
     say("verify")
     t = time.perf_counter()
@@ -311,6 +333,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
         "cl_points": int(sum(len(p) for _, p in loops)),
         "moves": int(len(tp)),
         "cutting_length": tp.cutting_length(),
+        **({"rest": rest} if rest is not None else {}),
         "verify": report,
         "seconds": {k: round(v, 4) for k, v in seconds.items()},
     }
