@@ -533,7 +533,7 @@ def build_parser():
     _add_stock(r)
     r.add_argument("--rest", type=float, default=None, metavar="MM",
                    help="rest machining: with --stock, cut only the pieces of the passes that remove more than MM of it "
-                        "(a tool radius of pass kept on each side); the passes through air are left out (off)")
+                        "(1.5 samples of pass kept on each side); the passes through air are left out (off)")
     r.add_argument("--out", default="out", help="output folder (out)")
     _add_device(r)
     r.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -551,7 +551,7 @@ def build_parser():
     _add_stock(w)
     w.add_argument("--rest", type=float, default=None, metavar="MM",
                    help="rest machining: with --stock, cut only the pieces of the loops that remove more than MM of it "
-                        "(a tool radius of loop kept on each side) (off)")
+                        "(1.5 samples of loop kept on each side) (off)")
     w.add_argument("--out", default="out", help="output folder (out)")
     _add_device(w)
     w.add_argument("--quiet", action="store_true", help="print nothing but errors")

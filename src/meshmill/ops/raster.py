@@ -25,7 +25,7 @@ from ..toolpath.linking import simplify_polyline
 from ..pathing.scallop import stepover
 from ..pathing.dropcutter import (ToolDrop, body_grow, check_stock_params, drop_refined, pick_tool, safe_height,
                                   stock_check, verified_path)
-from ..pathing.rest import in_material, material_runs
+from ..pathing.rest import REST_LEAD, in_material, material_runs
 from ..pathing.verify import DEFAULT_STEP
 
 CL_BYTES = 200  # one dropped point of a pass, its contact and its share of the tool path and verification
@@ -109,7 +109,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     ``stock``: a closed :class:`Mesh` of the material it starts from (else the part with
     ``params.stock_allowance`` on it), which rapids keep ``params.clearance`` from; with
     ``params.rest`` only the pieces of the passes that remove more than that depth of it are cut
-    (:mod:`meshmill.pathing.rest`), with a tool radius of pass on each side."""
+    (:mod:`meshmill.pathing.rest`), with a lead of 1.5 samples on each side."""
     params.check()
     if params.rest is not None and stock is None:
         raise InputError("--rest needs --stock: the material the operation starts from")
@@ -137,7 +137,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     passes, rest = [tips], None
     if params.rest is not None:
         inside = in_material(tips, tool, rapid_stock.kern, params.rest)
-        passes = material_runs(tips, inside, tool.radius)
+        passes = material_runs(tips, inside, REST_LEAD * params.sample)
         kept = sum(len(p) for p in passes)
         rest = {"min_depth": params.rest, "points_in_material": int(inside.sum()), "points_left_out": int(dropped - kept),
                 "runs": len(passes)}

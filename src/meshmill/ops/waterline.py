@@ -31,7 +31,7 @@ from ..geometry.slicing import z_levels
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
 from ..pathing.dropcutter import ToolDrop, body_grow, check_stock_params, pick_tool, safe_height, stock_check, verified_path
-from ..pathing.rest import densify, in_material, loop_runs
+from ..pathing.rest import REST_LEAD, densify, in_material, loop_runs
 from ..pathing.dropgrid import DropGrid
 from ..pathing.verify import DEFAULT_STEP
 
@@ -221,7 +221,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     :class:`Mesh` of the material it starts from (else the part with ``params.stock_allowance`` on
     it), which rapids keep ``params.clearance`` from; with ``params.rest`` only the pieces of the
     loops that remove more than that depth of it are cut (:mod:`meshmill.pathing.rest`), with a
-    tool radius of loop on each side."""
+    lead of 1.5 samples on each side."""
     params.check()
     if params.rest is not None and stock is None:
         raise InputError("--rest needs --stock: the material the operation starts from")
@@ -304,7 +304,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
             if inside.all():
                 pieces.append((z, p))  # as it was: whole in material
             else:
-                pieces += [(z, simplify_polyline(r, 0.25 * params.tol)) for r in loop_runs(dense, inside, tool.radius)]
+                pieces += [(z, simplify_polyline(r, 0.25 * params.tol)) for r in loop_runs(dense, inside, REST_LEAD * params.sample)]
         rest = {"min_depth": params.rest, "points_in_material": n_in, "points_tested": n_all, "runs": len(pieces),
                 "loops_before": len(loops)}
         loops = pieces

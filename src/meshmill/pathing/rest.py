@@ -3,14 +3,17 @@ operation starts from (the in-process stock), so that the passes through air are
 
 A point of a pass is in material when its tip lies more than ``min_depth`` below the height at
 which the same cutter, dropped from above, first touches the stock (the exact drop-cutter onto the
-stock mesh); a run keeps ``margin`` mm of the pass on each side of its points in material. The
-test is made at the pass's points (``sample`` apart before simplification): material thinner
-than a sample between two points in air is left for the next operation, which its simulation
-reports; nothing is cut that the full pass would not cut.
+stock mesh: the cutter's whole width counts); a run keeps :data:`REST_LEAD` samples of the pass on
+each side of its points in material, so that the moves where the cutter enters and leaves the
+material are cut. The test is made at the pass's points (``sample`` apart before
+simplification): material between two points in air is left for the next operation, which its
+simulation reports; nothing is cut that the full pass would not cut.
 """
 from __future__ import annotations
 
 import numpy as np
+
+REST_LEAD = 1.5  # samples of a pass kept before and after its points in material
 
 
 def in_material(tips, tool, stock_kern, min_depth: float) -> np.ndarray:
