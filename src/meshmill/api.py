@@ -64,11 +64,6 @@ def _named_errors(func):
     return call
 
 
-def _check(name, value, ok, wants):
-    if not ok(value):
-        raise InputError(f"{name} must be {wants}, got {value}")
-
-
 def _finite(v):
     return isinstance(v, (int, float)) and math.isfinite(v)
 
