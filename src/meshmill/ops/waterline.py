@@ -296,15 +296,16 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     rapid_stock = stock_check(stock, params, device)
     rest = None
     if params.rest is not None:  # the pieces of the loops in the stock's material, at sample spacing
-        pieces, n_in, n_all = [], 0, 0
-        for z, p in loops:
-            dense = densify(p, params.sample)
-            inside = in_material(dense, tool, rapid_stock.kern, params.rest)
-            n_in, n_all = n_in + int(inside.sum()), n_all + len(dense)
-            if inside.all():
+        dense = [densify(p, params.sample) for _, p in loops]
+        sizes = np.cumsum([len(d) for d in dense])[:-1]
+        inside = np.split(in_material(np.vstack(dense), tool, rapid_stock.kern, params.rest), sizes) if dense else []
+        n_in, n_all = int(sum(i.sum() for i in inside)), int(sum(len(d) for d in dense))
+        pieces = []
+        for (z, p), d, i in zip(loops, dense, inside):  # one drop onto the stock for every loop
+            if i.all():
                 pieces.append((z, p))  # as it was: whole in material
             else:
-                pieces += [(z, simplify_polyline(r, 0.25 * params.tol)) for r in loop_runs(dense, inside, REST_LEAD * params.sample)]
+                pieces += [(z, simplify_polyline(r, 0.25 * params.tol)) for r in loop_runs(d, i, REST_LEAD * params.sample)]
         rest = {"min_depth": params.rest, "points_in_material": n_in, "points_tested": n_all, "runs": len(pieces),
                 "loops_before": len(loops)}
         loops = pieces

@@ -46,11 +46,11 @@ def densify(polyline, spacing: float) -> np.ndarray:
     """``polyline (k, 3)`` with points added on its segments so that none is longer than
     ``spacing`` mm (the same path)."""
     seg = np.linalg.norm(np.diff(polyline, axis=0), axis=1)
-    parts = [polyline[:1]]
-    for i, n in enumerate(np.maximum(1, np.ceil(seg / spacing).astype(np.int64))):
-        f = (np.arange(1, n + 1) / n)[:, None]
-        parts.append(polyline[i] + f * (polyline[i + 1] - polyline[i]))
-    return np.vstack(parts)
+    n = np.maximum(1, np.ceil(seg / spacing).astype(np.int64))
+    i = np.repeat(np.arange(len(seg)), n)
+    k = np.arange(len(i)) - np.repeat(np.cumsum(n) - n, n) + 1  # 1..n along each segment
+    f = (k / n[i])[:, None]
+    return np.vstack([polyline[:1], polyline[i] + f * (polyline[i + 1] - polyline[i])])
 
 
 def loop_runs(loop, inside, margin: float) -> list:
