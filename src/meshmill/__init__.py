@@ -7,7 +7,7 @@ __version__ = "0.1.0"
 
 API = ("load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline", "plunge",
        "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report")
-__all__ = [*API, "InputError", "__version__"]
+__all__ = [*API, "Job", "InputError", "__version__"]
 
 
 def __getattr__(name):
@@ -15,6 +15,10 @@ def __getattr__(name):
         from . import api
 
         return getattr(api, name)
+    if name == "Job":
+        from .job import Job
+
+        return Job
     if name == "InputError":
         from .errors import InputError
 

@@ -251,10 +251,11 @@ def finish(part, tools, *, step_down, sample=0.5, max_tilt=60.0, tilt_step=5.0, 
 
 @_named_errors
 def raster(part, tools, *, tool, stepover=None, scallop=None, angle=0.0, sample=0.5, tolerance=GOUGE_TOL,
-           clearance=HOLDER_CLEARANCE, stock=None, stock_allowance=STOCK_ALLOWANCE, rest=None, device="auto",
-           progress=None) -> PathResult:
+           clearance=HOLDER_CLEARANCE, stock=None, stock_allowance=STOCK_ALLOWANCE, allowance=0.0, rest=None,
+           device="auto", progress=None) -> PathResult:
     """3-axis zigzag finishing with the tool named ``tool``: ``stepover`` mm between passes, or
-    the one a ``scallop`` height gives; ``angle`` degrees from X; ``rest`` mm: with a ``stock``,
+    the one a ``scallop`` height gives; ``angle`` degrees from X; ``allowance`` mm of material
+    left on the part (semi-finishing); ``rest`` mm: with a ``stock``,
     only the pieces of the passes that remove more than that depth of it (rest machining)."""
     from .ops.raster import RasterParams
     from .ops.raster import raster as run
@@ -262,7 +263,7 @@ def raster(part, tools, *, tool, stepover=None, scallop=None, angle=0.0, sample=
     if (stepover is None) == (scallop is None):
         raise InputError("give exactly one of --stepover and --scallop")
     params = RasterParams(stepover=stepover, scallop=scallop, angle=angle, sample=sample, tol=tolerance,
-                          stock_allowance=stock_allowance, clearance=clearance, rest=rest)
+                          stock_allowance=stock_allowance, clearance=clearance, allowance=allowance, rest=rest)
     params.check()
     device = _device(device)
     tp, summary = run(part, tools, tool, params, progress=progress, device=device, stock=_load_stock(stock))
@@ -271,14 +272,16 @@ def raster(part, tools, *, tool, stepover=None, scallop=None, angle=0.0, sample=
 
 @_named_errors
 def waterline(part, tools, *, tool, step_down, sample=0.5, tolerance=GOUGE_TOL, clearance=HOLDER_CLEARANCE,
-              stock=None, stock_allowance=STOCK_ALLOWANCE, rest=None, device="auto", progress=None) -> PathResult:
-    """3-axis Z-level loops with the tool named ``tool``, ``step_down`` mm apart; ``rest`` mm:
+              stock=None, stock_allowance=STOCK_ALLOWANCE, allowance=0.0, rest=None, device="auto",
+              progress=None) -> PathResult:
+    """3-axis Z-level loops with the tool named ``tool``, ``step_down`` mm apart, ``allowance`` mm
+    of material left on the part; ``rest`` mm:
     with a ``stock``, only the pieces of the loops that remove more than that depth of it."""
     from .ops.waterline import WaterlineParams
     from .ops.waterline import waterline as run
 
     params = WaterlineParams(step_down=step_down, sample=sample, tol=tolerance, stock_allowance=stock_allowance,
-                             clearance=clearance, rest=rest)
+                             clearance=clearance, allowance=allowance, rest=rest)
     params.check()
     device = _device(device)
     tp, summary, _ = run(part, tools, tool, params, progress=progress, device=device, stock=_load_stock(stock))
@@ -287,10 +290,12 @@ def waterline(part, tools, *, tool, step_down, sample=0.5, tolerance=GOUGE_TOL, 
 
 @_named_errors
 def plunge(part, tools, *, tool, allowance, axes=3, radial_step=5.0, engagement=5.0, theta_step=15.0,
-           delta_step=30.0, regions=0, clearance=5.0, simulate=None, device="auto", progress=None) -> PathResult:
+           delta_step=30.0, regions=0, clearance=5.0, stock=None, simulate=None, device="auto",
+           progress=None) -> PathResult:
     """Plunge roughing (seed 001) from the part's box with the tool named ``tool``, leaving
-    ``allowance`` mm: ``axes`` 3 (nested contours) or 5 (hemisphere of directions). ``simulate``
-    (a dexel step, mm) also cuts the path from the box and reports the volumes."""
+    ``allowance`` mm: ``axes`` 3 (nested contours) or 5 (hemisphere of directions); 3-axis from
+    the box of ``stock`` (a closed mesh or file holding the part) where given. ``simulate`` (a
+    dexel step, mm) also cuts the path from the box and reports the volumes."""
     from .ops.plunge import PlungeParams, plunge3, plunge5
 
     if axes not in (3, 5):
@@ -299,9 +304,16 @@ def plunge(part, tools, *, tool, allowance, axes=3, radial_step=5.0, engagement=
                           theta_step=theta_step, delta_step=delta_step, regions=regions)
     if simulate is not None and not (_finite(simulate) and simulate > 0):
         raise InputError(f"--simulate must be a positive dexel step in mm, got {simulate}")
+    stock = _load_stock(stock)
+    if stock is not None and axes != 3:
+        raise InputError("--stock: 5-axis plunge roughing starts from the part's box (give --axes 3)")
     device = _device(device)
     params.device = device
-    tp, summary = (plunge3 if axes == 3 else plunge5)(part, tools, tool, params, progress=progress)
+    if axes == 3:
+        tp, summary = plunge3(part, tools, tool, params, progress=progress,
+                              stock_box=None if stock is None else stock.bounds)
+    else:
+        tp, summary = plunge5(part, tools, tool, params, progress=progress)
     if simulate is not None:
         from .ops.simulate import simulate as cut
 

@@ -232,20 +232,21 @@ def cmd_raster(args):
 
     return _three_axis(args, api.raster, stock=_stock(args),
                        **_options(args, "stepover", "scallop", "angle", "sample", "tolerance", "clearance",
-                                  "stock_allowance", "rest"))
+                                  "stock_allowance", "allowance", "rest"))
 
 
 def cmd_waterline(args):
     from . import api
 
     return _three_axis(args, api.waterline, stock=_stock(args),
-                       **_options(args, "step_down", "sample", "tolerance", "clearance", "stock_allowance", "rest"))
+                       **_options(args, "step_down", "sample", "tolerance", "clearance", "stock_allowance", "allowance",
+                                                    "rest"))
 
 
 def cmd_plunge(args):
     from . import api
 
-    return _three_axis(args, api.plunge, **_options(args, "allowance", "axes", "radial_step", "engagement",
+    return _three_axis(args, api.plunge, stock=_stock(args), **_options(args, "allowance", "axes", "radial_step", "engagement",
                                                       "theta_step", "delta_step", "regions", "clearance", "simulate"))
 
 
@@ -365,6 +366,35 @@ def cmd_analyze(args):
                    f"of the area; {m['never_reached_triangles']} triangles reached by none")
     _say(args, f"wrote analysis.npz and summary.json in {args.out}")
     return 0
+
+
+def cmd_job(args):
+    from .job import Job
+
+    job = Job.from_toml(args.jobfile)
+    if args.device is not None:
+        job.device = args.device
+    for w in job.part.warnings:
+        _say(args, f"warning: {w}")
+    res = job.run(progress=_progress(args))
+    res.save(args.out, report=not args.no_report, progress=_progress(args))
+    s = res.summary
+    for op in s["operations"]:
+        c = op["cutting_mm"]
+        _say(args, f"{op['folder']}: {'OK' if op['ok'] else 'PROBLEMS'}, removed {op['removed_mm3']:.0f} mm^3, "
+                   f"{op['left_over_design_mm3']:.0f} mm^3 left over the part; cutting {c['in_material']:.0f} mm in "
+                   f"material, {c['in_air']:.0f} mm in air ({100 * c['air_share']:.1f} %); "
+                   f"{_clock(op['machining_s'])} on the machine")
+        for e in op["errors"][:5]:
+            _say(args, f"  error: {e}")
+    f = s["final"]
+    _say(args, f"final: {100 * f['within_tolerance']:.1f} % of the surface within ±{f['tolerance']:g} mm, "
+               f"{f['left_over_design_mm3']:.0f} mm^3 left over the part, max gouge {f['gouge_max']:.4f} mm")
+    _say(args, f"wrote {args.out}/ (program.nc: {s['post']['blocks']} blocks, {_clock(s['machining_s'])} on "
+               f"{s['machine']['name']}; job.json{'' if args.no_report else ', report.html'}) in "
+               f"{s['seconds']['total']:.1f} s")
+    _finish_json(args, s)
+    return 0 if res.ok else 1
 
 
 def cmd_report(args):
@@ -531,6 +561,8 @@ def build_parser():
     r.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
                    help=f"distance rapid moves keep from the stock, mm ({HOLDER_CLEARANCE})")
     _add_stock(r)
+    r.add_argument("--allowance", type=float, default=0.0, metavar="MM",
+                   help="material left on the part, mm: the tool kept that far from it (semi-finishing) (0)")
     r.add_argument("--rest", type=float, default=None, metavar="MM",
                    help="rest machining: with --stock, cut only the pieces of the passes that remove more than MM of it "
                         "(1.5 samples of pass kept on each side); the passes through air are left out (off)")
@@ -549,6 +581,8 @@ def build_parser():
     w.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
                    help=f"distance rapid moves keep from the stock, mm ({HOLDER_CLEARANCE})")
     _add_stock(w)
+    w.add_argument("--allowance", type=float, default=0.0, metavar="MM",
+                   help="material left on the part, mm: the tool kept that far from it (semi-finishing) (0)")
     w.add_argument("--rest", type=float, default=None, metavar="MM",
                    help="rest machining: with --stock, cut only the pieces of the loops that remove more than MM of it "
                         "(1.5 samples of loop kept on each side) (off)")
@@ -571,6 +605,9 @@ def build_parser():
                          "one plunge a direction through the stock centre)")
     pl.add_argument("--allowance", type=float, required=True, help="material left on the part, mm")
     pl.add_argument("--clearance", type=float, default=5.0, help="clearance plane above the stock, mm (5)")
+    pl.add_argument("--stock", default=None,
+                    help="3-axis: a closed stock mesh (work frame) holding the part: the plunges cover its box "
+                         "(default: the part's box)")
     pl.add_argument("--simulate", type=float, default=None,
                     help="also cut the path from the part's box with dexels of this step, mm, and report the volumes")
     pl.add_argument("--out", default="out", help="output folder (out)")
@@ -639,6 +676,17 @@ def build_parser():
     _add_device(n)
     n.add_argument("--quiet", action="store_true", help="print nothing but errors")
     n.set_defaults(func=cmd_analyze)
+
+    jb = sub.add_parser("job", help="machine a part from its stock in one run: operations in order, rest machining, "
+                                    "one program and one report")
+    jb.add_argument("jobfile", help="the job's TOML file ([part], [stock], [[fixtures]], [[operations]], tools, machine)")
+    jb.add_argument("--out", default="job", help="output folder (job)")
+    jb.add_argument("--no-report", action="store_true", help="do not write report.html")
+    jb.add_argument("--device", choices=("cpu", "cuda", "auto"), default=None,
+                    help="run the heavy kernels on the CPU or an NVIDIA GPU (default: the job file's, else auto)")
+    jb.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    jb.add_argument("--json", action="store_true", help="print job.json on stdout (and nothing on stderr)")
+    jb.set_defaults(func=cmd_job)
 
     rp = sub.add_parser("report", help="one self-contained HTML file with 3D views and tables of run folders")
     rp.add_argument("folders", nargs="+", help="folders written by finish, raster, waterline, plunge, dexel or simulate")

@@ -21,6 +21,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -38,7 +39,7 @@ from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
 from .finish_levels import added_contours
 from .finish_shallow import shallow_facets, shallow_fill
-from ..pathing.verify import DEFAULT_STEP, StockCheck, verify_toolpath
+from ..pathing.verify import DEFAULT_STEP, StockCheck, rapid_reach, verify_toolpath
 
 REPAIR_ROUNDS = 7
 # Ways into and out of a pass, tried in this order: (lead along the outward side, vertical retract
@@ -126,18 +127,52 @@ class _PathBuilder:
     ``singular`` angle (rad) of a 5-axis machine whose C must turn gently (:func:`gentle_turns`), or
     None. Between passes the axis turns where the last pass left the safe plane, then travels."""
 
-    def __init__(self, tip, axis, side, safe_z, lead, approach, radius, gentle=None):
+    def __init__(self, tip, axis, side, safe_z, lead, approach, radius, gentle=None, reach=None):
         self.tip, self.axis, self.side, self.safe_z, self.lead = tip, axis, side, safe_z, lead
-        self.approach, self.radius, self.gentle = approach, radius, gentle
+        self.approach, self.radius, self.gentle, self.reach = approach, radius, gentle, reach
+
+    def _reaches(self, passes):
+        """Per pass, the distances ``(in, out)`` down the way to the safe plane to which a rapid
+        may come where its entry (exit) feeds all the way (None: feed all the way): the stock's
+        :func:`~meshmill.pathing.verify.rapid_reach`, at least the approach distance."""
+        out = [[None, None] for _ in passes]
+        if self.reach is None:
+            return out
+        pts, dirs, axes, tools, tops, where = [], [], [], [], [], []
+        for k, ps in enumerate(passes):
+            for side, key, end in ((0, "entry", 0), (1, "exit", -1)):
+                lead, vertical, feed = LINKS[ps[key]]
+                if not feed or not ps.get(("reach_in", "reach_out")[side], True):
+                    continue
+                i = ps["idx"][end]
+                p = self.tip[i] + (self.lead * self.side[i] if lead else 0.0)
+                u = self.axis[i]
+                d = np.array([0.0, 0.0, 1.0]) if vertical or u[2] < 1e-6 else u
+                pts.append(p)
+                dirs.append(d)
+                axes.append(u)
+                tools.append(ps["tool"])
+                tops.append(max(0.0, (self.safe_z - p[2]) / d[2]))
+                where.append((k, side))
+        if pts:
+            t = self.reach(np.array(pts), np.array(dirs), np.array(axes), np.array(tools), np.array(tops))
+            for (k, side), tk, top in zip(where, t, tops):
+                if tk < top - self.approach:
+                    out[k][side] = max(float(tk), self.approach)
+        return out
 
     def _up(self, p, u, vertical):
         if vertical or u[2] < 1e-6:
             return np.array([p[0], p[1], self.safe_z])
         return p + (self.safe_z - p[2]) / u[2] * u
 
+    @staticmethod
+    def _dir(u, vertical):
+        return np.array([0.0, 0.0, 1.0]) if vertical or u[2] < 1e-6 else u
+
     def _above(self, p, u, vertical):
         """``approach`` mm up the way to the safe plane (never past it)."""
-        d = np.array([0.0, 0.0, 1.0]) if vertical or u[2] < 1e-6 else u
+        d = self._dir(u, vertical)
         return p + min(self.approach, max(0.0, (self.safe_z - p[2]) / d[2])) * d
 
     def build(self, passes):
@@ -151,8 +186,10 @@ class _PathBuilder:
             owner.append(k)
             role.append(r)
 
+        reaches = self._reaches(passes)
         for k, ps in enumerate(passes):
             idx, tool = ps["idx"], ps["tool"]
+            reach_in, reach_out = reaches[k]
             t0, u0 = self.tip[idx[0]], self.axis[idx[0]]
             t1, u1 = self.tip[idx[-1]], self.axis[idx[-1]]
             lead_in, vertical_in, feed_in = LINKS[ps["entry"]]
@@ -164,6 +201,8 @@ class _PathBuilder:
             add(self._up(start, u0, vertical_in), u0, True, tool, k, "link_in")
             if not feed_in:
                 add(self._above(start, u0, vertical_in), u0, True, tool, k, "link_in")
+            elif reach_in is not None:  # rapid down to where the stock begins, then feed
+                add(start + reach_in * self._dir(u0, vertical_in), u0, True, tool, k, "link_in")
             add(start, u0, False, tool, k, "approach_in")
             if lead_in:
                 add(t0, u0, False, tool, k, "lead_in")
@@ -173,6 +212,9 @@ class _PathBuilder:
                 add(end, u1, False, tool, k, "lead_out")
             if not feed_out:
                 add(self._above(end, u1, vertical_out), u1, False, tool, k, "approach_out")
+                add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
+            elif reach_out is not None:  # feed out of the stock, then rapid
+                add(end + reach_out * self._dir(u1, vertical_out), u1, False, tool, k, "approach_out")
                 add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
             else:
                 add(self._up(end, u1, vertical_out), u1, False, tool, k, "approach_out")
@@ -206,10 +248,14 @@ def _repair(passes, problem_moves, owner, role):
         roles = fixes[k]
         if "lead_in" in roles:
             ps["entry"] = max(ps["entry"] + 1, NO_LEAD)
+        elif "link_in" in roles and LINKS[ps["entry"]][2] and ps.get("reach_in", True):
+            ps["reach_in"] = False  # the rapid down to the stock failed: feed all the way
         elif "link_in" in roles or "approach_in" in roles:
             ps["entry"] += 1
         if "lead_out" in roles:
             ps["exit"] = max(ps["exit"] + 1, NO_LEAD)
+        elif "link_out" in roles and LINKS[ps["exit"]][2] and ps.get("reach_out", True):
+            ps["reach_out"] = False
         elif "link_out" in roles or "approach_out" in roles:
             ps["exit"] += 1
         if ps["entry"] >= len(LINKS) or ps["exit"] >= len(LINKS):
@@ -698,7 +744,9 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         gentle = machine.chain.singular
     builder = _PathBuilder(tip, axis, side, safe_z, params.lead,
                            approach=rapid_stock.allowance + rapid_stock.clearance + params.tol,
-                           radius=np.array([t.radius for t in tools]), gentle=gentle)
+                           radius=np.array([t.radius for t in tools]), gentle=gentle,
+                           reach=None if stock is None else functools.partial(
+                               rapid_reach, kern, tools, params.tol, rapid_stock))
     seconds["path"] = time.perf_counter() - t
 
     say("verify")

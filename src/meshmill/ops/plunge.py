@@ -138,8 +138,8 @@ class BoxStock:
     (:meth:`reach`), and the lowest where the whole tool does (:meth:`approach`: a rapid may come
     that far)."""
 
-    def __init__(self, mesh, tool, device):
-        lo, hi = mesh.bounds
+    def __init__(self, bounds, tool, device):
+        lo, hi = bounds
         self.mesh = box(lo, hi)
         self.kern = solid_kernels(self.mesh, device)
         self.tool = tool
@@ -235,7 +235,7 @@ def _verified(mesh, tools, index, tips, axes, rapid, say, device, stock: BoxStoc
     return tp, report
 
 
-def _summary(axes, tool, mesh, tp, report, depths, t0, params, fields, left=(), n_layers=(), **extra):
+def _summary(axes, tool, bounds, tp, report, depths, t0, params, fields, left=(), n_layers=(), **extra):
     """``summary.json`` of a plunge operation: the common figures, ``extra``, then the parameters.
     ``depths (k,)`` of the plunges, ``left (k,)`` the depth each leaves uncut for the shank and
     holder, ``n_layers (k,)`` their layers."""
@@ -246,7 +246,7 @@ def _summary(axes, tool, mesh, tp, report, depths, t0, params, fields, left=(), 
         "operation": "plunge",
         "axes": axes,
         "tool": tool.name,
-        "stock": mesh.bounds.round(6).tolist(),
+        "stock": np.round(bounds, 6).tolist(),
         **extra,
         "valid_plunges": int(len(depths)),
         "depth_mm": {"min": float(depths.min()), "max": float(depths.max()), "mean": float(depths.mean())},
@@ -275,14 +275,16 @@ def _turned_drop(mesh, tool, allowance, centre, u, floor, device):
     return frame, grown_tool_drop(tool, allowance, solid_kernels(turned, device, bottom), floor)
 
 
-def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
-    """3-axis plunge roughing of ``mesh`` from its box. Returns ``(toolpath, summary)``."""
+def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None, stock_box=None):
+    """3-axis plunge roughing of ``mesh`` from its box, or from ``stock_box (2, 3)`` (mm, a stock
+    box holding the part: plunges cover its XY and start at its top). Returns ``(toolpath,
+    summary)``."""
     params.check()
     say = progress or (lambda stage: None)
     index, tool = pick_tool(tools, tool_name)
     t0 = time.perf_counter()
-    bounds = mesh.bounds
-    z_min, z_max = float(bounds[0, 2]), float(bounds[1, 2])
+    bounds = mesh.bounds if stock_box is None else np.asarray(stock_box, float)
+    z_min, z_max = float(mesh.bounds[0, 2]), float(bounds[1, 2])
     if params.engagement > 2 * tool.radius:
         raise InputError(f"--engagement {params.engagement:g} mm is wider than the tool ({tool.diameter:g} mm): "
                          "stock would be left between the contours")
@@ -292,7 +294,7 @@ def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
         raise InputError(f"{n_points:,} plunge points: use a larger --radial-step or --engagement")
     say(f"{len(rings)} contours, {n_points} plunge points")
     drop = grown_tool_drop(tool, params.allowance, solid_kernels(mesh, params.device), z_min)
-    stock = BoxStock(mesh, tool, params.device)
+    stock = BoxStock(bounds, tool, params.device)
     clear_z = z_max + params.clearance
     up = np.array([0.0, 0.0, 1.0])
     plunges = []  # per kept point: origin, approach, bottoms (one per layer)
@@ -322,7 +324,7 @@ def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
                 tips += t
                 rapid += r
     tp, report = _verified(mesh, tools, index, tips, np.tile(up, (len(tips), 1)), rapid, say, params.device, stock)
-    return tp, _summary(3, tool, mesh, tp, report, depths, t0, params,
+    return tp, _summary(3, tool, bounds, tp, report, depths, t0, params,
                         ("radial_step", "engagement", "allowance", "clearance"), left, n_layers, contours=len(rings),
                         plunges=int(n_points), valid_per_contour=np.bincount(contour_of, minlength=len(rings)).tolist(),
                         clearance_z=clear_z)
@@ -364,7 +366,7 @@ def plunge5(mesh, tools, tool_name, params: PlungeParams, progress=None):
     radius = float(np.linalg.norm(hi - centre)) + params.clearance + tool.radius
     dirs = hemisphere(params.theta_step, params.delta_step)
     say(f"{len(dirs)} plunge directions")
-    stock = BoxStock(mesh, tool, params.device)
+    stock = BoxStock(mesh.bounds, tool, params.device)
     if params.regions:
         return _plunge_regions(mesh, tools, index, tool, params, dirs, centre, radius, say, t0, stock)
     tips, axes, rapid, depths, left, n_layers = [], [], [], [], [], []
@@ -395,7 +397,7 @@ def plunge5(mesh, tools, tool_name, params: PlungeParams, progress=None):
         n_layers.append(len(bottoms))
         last = start
     tp, report = _verified(mesh, tools, index, tips, axes, rapid, say, params.device, stock)
-    return tp, _summary(5, tool, mesh, tp, report, depths, t0, params, ("allowance", "clearance", "theta_step",
+    return tp, _summary(5, tool, mesh.bounds, tp, report, depths, t0, params, ("allowance", "clearance", "theta_step",
                                                                          "delta_step"), left, n_layers,
                         sphere={"centre": centre.round(6).tolist(), "radius": radius}, plunges=len(dirs))
 
@@ -494,7 +496,7 @@ def _plunge_regions(mesh, tools, index, tool, params, dirs, centre, radius, say,
         n_layers += [len(p[2]) for p in plunges]
         last = (pole, u)
     tp, report = _verified(mesh, tools, index, tips, axes, rapid, say, params.device, stock)
-    return tp, _summary(5, tool, mesh, tp, report, depths, t0, params,
+    return tp, _summary(5, tool, mesh.bounds, tp, report, depths, t0, params,
                         ("radial_step", "allowance", "clearance", "theta_step", "delta_step"), left, n_layers,
                         mode="regions",
                         regions=k, directions=len(dirs),

@@ -40,6 +40,7 @@ class RasterParams:
     tol: float = GOUGE_TOL
     stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
     clearance: float = HOLDER_CLEARANCE  # mm rapids keep from the stock
+    allowance: float = 0.0  # mm of material left on the part (the tool kept that far from it)
     rest: float | None = None  # mm: with a stock, leave out the pass pieces that remove less (rest machining)
 
     def check(self):
@@ -56,6 +57,8 @@ class RasterParams:
         check_stock_params(self)
         if self.sample < 1e-3:
             raise InputError("--sample must be at least 0.001 mm")
+        if not (math.isfinite(self.allowance) and self.allowance >= 0):
+            raise InputError(f"--allowance must be a number of mm >= 0, got {self.allowance}")
         if self.rest is not None and not (math.isfinite(self.rest) and self.rest >= 0):
             raise InputError(f"--rest must be a depth of material >= 0 mm, got {self.rest}")
 
@@ -131,7 +134,8 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     t = time.perf_counter()
     pieces, n_lines, spacing = raster_lines(bounds, tool.radius, stepover, params.angle, params.sample)
     xy = np.concatenate(pieces)
-    tips = drop_refined(xy, ToolDrop(tool, kern, float(bounds[0, 2]), body_grow=body_grow(stock, params)), 0.5 * params.tol, params.sample / 64)
+    tips = drop_refined(xy, ToolDrop(tool, kern, float(bounds[0, 2]), grow=params.allowance,
+                    body_grow=body_grow(stock, params)), 0.5 * params.tol, params.sample / 64)
     dropped = len(tips)
     rapid_stock = stock_check(stock, params, device)
     passes, rest = [tips], None
@@ -158,6 +162,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
         "scallop": params.scallop,
         "sample": params.sample,
         "tolerance": params.tol,
+        "allowance": params.allowance,
         "safe_z": safe_z,
         "stock": rapid_stock.summary(),
         "lines": n_lines,

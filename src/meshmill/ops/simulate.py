@@ -98,24 +98,82 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
         stock_model = dexelize(stock, step, bounds=bounds, device=device)
     st = cutting.stock_from_model(stock_model, allowance or 0.0)
     start_model = st.to_model()
-    stock_volume = start_model.volume
     outside = difference_volume(design_model, start_model)
     if outside > 1e-6 * max(design_model.volume, 1.0):
         warnings.append(f"{outside:.3f} mm^3 of the design lies outside the stock: the stock is short of the design "
                         "there (not counted as gouged by the path)")
     build_s = time.perf_counter() - t0
-    moves = cutting.toolpath_moves(toolpath, tools, mode)
-    if mode == "sweep":  # the shank and holder, checked against the stock they pass (beyond the tolerance)
-        moves = cutting.Moves.merge(moves, cutting.body_moves(toolpath, tools, tolerance))
-    say(f"cutting {len(moves):,} moves ({len(toolpath):,} points, mode {mode})")
-    result = cutting.cut(st, moves, progress=say, device=device)
+    cuts = cut_path(st, toolpath, tools, tolerance, mode, say, device)
     machined = st.to_model()
     t2 = time.perf_counter()
     verts, faces, stride = machined_mesh(machined)
     mesh_s = time.perf_counter() - t2
     t1 = time.perf_counter()
+    deviation, volumes, more, (pts, e) = measure(machined, start_model, design, design_model, float(bounds[0, 2]),
+                                                 tolerance, step, device)
+    warnings += more
+    deviation_s = time.perf_counter() - t1
+    summary = {
+        "operation": "simulate",
+        "mode": mode,
+        "step": step,
+        "lattice": machined.summary(),
+        "moves": len(toolpath),
+        **{k: v for k, v in cuts.items() if k != "seconds"},
+        "volumes_mm3": volumes,
+        "deviation": deviation,
+        "machined_mesh": {"vertices": int(len(verts)), "triangles": int(len(faces)),
+                          "lattice_stride": int(stride)},
+        "warnings": warnings,
+        "seconds": {"models": round(build_s, 4), "cut": cuts["seconds"], "deviation": round(deviation_s, 4),
+                    "mesh": round(mesh_s, 4), "total": round(time.perf_counter() - t0, 4)},
+    }
+    return deviation, summary, machined, (verts, faces), {"points": pts, "e": e}
+
+
+def cut_path(st, toolpath, tools, tolerance=0.01, mode="sweep", progress=None, device="cpu") -> dict:
+    """Cut ``toolpath`` from the stock ``st`` (:class:`~meshmill.simulation.cut.Stock`, in place):
+    its cutters remove material, its shanks and holders (grown by ``tolerance`` less) collide
+    with what is left. Returns the summary's figures: ``pieces_cut``, the rapid moves that cut
+    and the moves that collide (counts, tool-path point indices, ``errors`` lines),
+    ``cutting_mm`` (feed length in material and in air) and ``seconds``."""
+    moves = cutting.toolpath_moves(toolpath, tools, mode)
+    if mode == "sweep":  # the shank and holder, checked against the stock they pass (beyond the tolerance)
+        moves = cutting.Moves.merge(moves, cutting.body_moves(toolpath, tools, tolerance))
+    if progress:
+        progress(f"cutting {len(moves):,} moves ({len(toolpath):,} points, mode {mode})")
+    result = cutting.cut(st, moves, progress=progress, device=device)
+    errors = [f"rapid move to point {i} (source line {int(toolpath.line[i])}) cuts material"
+              for i in result["rapid_cuts"][:1000]]
+    errors += [f"move to point {i} (source line {int(toolpath.line[i])}): the shank or holder meets the stock"
+               for i in result["collisions"][:1000]]
+    step_mm = np.r_[0.0, np.linalg.norm(np.diff(toolpath.tip, axis=0), axis=1)]
+    feed = ~np.asarray(toolpath.rapid, bool)
+    feed[0] = False
+    in_material = np.zeros(len(toolpath), bool)
+    in_material[result["in_material"]] = True
+    material_mm = float(step_mm[feed & in_material].sum())
+    air_mm = float(step_mm[feed & ~in_material].sum())
+    return {"pieces_cut": len(moves),
+            "rapid_moves_cutting": len(result["rapid_cuts"]),
+            "rapid_cutting_points": result["rapid_cuts"][:1000],
+            "colliding_moves": len(result["collisions"]),
+            "colliding_points": result["collisions"][:1000],
+            "errors": errors,
+            "cutting_mm": {"in_material": material_mm, "in_air": air_mm,
+                           "air_share": air_mm / (air_mm + material_mm) if air_mm + material_mm > 0 else 0.0},
+            "seconds": result["seconds"]}
+
+
+def measure(machined, start_model, design, design_model, floor, tolerance, step, device="cpu"):
+    """The machined dexel model against the design: ``(deviation dict, volumes dict (mm^3),
+    warnings, (points (k, 3), e (k,)))`` the dexel ends and their signed deviations (mm). The
+    stock's own ends inside the design (``start_model`` short of it) are not counted as gouges;
+    ``floor`` is the Z an open design's solid reaches down to."""
+    warnings = []
+    outside = difference_volume(design_model, start_model)
     # an open design: deviations to the solid it bounds (its sheets, curtains and floor)
-    pts, e, cut_pts, cut_depth = deviations(machined, design_model, material_mesh(design, float(bounds[0, 2])), device)
+    pts, e, cut_pts, cut_depth = deviations(machined, design_model, material_mesh(design, floor), device)
     params = surface_parameters(pts, e, tolerance)
     # the stock's own ends inside the design (a stock short of the design) are not the path's gouges
     short = uncut_ends(machined, start_model) & (e < 0.0)
@@ -128,10 +186,10 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
 
             was = cKDTree(never).query(cut_pts)[0] < 1e-9
             cut_pts, cut_depth = cut_pts[~was], cut_depth[~was]
+    stock_volume = start_model.volume
     removed = stock_volume - machined.volume
     remaining = difference_volume(machined, design_model)
     gouged = max(0.0, difference_volume(design_model, machined) - outside)
-    deviation_s = time.perf_counter() - t1
     deviation = {k: params[k] for k in DEVIATION_KEYS if k in params}
     deviation.update(removed_volume=removed, remaining_volume=remaining)
     deviation = {k: deviation[k] for k in DEVIATION_KEYS}
@@ -150,38 +208,6 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     if deep >= 0 and cut_depth[deep] > max(tolerance, step):
         warnings.append(f"{len(cut_depth)} design dexel end(s) cut away, up to {cut_depth[deep]:.3f} mm deep at "
                         f"{cut_pts[deep].round(3).tolist()} (a bound; gouged volume {gouged:.3f} mm^3)")
-    errors = [f"rapid move to point {i} (source line {int(toolpath.line[i])}) cuts material"
-              for i in result["rapid_cuts"][:1000]]
-    errors += [f"move to point {i} (source line {int(toolpath.line[i])}): the shank or holder meets the stock"
-               for i in result["collisions"][:1000]]
-    step_mm = np.r_[0.0, np.linalg.norm(np.diff(toolpath.tip, axis=0), axis=1)]
-    feed = ~np.asarray(toolpath.rapid, bool)
-    feed[0] = False
-    in_material = np.zeros(len(toolpath), bool)
-    in_material[result["in_material"]] = True
-    material_mm = float(step_mm[feed & in_material].sum())
-    air_mm = float(step_mm[feed & ~in_material].sum())
-    summary = {
-        "operation": "simulate",
-        "mode": mode,
-        "step": step,
-        "lattice": machined.summary(),
-        "moves": len(toolpath),
-        "pieces_cut": len(moves),
-        "rapid_moves_cutting": len(result["rapid_cuts"]),
-        "rapid_cutting_points": result["rapid_cuts"][:1000],
-        "colliding_moves": len(result["collisions"]),
-        "colliding_points": result["collisions"][:1000],
-        "errors": errors,
-        "cutting_mm": {"in_material": material_mm, "in_air": air_mm,
-                       "air_share": air_mm / (air_mm + material_mm) if air_mm + material_mm > 0 else 0.0},
-        "volumes_mm3": {"design": design_model.volume, "stock": stock_volume, "machined": machined.volume,
-                        "removed": removed, "remaining": remaining, "gouged": gouged},
-        "deviation": deviation,
-        "machined_mesh": {"vertices": int(len(verts)), "triangles": int(len(faces)),
-                          "lattice_stride": int(stride)},
-        "warnings": warnings,
-        "seconds": {"models": round(build_s, 4), "cut": result["seconds"], "deviation": round(deviation_s, 4),
-                    "mesh": round(mesh_s, 4), "total": round(time.perf_counter() - t0, 4)},
-    }
-    return deviation, summary, machined, (verts, faces), {"points": pts, "e": e}
+    volumes = {"design": design_model.volume, "stock": stock_volume, "machined": machined.volume,
+               "removed": removed, "remaining": remaining, "gouged": gouged}
+    return deviation, volumes, warnings, (pts, e)

@@ -47,6 +47,7 @@ class WaterlineParams:
     tol: float = GOUGE_TOL
     stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
     clearance: float = HOLDER_CLEARANCE  # mm rapids keep from the stock
+    allowance: float = 0.0  # mm of material left on the part (the tool kept that far from it)
     rest: float | None = None  # mm: with a stock, leave out the loop pieces that remove less (rest machining)
 
     def check(self):
@@ -57,6 +58,8 @@ class WaterlineParams:
         if self.sample < 1e-3 or self.step_down < 1e-4:
             raise InputError("--sample must be at least 0.001 mm and --step-down at least 0.0001 mm")
         check_stock_params(self)
+        if not (math.isfinite(self.allowance) and self.allowance >= 0):
+            raise InputError(f"--allowance must be a number of mm >= 0, got {self.allowance}")
         if self.rest is not None and not (math.isfinite(self.rest) and self.rest >= 0):
             raise InputError(f"--rest must be a depth of material >= 0 mm, got {self.rest}")
 
@@ -249,7 +252,8 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     t = time.perf_counter()
     xs = lo[0] + (hi[0] - lo[0]) * np.arange(nx) / (nx - 1)
     ys = lo[1] + (hi[1] - lo[1]) * np.arange(ny) / (ny - 1)
-    drop = ToolDrop(tool, kern, float(bounds[0, 2]) - 1.0, body_grow=body_grow(stock, params))
+    drop = ToolDrop(tool, kern, float(bounds[0, 2]) - 1.0, grow=params.allowance,
+                    body_grow=body_grow(stock, params))
     grid = DropGrid(drop, xs, ys)
     cx = 0.5 * (xs[:-1] + xs[1:])
     cy = 0.5 * (ys[:-1] + ys[1:])
@@ -324,6 +328,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
         "sample": params.sample,
         "grid_spacing": spacing,
         "tolerance": params.tol,
+        "allowance": params.allowance,
         "safe_z": safe_z,
         "stock": rapid_stock.summary(),
         "levels": int(len(levels)),
