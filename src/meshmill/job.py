@@ -39,7 +39,7 @@ LINK_CLEARANCE = 5.0  # mm: the job's safe plane above the stock and the fixture
 CYLINDER_SEGMENTS = 128
 _JOB_KEYS = {"name", "machine", "tools", "step", "tolerance", "rest", "in_process", "device", "clearance", "part",
              "stock", "fixtures", "operations"}
-_SET_BY_JOB = {"part", "tools", "stock", "rest", "device", "progress", "machine", "simulate"}
+_SET_BY_JOB = {"part", "tools", "stock", "rest", "rest_stock", "device", "progress", "machine", "simulate"}
 
 
 def _number(value, what, low=None, positive=False):
@@ -420,7 +420,10 @@ class Job:
             stock_mesh = mesh_from_arrays(*stock_hull(start_model), "stock")
         fix_kern = solid_kernels(fix_mesh, device) if fix_mesh is not None else None
         results = []
-        current = stock_mesh  # the in-process stock as a closed mesh, for the next operation
+        # the in-process stock for the next operation: a hull around every dexel (what rapids,
+        # shanks and holders keep clear of) and its surface (what rest depths are measured from)
+        current, surface = stock_mesh, self.stock.solid(part) or mesh_from_arrays(*machined_mesh(start_model)[:2],
+                                                                               "stock")
         for k, op in enumerate(self.operations):
             t_op = time.perf_counter()
             label = f"operation {k + 1} ({op.name})"
@@ -429,7 +432,8 @@ class Job:
             def stage(text, label=label):
                 say(f"{label}: {text}")
 
-            res = self._path(op, label, current if self.in_process else None, device, stage)
+            res = self._path(op, label, current if self.in_process else None, surface if self.in_process else None,
+                             device, stage)
             tp, trimmed = res.toolpath, 0
             if fix_kern is not None:
                 tp, trimmed = _clear_fixtures(tp, self.tools, fix_kern, safe_z, self.tolerance, label)
@@ -486,6 +490,7 @@ class Job:
             }
             results.append(OperationResult(op, res, machined, (verts, faces), {"points": pts, "e": e}, stock_summary))
             current = mesh_from_arrays(*stock_hull(machined), f"stock after {op.name}")
+            surface = mesh_from_arrays(verts, faces, f"stock after {op.name}")
         say("the program")
         whole = _concatenate([r.path.toolpath for r in results])
         posted = api.post(whole, self.machine, self.tools, clearance=safe_z if self.machine.chain.type != "3-axis"
@@ -512,9 +517,10 @@ class Job:
         }
         return JobResult(self, results, posted.lines, posted.report, summary)
 
-    def _path(self, op: Operation, label, stock, device, stage):
+    def _path(self, op: Operation, label, stock, surface, device, stage):
         """The operation's :class:`~meshmill.api.PathResult` from the part (and the in-process
-        ``stock`` mesh, or None), its tools numbered as the job's table."""
+        stock: its hull ``stock`` and its ``surface``, or None), its tools numbered as the job's
+        table."""
         run = OPERATIONS[op.kind]
         params = dict(op.params)
         tools = self.tools
@@ -524,6 +530,7 @@ class Job:
                 tools = [t for t in self.tools if t.name in op.tools]
         if op.kind in ("raster", "waterline") and stock is not None and op.rest is not None:
             params["rest"] = op.rest
+            params["rest_stock"] = surface
         if stock is not None:
             params["stock"] = stock
             if op.kind != "plunge":  # the hull's corners are cut by up to half a cell: rapids keep that too

@@ -107,12 +107,14 @@ def raster_lines(bounds, radius, stepover, angle_deg, sample):
 
 
 def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=None,
-           device: str = "cpu", stock=None):
+           device: str = "cpu", stock=None, rest_stock=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary)``.
     ``stock``: a closed :class:`Mesh` of the material it starts from (else the part with
     ``params.stock_allowance`` on it), which rapids keep ``params.clearance`` from; with
     ``params.rest`` only the pieces of the passes that remove more than that depth of it are cut
-    (:mod:`meshmill.pathing.rest`), with a lead of 1.5 samples on each side."""
+    (:mod:`meshmill.pathing.rest`), with a lead of 1.5 samples on each side; ``rest_stock`` (a closed Mesh) is the surface those
+    depths are measured from when it is not ``stock`` (the job's: the stock's own surface, where
+    ``stock`` is a hull around it)."""
     params.check()
     if params.rest is not None and stock is None:
         raise InputError("--rest needs --stock: the material the operation starts from")
@@ -138,9 +140,10 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
                     body_grow=body_grow(stock, params)), 0.5 * params.tol, params.sample / 64)
     dropped = len(tips)
     rapid_stock = stock_check(stock, params, device)
+    rest_kern = solid_kernels(rest_stock, device) if rest_stock is not None else rapid_stock.kern
     passes, rest = [tips], None
     if params.rest is not None:
-        inside = in_material(tips, tool, rapid_stock.kern, params.rest)
+        inside = in_material(tips, tool, rest_kern, params.rest)
         passes = material_runs(tips, inside, REST_LEAD * params.sample)
         kept = sum(len(p) for p in passes)
         rest = {"min_depth": params.rest, "points_in_material": int(inside.sum()), "points_left_out": int(dropped - kept),

@@ -217,7 +217,7 @@ def _refine_loop(loop, z, chord_tol, reach, drop: ToolDrop):
 
 
 def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progress=None,
-              device: str = "cpu", stock=None):
+              device: str = "cpu", stock=None, rest_stock=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, passes)`` with ``passes`` a list of
     ``(z, (k, 3) array)`` from the top level down: closed loops (first point repeated at the end),
     or pieces of loops where a stretch could not be cut without gouging. ``stock``: a closed
@@ -298,11 +298,12 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
                 loops.append((float(z), np.column_stack([piece, np.full(len(piece), z)])))
     seconds["levels"] = time.perf_counter() - t_levels - seconds["grid"]
     rapid_stock = stock_check(stock, params, device)
+    rest_kern = solid_kernels(rest_stock, device) if rest_stock is not None else rapid_stock.kern
     rest = None
     if params.rest is not None:  # the pieces of the loops in the stock's material, at sample spacing
         dense = [densify(p, params.sample) for _, p in loops]
         sizes = np.cumsum([len(d) for d in dense])[:-1]
-        inside = np.split(in_material(np.vstack(dense), tool, rapid_stock.kern, params.rest), sizes) if dense else []
+        inside = np.split(in_material(np.vstack(dense), tool, rest_kern, params.rest), sizes) if dense else []
         n_in, n_all = int(sum(i.sum() for i in inside)), int(sum(len(d) for d in dense))
         pieces = []
         for (z, p), d, i in zip(loops, dense, inside):  # one drop onto the stock for every loop
