@@ -366,6 +366,8 @@ class Job:
             self.stock = Stock.from_dict(self.stock)
         self.operations = [o if isinstance(o, Operation) else Operation.from_dict(o, k + 1, REST_DEPTH)
                            for k, o in enumerate(self.operations)]
+        self.fixtures = [f if isinstance(f, Fixture) else Fixture.from_dict(f, self.part, "", k + 1)
+                         for k, f in enumerate(self.fixtures)]
         five = any(o.kind == "finish" for o in self.operations)
         if self.machine is None:
             self.machine = "table-table-ac" if five else "generic-3axis"
@@ -384,7 +386,7 @@ class Job:
 
     def run(self, progress=None) -> JobResult:
         """Run the operations in order from the stock; returns the :class:`JobResult`."""
-        from .geometry.mesh import mesh_from_arrays
+        from .geometry.mesh import closed_mesh
         from .kernels.backend import solid_kernels
         from .ops.simulate import cut_path, measure
         from .simulation import cut as cutting
@@ -417,13 +419,12 @@ class Job:
             top = max(top, float(fix_mesh.bounds[1, 2]))
         safe_z = top + self.clearance
         if stock_mesh is None:
-            stock_mesh = mesh_from_arrays(*stock_hull(start_model), "stock")
+            stock_mesh = closed_mesh(*stock_hull(start_model), "stock")
         fix_kern = solid_kernels(fix_mesh, device) if fix_mesh is not None else None
         results = []
         # the in-process stock for the next operation: a hull around every dexel (what rapids,
         # shanks and holders keep clear of) and its surface (what rest depths are measured from)
-        current, surface = stock_mesh, self.stock.solid(part) or mesh_from_arrays(*machined_mesh(start_model)[:2],
-                                                                               "stock")
+        current, surface = stock_mesh, self.stock.solid(part) or closed_mesh(*machined_mesh(start_model)[:2], "stock")
         for k, op in enumerate(self.operations):
             t_op = time.perf_counter()
             label = f"operation {k + 1} ({op.name})"
@@ -489,8 +490,8 @@ class Job:
                 "device": device, "seconds": {"cut": cuts["seconds"], "total": round(cut_s, 3)},
             }
             results.append(OperationResult(op, res, machined, (verts, faces), {"points": pts, "e": e}, stock_summary))
-            current = mesh_from_arrays(*stock_hull(machined), f"stock after {op.name}")
-            surface = mesh_from_arrays(verts, faces, f"stock after {op.name}")
+            current = closed_mesh(*stock_hull(machined), f"stock after {op.name}")
+            surface = closed_mesh(verts, faces, f"stock after {op.name}")
         say("the program")
         whole = _concatenate([r.path.toolpath for r in results])
         posted = api.post(whole, self.machine, self.tools, clearance=safe_z if self.machine.chain.type != "3-axis"

@@ -104,6 +104,20 @@ def edge_face_counts(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return counts
 
 
+def closed_mesh(vertices, faces, name="mesh") -> Mesh:
+    """A :class:`Mesh` of arrays known to bound closed solids, wound outward, with shared vertices
+    and no degenerate triangles (what our marching cubes writes): taken as they are, unchecked
+    (:func:`mesh_from_arrays` checks and repairs what users give)."""
+    v = np.ascontiguousarray(vertices, np.float64).reshape(-1, 3)
+    f = np.asarray(faces, np.int64).reshape(-1, 3)
+    tri = v[f]
+    f = f[0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) > DEGENERATE_AREA]
+    if len(f) == 0:
+        raise InputError(f"{name}: no triangles")
+    return Mesh(vertices=v, faces=f.astype(np.int32), closed=True, piece=np.zeros(len(f), np.int64),
+                piece_kind=np.array([CLOSED], np.int8))
+
+
 def mesh_from_arrays(vertices, faces, name="mesh", flip=False, setup: Setup | None = None) -> Mesh:
     """Check and clean raw arrays into a :class:`Mesh` (raises :class:`InputError`); ``flip``
     turns every face over (after making neighbours agree); ``setup`` places the vertices into the

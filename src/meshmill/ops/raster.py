@@ -25,7 +25,7 @@ from ..toolpath.linking import simplify_polyline
 from ..pathing.scallop import stepover
 from ..pathing.dropcutter import (ToolDrop, body_grow, check_stock_params, drop_refined, pick_tool, safe_height,
                                   stock_check, verified_path)
-from ..pathing.rest import REST_LEAD, in_material, material_runs
+from ..pathing.rest import REST_JOIN, REST_LEAD, in_material, material_runs
 from ..pathing.verify import DEFAULT_STEP
 
 CL_BYTES = 200  # one dropped point of a pass, its contact and its share of the tool path and verification
@@ -144,7 +144,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     passes, rest = [tips], None
     if params.rest is not None:
         inside = in_material(tips, tool, rest_kern, params.rest)
-        passes = material_runs(tips, inside, REST_LEAD * params.sample)
+        passes = material_runs(tips, inside, REST_LEAD * params.sample, REST_JOIN * tool.diameter)
         kept = sum(len(p) for p in passes)
         rest = {"min_depth": params.rest, "points_in_material": int(inside.sum()), "points_left_out": int(dropped - kept),
                 "runs": len(passes)}

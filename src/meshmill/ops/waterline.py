@@ -31,7 +31,7 @@ from ..geometry.slicing import z_levels
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
 from ..pathing.dropcutter import ToolDrop, body_grow, check_stock_params, pick_tool, safe_height, stock_check, verified_path
-from ..pathing.rest import REST_LEAD, densify, in_material, loop_runs
+from ..pathing.rest import REST_JOIN, REST_LEAD, densify, in_material, loop_runs
 from ..pathing.dropgrid import DropGrid
 from ..pathing.verify import DEFAULT_STEP
 
@@ -310,7 +310,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
             if i.all():
                 pieces.append((z, p))  # as it was: whole in material
             else:
-                pieces += [(z, simplify_polyline(r, 0.25 * params.tol)) for r in loop_runs(d, i, REST_LEAD * params.sample)]
+                pieces += [(z, simplify_polyline(r, 0.25 * params.tol)) for r in loop_runs(d, i, REST_LEAD * params.sample, REST_JOIN * tool.diameter)]
         rest = {"min_depth": params.rest, "points_in_material": n_in, "points_tested": n_all, "runs": len(pieces),
                 "loops_before": len(loops)}
         loops = pieces

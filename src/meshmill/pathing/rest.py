@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 REST_LEAD = 1.5  # samples of a pass kept before and after its points in material
+REST_JOIN = 2.0  # tool diameters: runs of a pass closer than this are cut as one (no retract between)
 
 
 def in_material(tips, tool, stock_kern, min_depth: float) -> np.ndarray:
@@ -25,9 +26,11 @@ def in_material(tips, tool, stock_kern, min_depth: float) -> np.ndarray:
     return tips[:, 2] < top - min_depth
 
 
-def material_runs(tips, inside, margin: float) -> list:
+def material_runs(tips, inside, margin: float, join: float = 0.0) -> list:
     """The runs ``[(m, 3), ...]`` of the polyline ``tips (k, 3)`` around its points ``inside
-    (k,) bool``, each widened by ``margin`` mm of the polyline on both sides."""
+    (k,) bool``, each widened by ``margin`` mm of the polyline on both sides; runs less than
+    ``join`` mm apart along it are one run (the tool cuts through the gap rather than leaving and
+    entering the material again)."""
     if not inside.any():
         return []
     s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tips, axis=0), axis=1))]
@@ -39,6 +42,11 @@ def material_runs(tips, inside, margin: float) -> list:
     keep = near <= margin
     edges = np.diff(np.r_[0, keep.astype(np.int8), 0])
     starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+    if join > 0 and len(starts) > 1:
+        gap = s[starts[1:]] - s[ends[:-1] - 1]
+        close = gap < join
+        starts = np.r_[starts[:1], starts[1:][~close]]
+        ends = np.r_[ends[:-1][~close], ends[-1:]]
     return [tips[a:b] for a, b in zip(starts, ends) if b - a >= 2]
 
 
@@ -53,7 +61,7 @@ def densify(polyline, spacing: float) -> np.ndarray:
     return np.vstack([polyline[:1], polyline[i] + f * (polyline[i + 1] - polyline[i])])
 
 
-def loop_runs(loop, inside, margin: float) -> list:
+def loop_runs(loop, inside, margin: float, join: float = 0.0) -> list:
     """As :func:`material_runs` for a closed ``loop (k, 3)`` (first point repeated at the end):
     a run through its start is not cut in two."""
     if inside.all():
@@ -62,4 +70,4 @@ def loop_runs(loop, inside, margin: float) -> list:
         k = int(np.argmin(inside))  # a point in air: the loop starts there
         loop = np.vstack([loop[k:-1], loop[:k + 1]])
         inside = np.r_[inside[k:-1], inside[:k + 1]]
-    return material_runs(loop, inside, margin)
+    return material_runs(loop, inside, margin, join)

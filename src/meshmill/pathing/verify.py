@@ -77,32 +77,35 @@ class StockCheck:
                 "shank_and_holder": bool(self.feed_body)}
 
 
+REACH_STEP_MIN = 1.0 / 16.0  # mm: the shortest interval the descent of a rapid halves down to
+
+
 def rapid_reach(kern, tools, tol: float, stock: StockCheck, points, dirs, axes, tool, top, step: float = 1.0):
     """How far a rapid may come down each line ``points + t dirs`` (``(k, 3)`` each, unit
     ``dirs``) from ``t = top (k,)`` towards ``t = 0``, the tool ``tool (k,)`` held at ``axes (k,
-    3)``: the smallest t (k,) on the grid ``top - j step`` above which every interval is certified
-    as verification certifies a rapid (out of the part and the stock, grown as ``stock`` grows
-    them, within ``tol``); ``top`` where the first interval is not."""
+    3)``: the smallest t (k,) reached by a descent that certifies every interval on its way as
+    verification certifies a rapid (out of the part and the stock, grown as ``stock`` grows them,
+    within ``tol``), in intervals of ``step`` mm halved where one is not certified (down to
+    :data:`REACH_STEP_MIN`) and doubled again after each certified one."""
     points, dirs, axes = (np.asarray(a, np.float64).reshape(-1, 3) for a in (points, dirs, axes))
-    top = np.asarray(top, np.float64).reshape(-1)
+    t = np.asarray(top, np.float64).reshape(-1).copy()
     tool = np.asarray(tool, np.int64).reshape(-1)
     if not len(points):
-        return top.copy()
+        return t
     meas = _Measure(kern, tools, tol, stock)
-    n = np.maximum(1, np.ceil(top / step).astype(np.int64))
-    line = np.repeat(np.arange(len(points)), n)
-    j = np.arange(len(line)) - np.repeat(np.cumsum(n) - n, n)
-    t_hi = top[line] - j * step
-    t_lo = np.maximum(0.0, t_hi - step)
-    ok = meas.clear(points[line] + t_hi[:, None] * dirs[line], axes[line], points[line] + t_lo[:, None] * dirs[line],
-                    axes[line], tool[line], np.ones(len(line), bool))
-    reach = top.copy()
-    first_bad = np.full(len(points), np.iinfo(np.int64).max)
-    np.minimum.at(first_bad, line[~ok], j[~ok])
-    for k in range(len(points)):  # the lower end of the last certified interval from the top
-        m = min(int(first_bad[k]), int(n[k]))
-        reach[k] = top[k] - m * step if m < n[k] else 0.0
-    return np.maximum(reach, 0.0)
+    s = np.full(len(t), float(step))
+    live = t > 0.0
+    while live.any():
+        i = np.nonzero(live)[0]
+        lo = np.maximum(0.0, t[i] - s[i])
+        ok = meas.clear(points[i] + t[i, None] * dirs[i], axes[i], points[i] + lo[:, None] * dirs[i], axes[i],
+                        tool[i], np.ones(len(i), bool))
+        t[i[ok]] = lo[ok]
+        s[i[ok]] = np.minimum(step, 2.0 * s[i[ok]])
+        s[i[~ok]] *= 0.5
+        live[i[~ok & (s[i] < REACH_STEP_MIN)]] = False
+        live &= t > 0.0
+    return t
 
 
 def sample_moves(tp: Toolpath, tools, step: float):
