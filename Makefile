@@ -16,6 +16,7 @@ $(STAMP): pyproject.toml
 
 demo: venv
 	$(BIN)/meshmill job $(DATA)/vase-job.toml --out demo-out/job
+	$(BIN)/meshmill verify $(DATA)/vase.stl demo-out/job/program.nc --machine table-table-ac --tools $(DATA)/tools.toml --tolerance 0.015 --out demo-out/job/verify-program.json --quiet
 	$(BIN)/meshmill finish $(DATA)/vase.stl --tools $(DATA)/tools.toml --step-down 1 --out demo-out
 	$(BIN)/meshmill verify $(DATA)/vase.stl demo-out/toolpath.cl --tools $(DATA)/tools.toml --out demo-out/verify.json
 	$(BIN)/meshmill waterline $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool B4 --step-down 2 --out demo-out/waterline
@@ -26,7 +27,7 @@ demo: venv
 	$(BIN)/meshmill choose rubio --tool-pair 10,2 --scallop 0.01 --zones 3 --axes 3+2 --machine seed-002 --out demo-out/choose
 	$(BIN)/meshmill time demo-out/choose/toolpath.cl --machine seed-002 --tools demo-out/choose/tools.toml
 	$(BIN)/meshmill report demo-out demo-out/waterline demo-out/raster demo-out/simulate demo-out/choose --out demo-out/report.html
-	@echo "demo results in demo-out/: job/ (the vase from a box stock: plunge roughing, a waterline semi-finish and a raster with rest machining, the 5-axis finish; per operation its path and the stock after it, program.nc with every tool change, job.json, report.html), 5-axis finishing (toolpath.cl, summary.json, verify.json), 3-axis waterline/ and raster/, simulate/ (what the 5-axis path cuts: deviation.json, machined.stl), choose/ (seed 002's Rubio surface: cutter, zones and 3+2 axes by machining time), program-ac.nc (the 5-axis path posted for an A/C trunnion, read back and verified within the path's 0.01 mm plus the post's 0.005 mm)"
+	@echo "demo results in demo-out/: job/ (the vase from a box stock: plunge roughing, a waterline semi-finish and a raster with rest machining, the 5-axis finish; per operation its path and the stock after it, program.nc with every tool change, read back and verified as verify-program.json, job.json, report.html), 5-axis finishing (toolpath.cl, summary.json, verify.json), 3-axis waterline/ and raster/, simulate/ (what the 5-axis path cuts: deviation.json, machined.stl), choose/ (seed 002's Rubio surface: cutter, zones and 3+2 axes by machining time), program-ac.nc (the 5-axis path posted for an A/C trunnion, read back and verified within the path's 0.01 mm plus the post's 0.005 mm)"
 	@echo "report: $(CURDIR)/demo-out/report.html (open it in any browser)"
 
 test: venv
