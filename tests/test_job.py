@@ -214,3 +214,34 @@ def test_stock_kinds_hold_the_part(kind):
     if kind == "cylinder":  # the round bar's polygon holds the circle of the part's widest radius plus the margin
         r = np.hypot(*solid.vertices[:, :2].T)
         assert r.max() >= 42.0 - 1e-9
+
+
+def test_choose_runs_as_an_operation_of_the_job(tmp_path):
+    text = open(job_toml(str(tmp_path))).read()
+    text = text[:text.index('[[operations]]\nname = "semi"')] + """[[operations]]
+name = "semi"
+type = "raster"
+tool = "B6"
+stepover = 2.0
+allowance = 0.2
+
+[[operations]]
+name = "zones"
+type = "choose"
+scallop = 0.05
+zones = "1"
+grid = 30
+tools = ["B4", "B6"]
+"""
+    path = tmp_path / "choose.toml"
+    path.write_text(text)
+    job = Job.from_toml(path)
+    res = job.run()
+    op = res.operations[-1]
+    assert op.ok, op.path.summary["job"]["errors"]
+    assert op.path.summary["job"]["removed_mm3"] > 0
+    # the chosen cutters are numbered as the job's table in the one program
+    used = {job.tools[int(t)].name for t in op.path.toolpath.tool}
+    assert used <= {"B4", "B6"}
+    res.save(tmp_path / "out", report=False)
+    assert os.path.exists(tmp_path / "out" / "03-zones" / "zones.npz")

@@ -583,7 +583,7 @@ def choose(surface, *, scallop, tool_pair=None, tools=None, zones="auto", k_max=
            machine="generic-3axis", cluster="kmeans", metric="euclidean", grid=80, mesh_step=0.5, sample=0.5,
            min_zone=0.01, seed=0, flip=False, device="auto", progress=None) -> ChooseResult:
     """Tool choice, zones and directions by machining time (seed 002) on ``surface`` (a patch TOML,
-    "rubio" or "choi", or a mesh file): the candidates are a ``tool_pair`` "D,r" or the ball and
+    "rubio" or "choi", a mesh file or a loaded part): the candidates are a ``tool_pair`` "D,r" or the ball and
     bull-nose cutters of ``tools`` (a table or its file)."""
     import numpy as np
 
@@ -615,8 +615,8 @@ def choose(surface, *, scallop, tool_pair=None, tools=None, zones="auto", k_max=
     s = chooser.samples
     zone_arrays = dict(grid_shape=np.array(s.grid_shape), zones=cells, points=s.points, normals=s.normals,
                        valid=s.valid)
-    return ChooseResult("choose", tp, summary, os.fspath(surface), chooser.tools, zones=zone_arrays, machine=machine,
-                        device=device)
+    name = surface.source or "part" if hasattr(surface, "vertices") else os.fspath(surface)
+    return ChooseResult("choose", tp, summary, name, chooser.tools, zones=zone_arrays, machine=machine, device=device)
 
 
 @dataclass

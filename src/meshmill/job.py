@@ -32,14 +32,16 @@ from .runfolder import write_json
 from .tolerances import GOUGE_TOL, HOLDER_CLEARANCE
 from .tomlfile import read_toml
 
-OPERATIONS = {"plunge": api.plunge, "raster": api.raster, "waterline": api.waterline, "finish": api.finish}
+OPERATIONS = {"plunge": api.plunge, "raster": api.raster, "waterline": api.waterline, "finish": api.finish,
+              "choose": api.choose}
 STOCK_KINDS = ("box", "cylinder", "mesh", "offset")
 REST_DEPTH = 0.05  # mm: the depth of stock below which raster and waterline pieces are left out
 LINK_CLEARANCE = 5.0  # mm: the job's safe plane above the stock and the fixtures
 CYLINDER_SEGMENTS = 128
 _JOB_KEYS = {"name", "machine", "tools", "step", "tolerance", "rest", "in_process", "device", "clearance", "part",
              "stock", "fixtures", "operations"}
-_SET_BY_JOB = {"part", "tools", "stock", "rest", "rest_stock", "device", "progress", "machine", "simulate"}
+_SET_BY_JOB = {"part", "tools", "stock", "rest", "rest_stock", "device", "progress", "machine", "simulate", "surface",
+               "tool_pair", "flip"}
 
 
 def _number(value, what, low=None, positive=False):
@@ -202,8 +204,9 @@ class Operation:
         elif rest is not None:
             rest = _number(rest, f"operation {number} ({name}): rest", low=0.0)
         tools = d.pop("tools", None)
-        if tools is not None and kind != "finish":
-            raise InputError(f"operation {number} ({name}): tools is finish's (its ball cutters); give tool")
+        if tools is not None and kind not in ("finish", "choose"):
+            raise InputError(f"operation {number} ({name}): tools is finish's and choose's (the cutters they "
+                             "choose from); give tool")
         if tools is not None and not (isinstance(tools, list) and tools and all(isinstance(t, str) for t in tools)):
             raise InputError(f"operation {number} ({name}): tools wants a list of tool names")
         allowed = set(inspect.signature(OPERATIONS[kind]).parameters) - _SET_BY_JOB
@@ -525,23 +528,27 @@ class Job:
         run = OPERATIONS[op.kind]
         params = dict(op.params)
         tools = self.tools
-        if op.kind == "finish":
+        if op.kind in ("finish", "choose"):
             params["machine"] = self.machine
             if op.tools:
                 tools = [t for t in self.tools if t.name in op.tools]
         if op.kind in ("raster", "waterline") and stock is not None and op.rest is not None:
             params["rest"] = op.rest
             params["rest_stock"] = surface
-        if stock is not None:
+        if stock is not None and op.kind != "choose":  # choose links its zones over the part alone
             params["stock"] = stock
             if op.kind != "plunge":  # the hull's corners are cut by up to half a cell: rapids keep that too
                 params["clearance"] = params.get("clearance", HOLDER_CLEARANCE) + 0.5 * self.step
         try:
-            res = run(self.part, tools, device=device, progress=stage, **params)
+            if op.kind == "choose":
+                res = run(self.part, tools=tools, device=device, progress=stage, **params)
+            else:
+                res = run(self.part, tools, device=device, progress=stage, **params)
         except InputError as exc:
             raise InputError(f"{label}: {exc}") from None
-        if tools is not self.tools:  # the path's tools numbered as the job's table
-            index = np.array([self.tools.index(t) for t in tools])
+        if res.tools is not self.tools:  # the path's tools numbered as the job's table
+            names = [t.name for t in self.tools]
+            index = np.array([names.index(t.name) for t in res.tools])
             res.toolpath.tool = index[res.toolpath.tool]
             res.tools = self.tools
         return res

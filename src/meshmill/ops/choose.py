@@ -35,7 +35,7 @@ from ..choice.machining import UP, Machinist, ZonePlan
 from ..choice.orientation import accessible, azimuth_in_frame, heuristic_axis
 from ..choice.rectangle import choose_tool, pca_rectangle, zone_time_surrogate
 from ..geometry.patches import cell_samples, load_patch, mesh_samples, mesh_surface, patch_mesh
-from ..geometry.mesh import SUPPORTED, load_mesh
+from ..geometry.mesh import SUPPORTED, Mesh, load_mesh
 from ..pathing.zigzag import frame_rotation
 from ..pathing.verify import DEFAULT_STEP, verify_toolpath
 
@@ -360,7 +360,11 @@ def _tilt_deg(axis) -> float:
 
 def load_surface(path, params: ChooseParams, flip=False):
     """``(samples, surface mesh, description)`` of an STL/OBJ/PLY mesh (its top, seen from +Z; its
-    faces turned over with ``flip``) or a patch (TOML file or a built-in name)."""
+    faces turned over with ``flip``), a :class:`~meshmill.geometry.mesh.Mesh` already loaded, or a
+    patch (TOML file or a built-in name)."""
+    if isinstance(path, Mesh):
+        return mesh_samples(path, params.grid, params.grid), mesh_surface(path), {"file": path.source,
+                                                                                  **path.summary()}
     if os.path.splitext(path)[1].lower() in SUPPORTED:
         mesh = load_mesh(path, flip=flip)
         return mesh_samples(mesh, params.grid, params.grid), mesh_surface(mesh), {"file": os.path.abspath(path),
