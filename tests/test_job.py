@@ -245,3 +245,20 @@ tools = ["B4", "B6"]
     assert used <= {"B4", "B6"}
     res.save(tmp_path / "out", report=False)
     assert os.path.exists(tmp_path / "out" / "03-zones" / "zones.npz")
+
+
+@pytest.mark.parametrize("stock", ['type = "offset"\nallowance = 1.0', 'type = "cylinder"\nmargin = 1.0',
+                                   'type = "mesh"\nfile = "blank.stl"'])
+def test_every_kind_of_stock_is_cut_by_the_job(tmp_path, stock):
+    part = job_toml(str(tmp_path))
+    blank = shapes.box([-17.0, -17.0, -4.0], [17.0, 17.0, 13.0])
+    trimesh.Trimesh(blank.vertices, blank.faces).export(tmp_path / "blank.stl")
+    text = open(part).read().replace('type = "box"\nmargin = 1', stock)
+    text = text[:text.index('[[operations]]\nname = "semi"')]  # the roughing alone
+    path = tmp_path / "stock.toml"
+    path.write_text(text)
+    res = Job.from_toml(path).run()
+    assert res.ok, res.operations[0].path.summary["job"]["errors"]
+    start = res.summary["stock"]["volume_mm3"]
+    assert start > res.summary["final"]["design_volume_mm3"]
+    assert 0 < res.operations[0].path.summary["job"]["removed_mm3"] < start

@@ -393,8 +393,9 @@ class Job:
         from .kernels.backend import solid_kernels
         from .ops.simulate import cut_path, measure
         from .simulation import cut as cutting
-        from .simulation.dexel import dexelize, material_mesh
+        from .simulation.dexel import dexelize
         from .simulation.surface import machined_mesh, stock_hull
+        from .toolpath.model import Toolpath
 
         say = progress or (lambda stage: None)
         t_job = time.perf_counter()
@@ -421,13 +422,14 @@ class Job:
         if fix_mesh is not None:
             top = max(top, float(fix_mesh.bounds[1, 2]))
         safe_z = top + self.clearance
+        surface = stock_mesh or closed_mesh(*machined_mesh(start_model)[:2], "stock")
         if stock_mesh is None:
             stock_mesh = closed_mesh(*stock_hull(start_model), "stock")
         fix_kern = solid_kernels(fix_mesh, device) if fix_mesh is not None else None
         results = []
         # the in-process stock for the next operation: a hull around every dexel (what rapids,
         # shanks and holders keep clear of) and its surface (what rest depths are measured from)
-        current, surface = stock_mesh, self.stock.solid(part) or closed_mesh(*machined_mesh(start_model)[:2], "stock")
+        current = stock_mesh
         for k, op in enumerate(self.operations):
             t_op = time.perf_counter()
             label = f"operation {k + 1} ({op.name})"
@@ -451,7 +453,7 @@ class Job:
                 fixture_check = verify_toolpath(fix_kern, tp, self.tools, 0.0)
                 fixture_check.pop("problem_moves")
             op_s = time.perf_counter() - t_op
-            before = st.to_model().volume if not results else results[-1].stock.volume
+            before = start_model.volume if not results else results[-1].stock.volume
             stage("cut from the in-process stock")
             t_cut = time.perf_counter()
             cuts = cut_path(st, tp, self.tools, self.tolerance, "sweep", None, device)
@@ -496,7 +498,7 @@ class Job:
             current = closed_mesh(*stock_hull(machined), f"stock after {op.name}")
             surface = closed_mesh(verts, faces, f"stock after {op.name}")
         say("the program")
-        whole = _concatenate([r.path.toolpath for r in results])
+        whole = Toolpath.concatenate([r.path.toolpath for r in results])
         posted = api.post(whole, self.machine, self.tools, clearance=safe_z if self.machine.chain.type != "3-axis"
                           else None)
         timed = api.machining_time(whole, self.machine, self.tools).summary
@@ -568,12 +570,6 @@ def _union(meshes):
 def _slug(name: str) -> str:
     keep = "".join(c if c.isalnum() else "-" for c in name.lower())
     return "-".join(p for p in keep.split("-") if p) or "operation"
-
-
-def _concatenate(paths):
-    from .toolpath.model import Toolpath
-
-    return Toolpath.concatenate(paths)
 
 
 def _lift(tip, axis, z):
