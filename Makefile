@@ -11,7 +11,7 @@ venv: $(STAMP)
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install -q -e '.[dev,report,optimise]'
+	$(BIN)/python -m pip install -q -e '.[dev,report,optimise,cluster]'
 	touch $(STAMP)
 
 demo: venv

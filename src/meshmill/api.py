@@ -347,11 +347,12 @@ class VerifyResult(_Saved):
 
 @_named_errors
 def verify(part, toolpath, tools, *, tolerance=GOUGE_TOL, step=0.5, stock=None, allowance=0.0, worst=10,
-           machine=None, device="auto", progress=None) -> VerifyResult:
+           machine=None, device="auto", cluster=None, progress=None) -> VerifyResult:
     """Check ``toolpath`` (a Toolpath, or an APT CL / G-code file read for ``machine``) against the
     part for gouges beyond ``tolerance`` and shank or holder collisions, certified between poses
     ``step`` mm apart; rapids against ``stock`` (a closed mesh or file) or ``allowance`` mm on
-    the part."""
+    the part. ``cluster``: a number of local worker processes, a Dask scheduler's address or a
+    ``distributed.Client``: ranges of moves verified there (the same report)."""
     from .kernels.backend import solid_kernels
     from .pathing.verify import StockCheck, verify_toolpath
 
@@ -366,14 +367,26 @@ def verify(part, toolpath, tools, *, tolerance=GOUGE_TOL, step=0.5, stock=None, 
         toolpath = load_toolpath(toolpath, tools, machine=machine)
     device = _device(device)
     say = progress or (lambda stage: None)
-    say("index")
     floor = min(part.bounds[0, 2], stock.bounds[0, 2]) if stock is not None else None
-    check = StockCheck(allowance=0.0 if stock is not None else allowance,
-                       kern=solid_kernels(stock, device) if stock is not None else None)
-    kern = solid_kernels(part, device, floor)
-    say("certified check of every move")
-    report = verify_toolpath(kern, toolpath, tools, tolerance, step, worst=worst,
-                             stock=check)
+    allowance = 0.0 if stock is not None else allowance
+    if cluster is not None:
+        from .cluster import PIECES_PER_WORKER, connect, ranges, run_pieces, workers
+        from .pathing.verify import merge_reports, verify_piece
+
+        with connect(cluster) as client:
+            pieces = [(max(0, a - 1), toolpath.points(max(0, a - 1), b))
+                      for a, b in ranges(len(toolpath), PIECES_PER_WORKER * workers(client))]
+            shared = dict(part=part, floor=floor, stock=stock, allowance=allowance, tools=list(tools), tol=tolerance,
+                          step=step, device=device)
+            parts = run_pieces(client, verify_piece, shared, pieces, say, "certified check of every move")
+        report = merge_reports(toolpath, parts, tolerance, step,
+                               {**StockCheck(allowance=allowance).summary(), "mesh": stock is not None}, worst)
+    else:
+        say("index")
+        check = StockCheck(allowance=allowance, kern=solid_kernels(stock, device) if stock is not None else None)
+        kern = solid_kernels(part, device, floor)
+        say("certified check of every move")
+        report = verify_toolpath(kern, toolpath, tools, tolerance, step, worst=worst, stock=check)
     report.pop("problem_moves")
     return VerifyResult(report, device, stock is not None or bool(allowance))
 

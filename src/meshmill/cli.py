@@ -90,6 +90,20 @@ def _add_setup(parser):
                         "in the file's coordinates (file: the file's own zero)")
 
 
+def _add_cluster(parser):
+    """``--workers N`` / ``--scheduler ADDRESS``: the heavy work on a Dask cluster (meshmill[cluster])."""
+    g = parser.add_mutually_exclusive_group()
+    g.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="split the work over N worker processes on this machine (a Dask LocalCluster; "
+                        "needs meshmill[cluster]); the result is the same")
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="split the work over a running Dask cluster (tcp://host:8786); the result is the same")
+
+
+def _cluster(args):
+    return args.workers if args.workers is not None else args.scheduler
+
+
 def _add_device(parser):
     parser.add_argument("--device", choices=("cpu", "cuda", "auto"), default="auto",
                         help="run the heavy kernels on the CPU or an NVIDIA GPU (needs meshmill[cuda]); "
@@ -261,7 +275,9 @@ def cmd_verify(args):
     tp = api.load_toolpath(args.toolpath, tools, machine=args.machine)
     for w in tp.warnings:
         _say(args, f"warning: {w}")
-    res = api.verify(mesh, tp, tools, stock=stock, allowance=args.stock_allowance,
+    cluster = _cluster(args)
+    res = api.verify(mesh, tp, tools, stock=stock, allowance=args.stock_allowance, cluster=cluster,
+                     progress=_progress(args) if cluster is not None else None,
                      **_options(args, "tolerance", "step", "worst", "device"))
     if args.out:
         res.save(args.out)
@@ -629,6 +645,7 @@ def build_parser():
     v.add_argument("--worst", type=int, default=10, help="how many worst cases to print (10)")
     v.add_argument("--out", default=None, help="write the report as JSON to this file")
     _add_device(v)
+    _add_cluster(v)
     v.add_argument("--quiet", action="store_true", help="no warnings")
     v.set_defaults(func=cmd_verify)
 

@@ -257,13 +257,19 @@ def verify_toolpath(kern, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: flo
     stock = stock or StockCheck()
     if not isinstance(kern, MeshKernels):
         kern = solid_kernels(kern, device)
+    return merge_reports(tp, [verify_moves(kern, tp, tools, tol, step, stock)], tol, step, stock.summary(), worst)
+
+
+def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: StockCheck, first: int = 0) -> dict:
+    """What :func:`verify_toolpath` finds on the moves into points ``first + 1 ..`` of ``tp``, whose
+    point 0 is the point ``first`` of a whole path (its pose is checked with the move into it, in
+    the piece before): counts, the deepest feed poses, and the problems with their moves numbered
+    as the whole path's. Pieces of a path verified apart (:func:`merge_reports`) give the whole
+    path's report."""
     tip, axis, tool, move, frac, rapid = sample_moves(tp, tools, step)
-    base = {"moves": int(len(tp)), "step": float(step), "tolerance": float(tol), "stock": stock.summary()}
     if len(tip) == 0:
-        return {**base, "poses_checked": 0, "intervals_certified": 0, "poses_refined": 0, "gouging_moves": 0,
-                "colliding_moves": 0, "rapid_moves_touching": 0, "max_gouge": 0.0, "max_collision": 0.0,
-                "unresolved_moves": 0, "ok": True, "worst": [], "problem_moves": [], "lines": 0,
-                "problem_lines": {"gouge": 0, "collision": 0, "rapid": 0}}
+        return {"poses": 0, "certified": 0, "refined": 0, "max_gouge": 0.0, "max_collision": 0.0, "problems": [],
+                "unresolved": []}
     meas = _Measure(kern, tools, tol, stock)
     end, body, ring, segs, in_stock = meas.depths(tip, axis, tool, rapid)
     poses = [(tip, tool, move, rapid, end, body, ring, segs, in_stock)]
@@ -311,12 +317,20 @@ def verify_toolpath(kern, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: flo
         for k in range(len(im)):
             unresolved.append((int(im[k]), ta[k], float(np.linalg.norm(tb[k] - ta[k]))))
     tip, tool, move, rapid, end, body, ring, segs, in_stock = (np.concatenate(a) for a in zip(*poses))
-    return _report(tp, tools, tip, tool, move, rapid, end, body, ring, segs, in_stock, meas, unresolved, certified,
-                   refined, worst, base)
+    own = move > 0 if first > 0 else np.ones(len(move), bool)  # point 0's pose is the piece before's
+    part = _found(tp, tools, tip[own], tool[own], move[own], rapid[own], end[own], body[own], ring[own], segs[own],
+                  in_stock[own], meas, [u for u in unresolved if u[0] > 0 or first == 0])
+    part.update(certified=certified, refined=refined)
+    if first:
+        for p in part["problems"]:
+            p.move += first
+        part["unresolved"] = [m + first for m in part["unresolved"]]
+    return part
 
 
-def _report(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth, seg_depth, stock_depth, meas,
-            unresolved, certified, refined, worst, base):
+def _found(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth, seg_depth, stock_depth, meas,
+           unresolved) -> dict:
+    """The problems of the checked poses (moves numbered as in ``tp``) and their figures."""
     tol = meas.tol
     cut_mask = meas.cutting[tool]
     seg_cut = np.where(cut_mask, seg_depth, 0.0)
@@ -363,22 +377,50 @@ def _report(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth
         (rap if kind == "rapid" else gouge).add(m)
         problems.append(Problem(kind, m, int(tp.line[m]), "tool (not certified within the tolerance)",
                                 float(tol + span), tuple(float(v) for v in at)))
-    problems.sort(key=lambda p: -p.depth)
-    lines = {kind: len({p.line for p in problems if p.kind == kind and p.line > 0})
-             for kind in ("gouge", "collision", "rapid")}
     feed = ~rapid
+    return {"poses": int(len(tip)), "max_gouge": float(end_depth[feed].max()) if feed.any() else 0.0,
+            "max_collision": float(body_depth[feed].max()) if feed.any() else 0.0, "problems": problems,
+            "unresolved": sorted(unresolved_moves)}
+
+
+def verify_piece(shared: dict, piece) -> dict:
+    """:func:`verify_moves` of one piece ``(first, toolpath)`` of a path on a worker of a cluster
+    (:func:`meshmill.cluster.run_pieces`); ``shared``: the part, its ``floor``, the ``stock`` mesh
+    (or None) and ``allowance``, the ``tools``, ``tol``, ``step``, ``device``. The kernels are built
+    once per worker."""
+    from ..cluster import worker_cached
+
+    first, tp = piece
+    kern = worker_cached(shared, "part", lambda: solid_kernels(shared["part"], shared["device"], shared["floor"]))
+    stock_kern = None
+    if shared["stock"] is not None:
+        stock_kern = worker_cached(shared, "stock", lambda: solid_kernels(shared["stock"], shared["device"]))
+    check = StockCheck(allowance=shared["allowance"], kern=stock_kern)
+    return verify_moves(kern, tp, shared["tools"], shared["tol"], shared["step"], check, first)
+
+
+KINDS = ("gouge", "collision", "rapid")
+
+
+def merge_reports(tp: Toolpath, parts: list, tol: float, step: float, stock: dict, worst: int = 10) -> dict:
+    """The JSON-ready report of ``tp`` from what :func:`verify_moves` found on its pieces;
+    ``stock``: the :meth:`StockCheck.summary` they were checked with."""
+    problems = sorted((p for part in parts for p in part["problems"]),
+                      key=lambda p: (-p.depth, KINDS.index(p.kind), p.move))
+    moves = {kind: {p.move for p in problems if p.kind == kind} for kind in KINDS}
+    lines = {kind: len({p.line for p in problems if p.kind == kind and p.line > 0}) for kind in KINDS}
     return {
-        **base,
-        "poses_checked": int(len(tip)),
-        "poses_refined": int(refined),
-        "intervals_certified": int(certified),
-        "gouging_moves": len(gouge),
-        "colliding_moves": len(coll),
-        "rapid_moves_touching": len(rap),
-        "unresolved_moves": len(unresolved_moves),
-        "max_gouge": float(end_depth[feed].max()) if feed.any() else 0.0,
-        "max_collision": float(body_depth[feed].max()) if feed.any() else 0.0,
-        "ok": not (gouge or coll or rap),
+        "moves": int(len(tp)), "step": float(step), "tolerance": float(tol), "stock": stock,
+        "poses_checked": sum(p["poses"] for p in parts),
+        "poses_refined": sum(p["refined"] for p in parts),
+        "intervals_certified": sum(p["certified"] for p in parts),
+        "gouging_moves": len(moves["gouge"]),
+        "colliding_moves": len(moves["collision"]),
+        "rapid_moves_touching": len(moves["rapid"]),
+        "unresolved_moves": len({m for p in parts for m in p["unresolved"]}),
+        "max_gouge": max([p["max_gouge"] for p in parts], default=0.0),
+        "max_collision": max([p["max_collision"] for p in parts], default=0.0),
+        "ok": not problems,
         "worst": [p.describe() for p in problems[:worst]],
         "problem_moves": sorted({p.move for p in problems}),
         "lines": int(len(np.unique(tp.line[tp.line > 0]))),

@@ -45,6 +45,11 @@ class Toolpath:
             feed=np.concatenate([p.feed for p in parts]),
         )
 
+    def points(self, start: int, stop: int) -> "Toolpath":
+        """Points ``start .. stop - 1`` as a Toolpath (the same source)."""
+        return Toolpath(self.tip[start:stop], self.axis[start:stop], self.rapid[start:stop], self.tool[start:stop],
+                        self.line[start:stop], self.feed[start:stop], self.source)
+
     def cutting_length(self) -> float:
         """Length of the feed moves, mm."""
         if len(self) < 2:

@@ -1,0 +1,95 @@
+"""The heavy operations on a Dask cluster (``meshmill[cluster]``): ``--workers N`` starts a
+``LocalCluster`` of N single-threaded worker processes on this machine, ``--scheduler ADDRESS``
+joins a running one (``dask scheduler`` / ``dask worker``, dask-jobqueue, dask-kubernetes).
+Without either nothing here runs and Dask is not imported.
+
+The work is split where the kernels are already independent (pieces of a path, by ranges of
+moves); what every piece needs (the part, the tool table) is scattered once to every worker, and
+what a worker builds from it (a BVH) is kept there for the next piece (:func:`worker_cached`). A
+piece whose worker dies is computed again elsewhere (Dask's retries); the pieces come back in
+order, so the result is the one process's.
+"""
+from __future__ import annotations
+
+import contextlib
+import uuid
+
+from .errors import InputError
+
+RETRIES = 3  # times a piece is computed again after its worker died
+PIECES_PER_WORKER = 4  # pieces a worker gets on average (the slow ones then even out)
+_CACHE: dict = {}  # per worker process: what it built from the scattered data, by token
+
+
+@contextlib.contextmanager
+def connect(cluster):
+    """A ``distributed.Client`` for ``cluster``: None (no cluster: yields None), a number of
+    local workers, a scheduler's address (``tcp://host:8786``) or a Client already open; a local
+    cluster is closed on leaving."""
+    if cluster is None:
+        yield None
+        return
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise InputError("--workers and --scheduler need Dask: pip install 'meshmill[cluster]'") from None
+    if isinstance(cluster, Client):
+        yield cluster
+        return
+    if isinstance(cluster, bool) or not isinstance(cluster, (int, str)):
+        raise InputError(f"cluster must be a number of workers, a scheduler address or a Client, got {cluster!r}")
+    if isinstance(cluster, int):
+        if cluster < 1:
+            raise InputError(f"--workers must be at least 1, got {cluster}")
+        with LocalCluster(n_workers=cluster, threads_per_worker=1, processes=True, dashboard_address=None) as lc, \
+                Client(lc) as client:
+            yield client
+        return
+    try:
+        client = Client(cluster, timeout=30)
+    except (OSError, TimeoutError) as exc:
+        raise InputError(f"--scheduler {cluster}: cannot reach the scheduler ({exc})") from None
+    with client:
+        yield client
+
+
+def workers(client) -> int:
+    """How many worker threads the cluster has."""
+    return max(1, sum(client.nthreads().values()))
+
+
+def ranges(n: int, pieces: int) -> list[tuple[int, int]]:
+    """``pieces`` ranges ``(start, stop)`` of ``0..n`` as even as can be (none empty)."""
+    pieces = max(1, min(pieces, n))
+    bounds = [round(k * n / pieces) for k in range(pieces + 1)]
+    return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+
+def run_pieces(client, func, shared, pieces, progress=None, what="pieces") -> list:
+    """``[func(shared, piece) for piece in pieces]`` on the cluster: ``shared`` scattered once to
+    every worker (with a ``token`` for :func:`worker_cached`), the results in the pieces' order;
+    ``progress`` is told each time a piece completes."""
+    from distributed import as_completed
+
+    shared = dict(shared, token=uuid.uuid4().hex)
+    handle = client.scatter(shared, broadcast=True)
+    futures = [client.submit(func, handle, piece, pure=False, retries=RETRIES) for piece in pieces]
+    done = 0
+    for _ in as_completed(futures):
+        done += 1
+        if progress:
+            progress(f"{what}: {done} of {len(futures)} done ({100 * done // len(futures)} %)")
+    results = client.gather(futures)
+    client.cancel([handle])
+    return results
+
+
+def worker_cached(shared: dict, name: str, build):
+    """``build()`` once per worker process for the scattered ``shared`` data: later pieces on the
+    same worker reuse it (a BVH, kernels)."""
+    key = (shared["token"], name)
+    if key not in _CACHE:
+        if len(_CACHE) > 16:  # an earlier run's
+            _CACHE.clear()
+        _CACHE[key] = build()
+    return _CACHE[key]

@@ -1,0 +1,90 @@
+"""The heavy operations on a Dask cluster: the same results as one process (issue 21)."""
+import os
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from meshmill import api
+from meshmill.cluster import ranges
+from meshmill.geometry import shapes
+from meshmill.tools.table import Tool
+from meshmill.toolpath.model import Toolpath
+
+distributed = pytest.importorskip("distributed")
+
+TOOLS = [Tool(name="B6", type="ball", diameter=6.0, corner_radius=3.0, flute_length=12.0, gauge_length=40.0,
+              shank_diameter=6.0, holder_diameter=30.0, holder_length=40.0, number=1),
+         Tool(name="F4", type="flat", diameter=4.0, corner_radius=0.0, flute_length=6.0, gauge_length=30.0,
+              shank_diameter=4.0, holder_diameter=20.0, holder_length=30.0, number=2)]
+
+
+@pytest.fixture(scope="module")
+def client():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as lc, \
+            distributed.Client(lc) as c:
+        yield c
+
+
+def zigzag_with_problems(part):
+    """Passes over the post, dropped by the raster, and then moves that gouge, collide and rapid
+    through it, on edges and facets exactly (z = 0 is the plate's top)."""
+    res = api.raster(part, TOOLS, tool="B6", stepover=3.0, device="cpu")
+    tp = res.toolpath
+    bad = Toolpath(np.array([[0.0, 0.0, 60.0], [0.0, 20.0, 0.0], [20.0, 0.0, -1.0], [-20.0, 0.0, 60.0],
+                             [15.0, 0.0, 10.0]]),
+                   np.tile([0.0, 0.0, 1.0], (5, 1)), np.array([True, True, False, True, False]),
+                   np.array([0, 1, 1, 1, 1]))
+    return Toolpath.concatenate([tp, bad])
+
+
+def test_verify_on_a_cluster_gives_the_report_of_one_process(client):
+    part = shapes.post_with_fillet(segments=48)
+    tp = zigzag_with_problems(part)
+    one = api.verify(part, tp, TOOLS, device="cpu").report
+    many = api.verify(part, tp, TOOLS, device="cpu", cluster=client).report
+    assert not one["ok"] and one["gouging_moves"] and one["rapid_moves_touching"]
+    assert many == one
+
+
+def test_a_worker_that_dies_is_replaced_and_the_report_is_the_same(client):
+    part = shapes.post_with_fillet(segments=48)
+    tp = zigzag_with_problems(part)
+    one = api.verify(part, tp, TOOLS, device="cpu", step=0.1).report
+    pids = list(client.run(os.getpid).values())
+    killed = []
+
+    def kill_one(stage):  # the first piece done: one worker process dies
+        if not killed:
+            os.kill(pids[0], signal.SIGKILL)
+            killed.append(pids[0])
+
+    many = api.verify(part, tp, TOOLS, device="cpu", step=0.1, cluster=client, progress=kill_one).report
+    assert killed and many == one
+    client.wait_for_workers(2, timeout=60)
+
+
+@given(st.integers(1, 10_000), st.integers(1, 64))
+def test_ranges_cover_the_moves_once(n, pieces):
+    rs = ranges(n, pieces)
+    assert rs[0][0] == 0 and rs[-1][1] == n
+    assert all(a < b for a, b in rs) and all(b == c for (_, b), (c, _) in zip(rs[:-1], rs[1:]))
+    assert len(rs) == min(n, pieces)
+
+
+def test_without_a_cluster_dask_is_not_imported():
+    code = ("import sys; from meshmill import api; from meshmill.geometry import shapes; "
+            "from meshmill.toolpath.model import Toolpath; import numpy as np; "
+            "p = shapes.box([0, 0, 0], [10, 10, 10]); "
+            "t = Toolpath(np.array([[5, 5, 30.0], [5, 5, 20.0]]), np.tile([0, 0, 1.0], (2, 1)), np.array([True, True]),"
+            " np.zeros(2, int)); "
+            "from meshmill.tools.table import Tool; "
+            "tools = [Tool(name='B6', type='ball', diameter=6.0, corner_radius=3.0, flute_length=12.0, gauge_length=40.0, "
+            "shank_diameter=6.0)]; "
+            "assert api.verify(p, t, tools, device='cpu').ok; "
+            "assert 'distributed' not in sys.modules and 'dask' not in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True)
