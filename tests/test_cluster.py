@@ -88,3 +88,23 @@ def test_without_a_cluster_dask_is_not_imported():
             "assert api.verify(p, t, tools, device='cpu').ok; "
             "assert 'distributed' not in sys.modules and 'dask' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_dexel_lines_cast_on_a_cluster_are_the_same_model(client):
+    part = shapes.post_with_fillet(segments=48)  # the plate's top, z = 0, lies between lattice planes here
+    one = api.dexel(part, step=0.5, device="cpu").model
+    many = api.dexel(part, step=0.5, device="cpu", cluster=client).model
+    for a in range(3):
+        assert np.array_equal(one.start[a], many.start[a]) and np.array_equal(one.iv[a], many.iv[a])
+    assert many.info["pieces"] >= 3
+
+
+def test_simulate_on_a_cluster_gives_the_same_summary(client):
+    part = shapes.post_with_fillet(segments=48)
+    tp = api.raster(part, TOOLS, tool="B6", stepover=3.0, device="cpu").toolpath
+    one = api.simulate(part, tp, TOOLS, step=0.5, device="cpu")
+    many = api.simulate(part, tp, TOOLS, step=0.5, device="cpu", cluster=client)
+    for s in (one.summary, many.summary):
+        s.pop("seconds")
+    assert many.summary == one.summary and many.deviation == one.deviation
+    assert np.array_equal(one.machined[1], many.machined[1])

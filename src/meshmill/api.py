@@ -416,16 +416,20 @@ class DexelResult(_Saved):
 
 @_named_errors
 def dexel(part, *, step, index="bvh", partitions="1", kmax=27, init="k-means++", minibatch=False, device="auto",
-          progress=None) -> DexelResult:
+          cluster=None, progress=None) -> DexelResult:
     """Triple-dexel model of the part (seed 000) with lines ``step`` mm apart; ``index``: bvh, or the
-    seed's cells or kmeans partitions (``partitions`` a count or "auto")."""
+    seed's cells or kmeans partitions (``partitions`` a count or "auto"); ``cluster`` (local
+    workers, a scheduler's address or a Client): blocks of lines cast there (the same model)."""
     from .ops.simulate import dexel_model
 
     if index != "bvh" and device == "auto":
         device = "cpu"  # the seed's indexes run on the CPU only
     device = _device(device)
-    model, summary = dexel_model(part, step, index, str(partitions), init, minibatch, kmax, progress=progress,
-                                 device=device)
+    from .cluster import connect
+
+    with connect(cluster) as client:
+        model, summary = dexel_model(part, step, index, str(partitions), init, minibatch, kmax, progress=progress,
+                                     device=device, cluster=client)
     model.name = os.path.basename(part.source or "part")
     summary["part"] = _part_entry(part)
     summary["device"] = device
@@ -467,11 +471,11 @@ class SimulateResult(_Saved):
 
 @_named_errors
 def simulate(design, toolpath, tools, *, step, stock="box", allowance=None, tolerance=GOUGE_TOL, mode="sweep",
-             tool=None, machine=None, device="auto", progress=None) -> SimulateResult:
+             tool=None, machine=None, device="auto", cluster=None, progress=None) -> SimulateResult:
     """Cut ``toolpath`` (a Toolpath or a file, read for ``machine`` and ``tool``) from the stock
     with dexels ``step`` mm apart and measure the result against ``design``: ``stock`` "box",
     a closed mesh or file, or ``allowance`` mm on the design; ``mode`` sweep (exact swept volumes)
-    or points (the seed's)."""
+    or points (the seed's); ``cluster``: the dexel lines cast there (the same result)."""
     from .ops.simulate import simulate as run
 
     if not (_finite(step) and step > 0):
@@ -484,9 +488,12 @@ def simulate(design, toolpath, tools, *, step, stock="box", allowance=None, tole
             machine = load_machine(machine)
         toolpath = load_toolpath(toolpath, tools, tool=tool, machine=machine)
     device = _device(device)
-    deviation, summary, _, machined, samples = run(design, toolpath, tools, step, stock=stock, allowance=allowance,
-                                                   tolerance=tolerance, mode=mode, progress=progress,
-                                                   device=device)
+    from .cluster import connect
+
+    with connect(cluster) as client:
+        deviation, summary, _, machined, samples = run(design, toolpath, tools, step, stock=stock,
+                                                       allowance=allowance, tolerance=tolerance, mode=mode,
+                                                       progress=progress, device=device, cluster=client)
     summary["device"] = device
     summary["tools_file"] = _tools_file(tools)
     summary["design"] = _part_entry(design)

@@ -308,7 +308,7 @@ def cmd_dexel(args):
         out += ".npz"
     _results([out, os.path.join(os.path.dirname(os.path.abspath(out)), "summary.json")])
     mesh = _load_part(args, args.part)
-    res = api.dexel(mesh, progress=_progress(args),
+    res = api.dexel(mesh, progress=_progress(args), cluster=_cluster(args),
                     **_options(args, "step", "index", "partitions", "kmax", "init", "minibatch", "device"))
     res.save(out)
     summary = res.summary
@@ -341,7 +341,7 @@ def cmd_simulate(args):
     for w in tp.warnings:
         _say(args, f"warning: {w}")
     res = api.simulate(design, tp, tools, stock="box" if stock is None else stock, progress=_progress(args),
-                       **_options(args, "step", "allowance", "tolerance", "mode", "device"))
+                       cluster=_cluster(args), **_options(args, "step", "allowance", "tolerance", "mode", "device"))
     res.save(args.out)
     summary, deviation = res.summary, res.deviation
     for w in summary["warnings"]:
@@ -659,6 +659,7 @@ def build_parser():
     d.add_argument("--init", choices=("k-means++", "random"), default="k-means++", help="k-means initialisation")
     d.add_argument("--minibatch", action="store_true", help="mini-batch k-means")
     _add_device(d)
+    _add_cluster(d)
     d.add_argument("--out", default=None, help="model file: .npz (compact binary) or .td (seed's ASCII) (PART.dexel.npz)")
     d.add_argument("--quiet", action="store_true", help="print nothing but errors")
     d.set_defaults(func=cmd_dexel)
@@ -680,6 +681,7 @@ def build_parser():
                    help="exact swept volume of every move, or the tool at the points only (seed) (sweep)")
     s.add_argument("--out", default="sim", help="output folder (sim)")
     _add_device(s)
+    _add_cluster(s)
     s.add_argument("--quiet", action="store_true", help="print nothing but errors")
     s.set_defaults(func=cmd_simulate)
 

@@ -120,10 +120,11 @@ class LineCaster:
         else:
             self.index = index
 
-    def cast_lines(self, a, lu, lv, step, nu, nv):
+    def cast_lines(self, a, lu, lv, step, nu, nv, first_row=0):
         """``(dense (lines, cap, 2), count (lines,))``: the material intervals of the ``nu x nv``
-        lines along axis ``a`` from ``(lu, lv)``, ``step`` mm apart."""
-        return self.impl.cast_lines(a, lu, lv, step, nu, nv, self.index)
+        lines along axis ``a`` of the lattice from ``(lu, lv)``, ``step`` mm apart, from its row
+        ``first_row`` on (a block of rows: the same lines as the whole lattice's)."""
+        return self.impl.cast_lines(a, lu, lv, step, nu, nv, self.index, first_row)
 
 
 def cutter_rise(rho, radius, corner_radius) -> float:

@@ -47,7 +47,7 @@ def line_hits(a, us, vs, bvh):
 
 
 @numba.njit(parallel=True, cache=True)
-def _cast_bvh(a, lu, lv, step, nu, nv, cap, node_lo, node_hi, node_child, node_range, tris):
+def _cast_bvh(a, line0, lu, lv, step, nu, nv, cap, node_lo, node_hi, node_child, node_range, tris):
     n_lines = nu * nv
     out = np.zeros((n_lines, cap, 2))
     count = np.zeros(n_lines, np.int64)
@@ -57,13 +57,13 @@ def _cast_bvh(a, lu, lv, step, nu, nv, cap, node_lo, node_hi, node_child, node_r
         hw = np.empty(MAX_HITS)
         hs = np.empty(MAX_HITS, np.int64)
         for line in range(c * LINE_CHUNK, min(n_lines, (c + 1) * LINE_CHUNK)):
-            count[line] = _cast_bvh_line(a, line, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range,
-                                         tris, stack, hw, hs, out)
+            count[line] = _cast_bvh_line(a, line, line0, lu, lv, step, nv, cap, node_lo, node_hi, node_child,
+                                         node_range, tris, stack, hw, hs, out)
     return out, count
 
 
 @numba.njit(parallel=True, cache=True)
-def _cast_boxes(a, lu, lv, step, nu, nv, cap, box_lo, box_hi, box_start, tris):
+def _cast_boxes(a, line0, lu, lv, step, nu, nv, cap, box_lo, box_hi, box_start, tris):
     n_lines = nu * nv
     out = np.zeros((n_lines, cap, 2))
     count = np.zeros(n_lines, np.int64)
@@ -72,8 +72,8 @@ def _cast_boxes(a, lu, lv, step, nu, nv, cap, box_lo, box_hi, box_start, tris):
         hw = np.empty(MAX_HITS)
         hs = np.empty(MAX_HITS, np.int64)
         for line in range(c * LINE_CHUNK, min(n_lines, (c + 1) * LINE_CHUNK)):
-            count[line] = _cast_box_line(a, line, lu, lv, step, nv, cap, box_lo, box_hi, box_start, tris, hw, hs,
-                                         out)
+            count[line] = _cast_box_line(a, line, line0, lu, lv, step, nv, cap, box_lo, box_hi, box_start, tris,
+                                         hw, hs, out)
     return out, count
 
 
@@ -96,8 +96,9 @@ def rays_blocked(origins, direction, tmin, bvh):
                          float(tmin), *bvh)
 
 
-def cast_lines(a, lu, lv, step, nu, nv, index):
-    """Material intervals of the ``nu x nv`` lines along axis ``a``.
+def cast_lines(a, lu, lv, step, nu, nv, index, first_row=0):
+    """Material intervals of the ``nu x nv`` lines along axis ``a``, from the row ``first_row``
+    of a lattice from ``(lu, lv)`` (a block of its rows, cast as the whole lattice casts them).
 
     ``index`` is ``("bvh", BVH.arrays)`` or ``("boxes", (box_lo, box_hi, box_start, tris))``.
     Returns ``(dense (n_lines, cap, 2), count (n_lines,))``; a negative count marks a line whose
@@ -107,7 +108,7 @@ def cast_lines(a, lu, lv, step, nu, nv, index):
     fn = _cast_bvh if kind == "bvh" else _cast_boxes
     cap = 4
     while True:
-        out, count = fn(a, float(lu), float(lv), float(step), int(nu), int(nv), cap, *arrays)
+        out, count = fn(a, int(first_row) * int(nv), float(lu), float(lv), float(step), int(nu), int(nv), cap, *arrays)
         need = int(count.max(initial=0))
         if need <= cap:
             return out, count

@@ -258,25 +258,25 @@ def rays_blocked(origins, direction, tmin, bvh):
 
 
 @cuda.jit
-def _cast_bvh(a, lu, lv, step, nu, nv, cap, node_lo, node_hi, node_child, node_range, tris, out, count):
+def _cast_bvh(a, line0, lu, lv, step, nu, nv, cap, node_lo, node_hi, node_child, node_range, tris, out, count):
     line = cuda.grid(1)
     if line < nu * nv:
         stack = cuda.local.array(STACK_SIZE, int32)
         hw = cuda.local.array(MAX_HITS, float64)
         hs = cuda.local.array(MAX_HITS, int64)
-        count[line] = _cast_bvh_line(a, line, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range, tris,
-                                     stack, hw, hs, out)
+        count[line] = _cast_bvh_line(a, line, line0, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range,
+                                     tris, stack, hw, hs, out)
 
 
-def cast_lines(a, lu, lv, step, nu, nv, bvh):
+def cast_lines(a, lu, lv, step, nu, nv, bvh, first_row=0):
     """As :func:`meshmill.kernels.cpu_dexel.cast_lines` with the BVH index (one thread per line)."""
     n_lines = int(nu) * int(nv)
     cap = 4
     while True:
         out = cuda.device_array((n_lines, cap, 2), np.float64)
         count = cuda.device_array(n_lines, np.int64)
-        _cast_bvh[_blocks(n_lines), THREADS](a, float(lu), float(lv), float(step), int(nu), int(nv), cap,
-                                            *bvh, out, count)
+        _cast_bvh[_blocks(n_lines), THREADS](a, int(first_row) * int(nv), float(lu), float(lv), float(step), int(nu),
+                                            int(nv), cap, *bvh, out, count)
         c = count.copy_to_host()
         need = int(c.max(initial=0))
         if need <= cap:

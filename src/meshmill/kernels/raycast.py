@@ -152,12 +152,13 @@ def build(jit):
         return n
 
     @jit
-    def cast_bvh_line(a, line, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range, tris, stack, hw,
-                      hs, out):
-        """Cast grid line ``line`` (id i*nv + j) along axis a through the BVH into ``out[line]``;
-        returns its interval count, -1 (unbalanced crossings) or -2 (more than the buffers hold)."""
-        u0 = lu + (line // nv + 0.5) * step
-        v0 = lv + (line % nv + 0.5) * step
+    def cast_bvh_line(a, line, line0, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range, tris, stack,
+                      hw, hs, out):
+        """Cast grid line ``line0 + line`` (id i*nv + j) along axis a through the BVH into
+        ``out[line]``; returns its interval count, -1 (unbalanced crossings) or -2 (more than the
+        buffers hold)."""
+        u0 = lu + ((line0 + line) // nv + 0.5) * step
+        v0 = lv + ((line0 + line) % nv + 0.5) * step
         n = bvh_line_hits(a, u0, v0, node_lo, node_hi, node_child, node_range, tris, stack, hw, hs)
         if n > hw.shape[0]:
             return -2
@@ -183,10 +184,10 @@ def build(jit):
         return n
 
     @jit
-    def cast_box_line(a, line, lu, lv, step, nv, cap, box_lo, box_hi, box_start, tris, hw, hs, out):
+    def cast_box_line(a, line, line0, lu, lv, step, nv, cap, box_lo, box_hi, box_start, tris, hw, hs, out):
         """As :func:`cast_bvh_line`, through partition boxes (see :func:`box_line_hits`)."""
-        u0 = lu + (line // nv + 0.5) * step
-        v0 = lv + (line % nv + 0.5) * step
+        u0 = lu + ((line0 + line) // nv + 0.5) * step
+        v0 = lv + ((line0 + line) % nv + 0.5) * step
         n = box_line_hits(a, u0, v0, box_lo, box_hi, box_start, tris, hw, hs)
         if n > hw.shape[0]:
             return -2

@@ -19,7 +19,7 @@ DEVIATION_KEYS = ("Sa", "Sq", "Sp", "Sv", "Sz", "gouge_max", "excess_max", "with
 
 
 def dexel_model(mesh, step, index="bvh", partitions="1", init="k-means++", minibatch=False, k_max=27,
-                progress=None, device="cpu") -> tuple[DexelModel, dict]:
+                progress=None, device="cpu", cluster=None) -> tuple[DexelModel, dict]:
     """Dexel model of a part and its summary; ``partitions`` is a count or ``"auto"`` (the
     K-optimal helper over 1..k_max, whose table goes into the summary)."""
     summary = {}
@@ -39,7 +39,7 @@ def dexel_model(mesh, step, index="bvh", partitions="1", init="k-means++", minib
             raise InputError(f"--partitions must be a whole number or 'auto', got '{partitions}'") from None
         if k < 1:
             raise InputError(f"--partitions must be at least 1, got {k}")
-    model = dexelize(mesh, step, index, k, init, minibatch, progress=progress, device=device)
+    model = dexelize(mesh, step, index, k, init, minibatch, progress=progress, device=device, cluster=cluster)
     summary["operation"] = "dexel"
     summary.update(model.summary())
     summary["index"] = model.info
@@ -56,12 +56,14 @@ def _stock_bounds(design, stock, allowance):
 
 
 def simulate(design, toolpath, tools, step, stock="box", allowance=None, tolerance=0.01, mode="sweep",
-             progress=None, device="cpu"):
+             progress=None, device="cpu", cluster=None):
     """Cut ``toolpath`` from the stock (``"box"``: the design's box; a Mesh; or the design with
     ``allowance`` mm on both ends of every dexel) and measure the result against ``design``.
 
     Returns ``(deviation dict, summary dict, machined DexelModel, (vertices, faces) of the machined
-    mesh, {"points": (k, 3), "e": (k,)} the dexel ends and their signed deviations, mm)``. ``device``: ``"cpu"`` or ``"cuda"`` for dexel casting, cutting and distances."""
+    mesh, {"points": (k, 3), "e": (k,)} the dexel ends and their signed deviations, mm)``. ``device``: ``"cpu"`` or ``"cuda"`` for dexel casting, cutting and distances;
+    ``cluster``: a ``distributed.Client`` the dexel lines are cast on (the cutting and the
+    measures run here)."""
     say = progress or (lambda _: None)
     t0 = time.perf_counter()
     if allowance is not None and not (np.isfinite(allowance) and allowance >= 0):
@@ -87,15 +89,15 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     if step > smallest:
         warnings.append(f"--step {step:g} mm is coarser than the smallest tool radius ({smallest:g} mm): "
                         "scallops and small features are not resolved")
-    design_model = dexelize(design, step, bounds=bounds, device=device)
+    design_model = dexelize(design, step, bounds=bounds, device=device, cluster=cluster)
     warnings += uneven_lines_warning(design_model)
     say(f"design: {sum(design_model.dexel_count(a) for a in range(3)):,} dexels")
     if allowance is not None:
         stock_model = design_model
     elif stock == "box":
-        stock_model = dexelize(shapes.box(*design.bounds), step, bounds=bounds, device=device)
+        stock_model = dexelize(shapes.box(*design.bounds), step, bounds=bounds, device=device, cluster=cluster)
     else:
-        stock_model = dexelize(stock, step, bounds=bounds, device=device)
+        stock_model = dexelize(stock, step, bounds=bounds, device=device, cluster=cluster)
     st = cutting.stock_from_model(stock_model, allowance or 0.0)
     start_model = st.to_model()
     outside = difference_volume(design_model, start_model)

@@ -165,16 +165,16 @@ def uneven_lines_warning(model) -> list[str]:
             "material was decided point by point, by the winding of the solid (the parity under a sheet)"]
 
 
-def _resolve_lines(a, lines, lo, n, step, dense, count, material, bvh, source):
+def _resolve_lines(a, lines, lo, n, step, dense, count, material, bvh, source, first_row=0):
     """``(dense, count)`` with the material of grid ``lines`` along axis ``a`` decided between
     every two crossings of ``material``'s surface (``bvh``: its BVH arrays) by the inside test of
     the solid ``source`` bounds (winding of its closed pieces and caps, parity under its sheets), as verification
-    decides it."""
+    decides it. ``lines`` are numbered from the row ``first_row`` of the lattice (a block of it)."""
     from ..kernels import cpu
 
     u, v = (a + 1) % 3, (a + 2) % 3
     nv = n[v]
-    us = lo[u] + (lines // nv + 0.5) * step
+    us = lo[u] + (first_row + lines // nv + 0.5) * step
     vs = lo[v] + (lines % nv + 0.5) * step
     w, hits = cpu_dexel.line_hits(a, us, vs, bvh)
     inside = source.solid(float(material.bounds[0, 2])).inside
@@ -201,15 +201,61 @@ def _resolve_lines(a, lines, lo, n, step, dense, count, material, bvh, source):
     return dense, count
 
 
+def _cast(caster, a, lo, n, step, mesh, bvh, source, rows=None):
+    """``(start, iv, uneven lines)`` of the lines along ``a`` of the lattice ``lo, n`` (of its rows
+    ``rows = (i0, i1)`` along the axis after ``a``, default all)."""
+    u, v = (a + 1) % 3, (a + 2) % 3
+    i0, i1 = rows if rows is not None else (0, int(n[u]))
+    dense, count = caster.cast_lines(a, lo[u], lo[v], step, i1 - i0, n[v], i0)
+    if (count == -2).any():
+        raise InputError(f"{int((count == -2).sum())} line(s) along {'XYZ'[a]} cross the surface more than "
+                         f"{MAX_HITS} times: the mesh is too intricate for one line (or has many stacked shells)")
+    bad = np.nonzero(count == -1)[0]
+    if len(bad):  # self-intersecting or overlapping shells: decided point by point
+        if bvh is None:  # the cells and k-means indexes hold no BVH: one for these lines
+            bvh = build_bvh(mesh.vertices, mesh.faces).arrays
+        dense, count = _resolve_lines(a, bad, lo, n, step, dense, count, mesh, bvh, source, i0)
+    s, iv = compact(dense, count)
+    return s, iv, int(len(bad))
+
+
+def cast_block(shared: dict, piece) -> tuple:
+    """One block of lines on a worker of a cluster (:func:`meshmill.cluster.run_pieces`): the
+    lines along ``a`` whose first lattice index (along the axis after ``a``) is in ``i0 .. i1 - 1``,
+    as :func:`dexelize` casts them; ``shared``: the material ``mesh``, the ``source`` part, the
+    lattice ``lo, n, step``, the ``device``."""
+    from ..cluster import worker_cached
+
+    a, i0, i1 = piece
+    mesh = shared["mesh"]
+    idx, info = worker_cached(shared, "index", lambda: mesh_index(mesh))
+    caster = worker_cached(shared, "caster", lambda: LineCaster(idx, shared["device"]))
+    return (*_cast(caster, a, shared["lo"], shared["n"], shared["step"], mesh, idx[1], shared["source"], (i0, i1)),
+            info)
+
+
+def _join(blocks):
+    """The CSR ``(start, iv)`` of consecutive blocks of lines."""
+    starts, ivs, base = [np.zeros(1, np.int64)], [], 0
+    for s, iv, *_ in blocks:
+        starts.append(s[1:] + base)
+        ivs.append(iv)
+        base += len(iv)
+    return np.concatenate(starts), np.concatenate(ivs) if ivs else np.zeros((0, 2))
+
+
 def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", minibatch=False,
-             bounds=None, progress=None, device="cpu") -> DexelModel:
+             bounds=None, progress=None, device="cpu", cluster=None) -> DexelModel:
     """Triple-dexel model of the solid ``mesh`` bounds at ``step`` mm over ``bounds (2, 3)``
     (default: the solid's box with one empty cell around; an open mesh's sheets reach down to the
     bottom of ``bounds``, see :func:`material_mesh`). ``device``: ``"cpu"`` or ``"cuda"`` (BVH
-    index only). Timings, the index and the device go to ``model.info``."""
+    index only). ``cluster``: a ``distributed.Client``: blocks of lines cast on its workers (BVH
+    index only; the same model). Timings, the index and the device go to ``model.info``."""
     source = mesh
     mesh = material_mesh(mesh, None if bounds is None else float(np.asarray(bounds, float)[0, 2]))
     lo, n = lattice(mesh.bounds if bounds is None else bounds, step)
+    if cluster is not None:
+        return _dexelize_on(cluster, mesh, source, lo, n, float(step), index, progress, device)
     odd = {}
     t0 = time.perf_counter()
     idx, info = mesh_index(mesh, index, partitions, init, minibatch)
@@ -221,22 +267,40 @@ def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", min
     t1 = time.perf_counter()
     for a in range(3):
         u, v = (a + 1) % 3, (a + 2) % 3
-        dense, count = caster.cast_lines(a, lo[u], lo[v], step, n[u], n[v])
-        if (count == -2).any():
-            raise InputError(f"{int((count == -2).sum())} line(s) along {'XYZ'[a]} cross the surface more than "
-                             f"{MAX_HITS} times: the mesh is too intricate for one line (or has many stacked shells)")
-        bad = np.nonzero(count == -1)[0]
-        if len(bad):  # self-intersecting or overlapping shells: decided point by point
-            if bvh is None:  # the cells and k-means indexes hold no BVH: one for these lines
-                bvh = build_bvh(mesh.vertices, mesh.faces).arrays
-            dense, count = _resolve_lines(a, bad, lo, n, step, dense, count, mesh, bvh, source)
-            odd["XYZ"[a]] = int(len(bad))
-        s, iv = compact(dense, count)
+        s, iv, bad = _cast(caster, a, lo, n, step, mesh, bvh, source)
+        if bad:
+            odd["XYZ"[a]] = bad
         starts.append(s)
         ivs.append(iv)
         if progress:
             progress(f"lines along {'XYZ'[a]}: {n[u] * n[v]:,}, dexels {len(iv):,}")
     info["cast_seconds"] = round(time.perf_counter() - t1, 4)
+    if odd:
+        info["uneven_lines"] = odd
+    return DexelModel(lo=lo, step=float(step), n=n, start=starts, iv=ivs, info=info)
+
+
+def _dexelize_on(client, mesh, source, lo, n, step, index, progress, device) -> DexelModel:
+    """:func:`dexelize` with blocks of lines cast on the workers of ``client``."""
+    from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+
+    if index != "bvh":
+        raise InputError("--workers and --scheduler cast lines through the BVH index only (leave --index out)")
+    t1 = time.perf_counter()
+    count = PIECES_PER_WORKER * workers(client)
+    pieces = [(a, i0, i1) for a in range(3) for i0, i1 in ranges(int(n[(a + 1) % 3]), count)]
+    shared = dict(mesh=mesh, source=source, lo=lo, n=n, step=step, device=device)
+    blocks = run_pieces(client, cast_block, shared, pieces, progress, "dexel lines")
+    starts, ivs, odd = [], [], {}
+    for a in range(3):
+        mine = [b for (d, _, _), b in zip(pieces, blocks) if d == a]
+        s, iv = _join(mine)
+        starts.append(s)
+        ivs.append(iv)
+        if sum(b[2] for b in mine):
+            odd["XYZ"[a]] = sum(b[2] for b in mine)
+    info = {**blocks[0][3], "device": device, "workers": workers(client), "pieces": len(pieces),
+            "cast_seconds": round(time.perf_counter() - t1, 4)}
     if odd:
         info["uneven_lines"] = odd
     return DexelModel(lo=lo, step=float(step), n=n, start=starts, iv=ivs, info=info)
