@@ -62,8 +62,8 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
 
     Returns ``(deviation dict, summary dict, machined DexelModel, (vertices, faces) of the machined
     mesh, {"points": (k, 3), "e": (k,)} the dexel ends and their signed deviations, mm)``. ``device``: ``"cpu"`` or ``"cuda"`` for dexel casting, cutting and distances;
-    ``cluster``: a ``distributed.Client`` the dexel lines are cast on (the cutting and the
-    measures run here)."""
+    ``cluster``: a ``distributed.Client`` the dexel lines are cast and cut on (the measures run
+    here)."""
     say = progress or (lambda _: None)
     t0 = time.perf_counter()
     if allowance is not None and not (np.isfinite(allowance) and allowance >= 0):
@@ -105,7 +105,7 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
         warnings.append(f"{outside:.3f} mm^3 of the design lies outside the stock: the stock is short of the design "
                         "there (not counted as gouged by the path)")
     build_s = time.perf_counter() - t0
-    cuts = cut_path(st, toolpath, tools, tolerance, mode, say, device)
+    cuts = cut_path(st, toolpath, tools, tolerance, mode, say, device, cluster)
     machined = st.to_model()
     t2 = time.perf_counter()
     verts, faces, stride = machined_mesh(machined)
@@ -133,7 +133,7 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     return deviation, summary, machined, (verts, faces), {"points": pts, "e": e}
 
 
-def cut_path(st, toolpath, tools, tolerance=0.01, mode="sweep", progress=None, device="cpu") -> dict:
+def cut_path(st, toolpath, tools, tolerance=0.01, mode="sweep", progress=None, device="cpu", cluster=None) -> dict:
     """Cut ``toolpath`` from the stock ``st`` (:class:`~meshmill.simulation.cut.Stock`, in place):
     its cutters remove material, its shanks and holders (grown by ``tolerance`` less) collide
     with what is left. Returns the summary's figures: ``pieces_cut``, the rapid moves that cut
@@ -144,7 +144,7 @@ def cut_path(st, toolpath, tools, tolerance=0.01, mode="sweep", progress=None, d
         moves = cutting.Moves.merge(moves, cutting.body_moves(toolpath, tools, tolerance))
     if progress:
         progress(f"cutting {len(moves):,} moves ({len(toolpath):,} points, mode {mode})")
-    result = cutting.cut(st, moves, progress=progress, device=device)
+    result = cutting.cut(st, moves, progress=progress, device=device, cluster=cluster)
     errors = [f"rapid move to point {i} (source line {int(toolpath.line[i])}) cuts material"
               for i in result["rapid_cuts"][:1000]]
     errors += [f"move to point {i} (source line {int(toolpath.line[i])}): the shank or holder meets the stock"

@@ -293,16 +293,10 @@ def material_bounds(stock: Stock):
     return lo, hi
 
 
-def cut(stock: Stock, moves: Moves, progress=None, device="cpu") -> dict:
-    """Remove every move's swept volume from ``stock`` (in place) on ``device`` (``"cpu"`` or
-    ``"cuda"``); body moves (shank, holder) remove nothing. Returns ``{"rapid_cuts": sorted
-    tool-path point indices whose rapid move cut material, "collisions": those whose shank or
-    holder met material, "in_material": those whose feed move removed material (more than
-    :data:`RAPID_CUT` of some dexel; the others cut air), "seconds": ...}``."""
-    t0 = time.perf_counter()
-    kern = implementation(device)
+def _near(stock: Stock, moves: Moves):
+    """``(moves, boxes)``: the moves less the shanks and holders that never come near the
+    stock's material (they cannot meet it), and their boxes."""
     boxes = _boxes(moves)
-    # a shank or holder that never comes near the stock's material cannot meet it: left out
     lo, hi = material_bounds(stock)
     near = np.all((boxes[:, 0] <= hi) & (boxes[:, 1] >= lo), axis=1)
     if (moves.body & ~near).any():
@@ -310,36 +304,131 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu") -> dict:
         moves = Moves(**{f: getattr(moves, f)[keep] for f in ("pa", "pb", "xa", "xb", "radius", "corner", "flutes",
                                                                "strips", "rapid", "source", "body")})
         boxes = boxes[keep]
-    hit = np.zeros(len(moves), np.uint8)
+    return moves, boxes
+
+
+def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=None) -> None:
+    """Cut the lines along ``a`` (those of the tile rows ``rows = (first, stop)`` along the axis
+    after ``a``, default all) by the moves, in place; ``hit (k,)`` marks the moves that hit."""
     kind = (moves.rapid.astype(np.uint8) * RAPID) | (moves.body.astype(np.uint8) * BODY)
-    for a in range(3):
-        u, v = (a + 1) % 3, (a + 2) % 3
-        perm = [u, v, a]
-        nu, nv = int(stock.n[u]), int(stock.n[v])
-        lu, lv = float(stock.lo[u]), float(stock.lo[v])
-        box = np.ascontiguousarray(np.column_stack([boxes[:, 0, u], boxes[:, 1, u], boxes[:, 0, v], boxes[:, 1, v],
-                                                    boxes[:, 0, a], boxes[:, 1, a]]))
-        pa, pb = np.ascontiguousarray(moves.pa[:, perm]), np.ascontiguousarray(moves.pb[:, perm])
-        xa, xb = np.ascontiguousarray(moves.xa[:, perm]), np.ascontiguousarray(moves.xb[:, perm])
-        chord, plane = kern.move_constants(pa, pb, xa, xb, moves.corner, moves.flutes)
-        tile_start, tile_moves = bin_moves(box, lu, lv, stock.step, nu, nv)
-        tiles = np.nonzero(np.diff(tile_start))[0]
-        np.random.default_rng(0).shuffle(tiles)  # spread the busy tiles over the threads
-        tv = (nv + TILE - 1) // TILE
-        while len(tiles):
-            overflow = np.zeros(len(tile_start) - 1, np.uint8)
-            kern.cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, tile_start,
-                      tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips, chord, plane, box,
-                      kind, RAPID_CUT, hit, overflow)
-            tiles = np.nonzero(overflow)[0]
-            if len(tiles):
-                full = np.nonzero(stock.count[a] == np.diff(stock.off[a]))[0]
-                ti, tj = (full // nv) // TILE, (full % nv) // TILE
-                _grow(stock, a, full[overflow[ti * tv + tj] == 1])
-        if progress:
-            progress(f"cut lines along {'XYZ'[a]}")
+    u, v = (a + 1) % 3, (a + 2) % 3
+    perm = [u, v, a]
+    nu, nv = int(stock.n[u]), int(stock.n[v])
+    lu, lv = float(stock.lo[u]), float(stock.lo[v])
+    box = np.ascontiguousarray(np.column_stack([boxes[:, 0, u], boxes[:, 1, u], boxes[:, 0, v], boxes[:, 1, v],
+                                                boxes[:, 0, a], boxes[:, 1, a]]))
+    pa, pb = np.ascontiguousarray(moves.pa[:, perm]), np.ascontiguousarray(moves.pb[:, perm])
+    xa, xb = np.ascontiguousarray(moves.xa[:, perm]), np.ascontiguousarray(moves.xb[:, perm])
+    chord, plane = kern.move_constants(pa, pb, xa, xb, moves.corner, moves.flutes)
+    tile_start, tile_moves = bin_moves(box, lu, lv, stock.step, nu, nv)
+    tiles = np.nonzero(np.diff(tile_start))[0]
+    tv = (nv + TILE - 1) // TILE
+    if rows is not None:
+        tiles = tiles[(tiles // tv >= rows[0]) & (tiles // tv < rows[1])]
+    np.random.default_rng(0).shuffle(tiles)  # spread the busy tiles over the threads
+    while len(tiles):
+        overflow = np.zeros(len(tile_start) - 1, np.uint8)
+        kern.cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, tile_start,
+                       tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips, chord, plane,
+                       box, kind, RAPID_CUT, hit, overflow)
+        tiles = np.nonzero(overflow)[0]
+        if len(tiles):
+            full = np.nonzero(stock.count[a] == np.diff(stock.off[a]))[0]
+            ti, tj = (full // nv) // TILE, (full % nv) // TILE
+            _grow(stock, a, full[overflow[ti * tv + tj] == 1])
+
+
+def _hits(moves: Moves, hit) -> dict:
     rapid_cuts = np.unique(moves.source[(hit == 1) & ~moves.body & moves.rapid])
     collisions = np.unique(moves.source[(hit == 1) & moves.body])
     in_material = np.unique(moves.source[(hit == 1) & ~moves.body & ~moves.rapid])
     return {"rapid_cuts": [int(i) for i in rapid_cuts], "collisions": [int(i) for i in collisions],
-            "in_material": in_material, "seconds": round(time.perf_counter() - t0, 4)}
+            "in_material": in_material}
+
+
+def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None) -> dict:
+    """Remove every move's swept volume from ``stock`` (in place) on ``device`` (``"cpu"`` or
+    ``"cuda"``); body moves (shank, holder) remove nothing. Returns ``{"rapid_cuts": sorted
+    tool-path point indices whose rapid move cut material, "collisions": those whose shank or
+    holder met material, "in_material": those whose feed move removed material (more than
+    :data:`RAPID_CUT` of some dexel; the others cut air), "seconds": ...}``. ``cluster``: a
+    ``distributed.Client`` whose workers cut blocks of tile rows of each direction (the same
+    result)."""
+    t0 = time.perf_counter()
+    moves, boxes = _near(stock, moves)
+    hit = np.zeros(len(moves), np.uint8)
+    if cluster is not None:
+        _cut_on(cluster, stock, moves, boxes, hit, progress, device)
+    else:
+        kern = implementation(device)
+        for a in range(3):
+            _cut_direction(stock, a, moves, boxes, kern, hit)
+            if progress:
+                progress(f"cut lines along {'XYZ'[a]}")
+    return {**_hits(moves, hit), "seconds": round(time.perf_counter() - t0, 4)}
+
+
+def cut_rows(shared: dict, piece):
+    """One block of tile rows of one direction cut on a worker (:func:`meshmill.cluster.run_pieces`):
+    ``piece = (a, (first, stop) tile rows, start, iv)`` the block's lines (CSR); ``shared``: the
+    ``moves``, their ``boxes``, the lattice ``lo, n, step``, the ``device``. Returns the block's
+    lines cut (CSR) and the moves' hits."""
+    a, rows, start, iv = piece
+    moves, boxes = shared["moves"], shared["boxes"]
+    n = shared["n"]
+    u, v = (a + 1) % 3, (a + 2) % 3
+    n_lines = int(n[u] * n[v])
+    first = rows[0] * TILE * int(n[v])  # the block's first line
+    k = len(start) - 1
+    block_iv, block_off, block_count = _with_room(start, iv)
+    count = np.zeros(n_lines, np.int64)
+    count[first:first + k] = block_count
+    off = np.zeros(n_lines + 1, np.int64)  # the lines outside the block have no room and are not cut
+    off[first:first + k + 1] = block_off
+    off[first + k + 1:] = block_off[-1]
+    stock = Stock(lo=shared["lo"], step=shared["step"], n=n, iv=[None] * 3, off=[None] * 3, count=[None] * 3)
+    stock.iv[a], stock.off[a], stock.count[a] = block_iv, off, count
+    hit = np.zeros(len(moves), np.uint8)
+    _cut_direction(stock, a, moves, boxes, implementation(shared["device"]), hit, rows)
+    s, out = compact_lines(stock.iv[a], stock.off[a][first:first + k + 1], stock.count[a][first:first + k])
+    return s, out, hit
+
+
+def _with_room(start, iv):
+    """``(iv, off, count)`` of CSR lines ``(start, iv)`` with :data:`SLACK` spare slots a line
+    (the intervals as they are)."""
+    count = np.diff(start).astype(np.int64)
+    off = np.zeros(len(count) + 1, np.int64)
+    np.cumsum(count + SLACK, out=off[1:])
+    out = np.zeros((off[-1], 2))
+    out[np.repeat(off[:-1], count) + (np.arange(len(iv)) - np.repeat(start[:-1], count))] = iv
+    return out, off, count
+
+
+def _cut_on(client, stock: Stock, moves: Moves, boxes, hit, progress, device) -> None:
+    """:func:`cut` of ``stock`` (replaced in place) by blocks of tile rows on ``client``'s workers."""
+    from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+
+    pieces = []
+    for a in range(3):
+        u, v = (a + 1) % 3, (a + 2) % 3
+        nv = int(stock.n[v])
+        tile_rows = (int(stock.n[u]) + TILE - 1) // TILE
+        for r0, r1 in ranges(tile_rows, PIECES_PER_WORKER * workers(client)):
+            l0, l1 = r0 * TILE * nv, min(int(stock.n[u]), r1 * TILE) * nv
+            start, iv = compact_lines(stock.iv[a], stock.off[a][l0:l1 + 1], stock.count[a][l0:l1])
+            pieces.append((a, (r0, r1), start, iv))
+    shared = dict(moves=moves, boxes=boxes, lo=stock.lo, n=stock.n, step=stock.step, device=device)
+    done = run_pieces(client, cut_rows, shared, pieces, progress, "cutting")
+    for a in range(3):
+        blocks = [(s, iv) for (d, *_), (s, iv, _) in zip(pieces, done) if d == a]
+        starts, ivs, base = [np.zeros(1, np.int64)], [], 0
+        for s, iv in blocks:
+            starts.append(s[1:] + base)
+            ivs.append(iv)
+            base += len(iv)
+        start = np.concatenate(starts)
+        iv = np.concatenate(ivs) if ivs else np.zeros((0, 2))
+        stock.iv[a], stock.off[a], stock.count[a] = _with_room(start, iv)
+    for *_, h in done:
+        hit |= h
