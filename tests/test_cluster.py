@@ -108,3 +108,12 @@ def test_simulate_on_a_cluster_gives_the_same_summary(client):
         s.pop("seconds")
     assert many.summary == one.summary and many.deviation == one.deviation
     assert np.array_equal(one.machined[1], many.machined[1])
+
+
+def test_raster_dropped_on_a_cluster_is_the_same_path(client):
+    part = shapes.post_with_fillet(segments=48)
+    one = api.raster(part, TOOLS, tool="B6", stepover=2.0, angle=30.0, device="cpu")
+    many = api.raster(part, TOOLS, tool="B6", stepover=2.0, angle=30.0, device="cpu", cluster=client)
+    for a, b in ((one.toolpath.tip, many.toolpath.tip), (one.toolpath.rapid, many.toolpath.rapid)):
+        assert np.array_equal(a, b)
+    assert one.summary["cl_points"] == many.summary["cl_points"]

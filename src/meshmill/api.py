@@ -252,11 +252,12 @@ def finish(part, tools, *, step_down, sample=0.5, max_tilt=60.0, tilt_step=5.0, 
 @_named_errors
 def raster(part, tools, *, tool, stepover=None, scallop=None, angle=0.0, sample=0.5, tolerance=GOUGE_TOL,
            clearance=HOLDER_CLEARANCE, stock=None, stock_allowance=STOCK_ALLOWANCE, allowance=0.0, rest=None,
-           rest_stock=None, device="auto", progress=None) -> PathResult:
+           rest_stock=None, device="auto", cluster=None, progress=None) -> PathResult:
     """3-axis zigzag finishing with the tool named ``tool``: ``stepover`` mm between passes, or
     the one a ``scallop`` height gives; ``angle`` degrees from X; ``allowance`` mm of material
-    left on the part (semi-finishing); ``rest`` mm: with a ``stock`` (and ``rest_stock``, the surface
-    the depths are measured from where it is not the stock),
+    left on the part (semi-finishing); ``cluster``: the passes dropped in pieces there (the same
+    path); ``rest`` mm: with a ``stock`` (and ``rest_stock``, the surface the depths are measured
+    from where it is not the stock),
     only the pieces of the passes that remove more than that depth of it (rest machining)."""
     from .ops.raster import RasterParams
     from .ops.raster import raster as run
@@ -267,8 +268,11 @@ def raster(part, tools, *, tool, stepover=None, scallop=None, angle=0.0, sample=
                           stock_allowance=stock_allowance, clearance=clearance, allowance=allowance, rest=rest)
     params.check()
     device = _device(device)
-    tp, summary = run(part, tools, tool, params, progress=progress, device=device, stock=_load_stock(stock),
-                      rest_stock=_load_stock(rest_stock))
+    from .cluster import connect
+
+    with connect(cluster) as client:
+        tp, summary = run(part, tools, tool, params, progress=progress, device=device, stock=_load_stock(stock),
+                          rest_stock=_load_stock(rest_stock), cluster=client)
     return _path_result("raster", tp, summary, part, tools, device)
 
 

@@ -244,7 +244,7 @@ def _three_axis(args, run, **options):
 def cmd_raster(args):
     from . import api
 
-    return _three_axis(args, api.raster, stock=_stock(args),
+    return _three_axis(args, api.raster, stock=_stock(args), cluster=_cluster(args),
                        **_options(args, "stepover", "scallop", "angle", "sample", "tolerance", "clearance",
                                   "stock_allowance", "allowance", "rest"))
 
@@ -584,6 +584,7 @@ def build_parser():
                         "(1.5 samples of pass kept on each side); the passes through air are left out (off)")
     r.add_argument("--out", default="out", help="output folder (out)")
     _add_device(r)
+    _add_cluster(r)
     r.add_argument("--quiet", action="store_true", help="print nothing but errors")
     r.set_defaults(func=cmd_raster)
 

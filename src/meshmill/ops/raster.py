@@ -23,8 +23,8 @@ from ..geometry.mesh import Mesh
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
 from ..pathing.scallop import stepover
-from ..pathing.dropcutter import (ToolDrop, body_grow, check_stock_params, drop_refined, pick_tool, safe_height,
-                                  stock_check, verified_path)
+from ..pathing.dropcutter import (ToolDrop, body_grow, check_stock_params, drop_refined, drop_refined_on, pick_tool,
+                                  safe_height, stock_check, verified_path)
 from ..pathing.rest import REST_JOIN, REST_LEAD, in_material, material_runs
 from ..pathing.verify import DEFAULT_STEP
 
@@ -107,12 +107,13 @@ def raster_lines(bounds, radius, stepover, angle_deg, sample):
 
 
 def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=None,
-           device: str = "cpu", stock=None, rest_stock=None):
+           device: str = "cpu", stock=None, rest_stock=None, cluster=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary)``.
     ``stock``: a closed :class:`Mesh` of the material it starts from (else the part with
     ``params.stock_allowance`` on it), which rapids keep ``params.clearance`` from; with
     ``params.rest`` only the pieces of the passes that remove more than that depth of it are cut
-    (:mod:`meshmill.pathing.rest`), with a lead of 1.5 samples on each side; ``rest_stock`` (a closed Mesh) is the surface those
+    (:mod:`meshmill.pathing.rest`), with a lead of 1.5 samples on each side; ``cluster``: a
+    ``distributed.Client`` the passes are dropped on in pieces (the same path); ``rest_stock`` (a closed Mesh) is the surface those
     depths are measured from when it is not ``stock`` (the job's: the stock's own surface, where
     ``stock`` is a hull around it)."""
     params.check()
@@ -136,8 +137,14 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     t = time.perf_counter()
     pieces, n_lines, spacing = raster_lines(bounds, tool.radius, stepover, params.angle, params.sample)
     xy = np.concatenate(pieces)
-    tips = drop_refined(xy, ToolDrop(tool, kern, float(bounds[0, 2]), grow=params.allowance,
-                    body_grow=body_grow(stock, params)), 0.5 * params.tol, params.sample / 64)
+    if cluster is not None:  # pieces of the passes dropped on the workers: the same tips
+        shared = dict(part=mesh, tool=tool, floor=float(bounds[0, 2]), grow=params.allowance,
+                      body_grow=body_grow(stock, params), chord_tol=0.5 * params.tol, min_step=params.sample / 64,
+                      device=device)
+        tips = drop_refined_on(cluster, xy, shared, say)
+    else:
+        tips = drop_refined(xy, ToolDrop(tool, kern, float(bounds[0, 2]), grow=params.allowance,
+                                         body_grow=body_grow(stock, params)), 0.5 * params.tol, params.sample / 64)
     dropped = len(tips)
     rapid_stock = stock_check(stock, params, device)
     rest_kern = solid_kernels(rest_stock, device) if rest_stock is not None else rapid_stock.kern

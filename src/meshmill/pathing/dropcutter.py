@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.backend import bind, cutter_rise
+from ..kernels.backend import bind, cutter_rise, solid_kernels
 from ..toolpath.linking import link_passes
 from .verify import StockCheck, verify_toolpath
 
@@ -187,6 +187,30 @@ def verified_path(passes, tool_index, tools, kern, safe_z, tol, step, stock: Sto
 
 
 REFINE_ROUNDS = 6  # each halves the spacing where the chord leaves the surface
+def drop_piece(shared: dict, piece) -> np.ndarray:
+    """:func:`drop_refined` of one piece ``xy (k, 2)`` of a polyline on a worker of a cluster
+    (:func:`meshmill.cluster.run_pieces`); ``shared``: the ``part``, the ``tool`` and the
+    :class:`ToolDrop` arguments (``floor``, ``grow``, ``body_grow``), ``chord_tol``, ``min_step``,
+    ``device``. The part's kernels are built once per worker."""
+    from ..cluster import worker_cached
+
+    kern = worker_cached(shared, "part", lambda: solid_kernels(shared["part"], shared["device"]))
+    drop = ToolDrop(shared["tool"], kern, shared["floor"], grow=shared["grow"], body_grow=shared["body_grow"])
+    return drop_refined(piece, drop, shared["chord_tol"], shared["min_step"])
+
+
+def drop_refined_on(client, xy, shared: dict, progress=None) -> np.ndarray:
+    """:func:`drop_refined` of the polyline ``xy (k, 2)`` in pieces on ``client``'s workers (see
+    :func:`drop_piece` for ``shared``): pieces share their end points, and each segment is refined
+    on its own, so the tips are the one process's."""
+    from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+
+    cuts = ranges(len(xy) - 1, PIECES_PER_WORKER * workers(client)) if len(xy) > 1 else [(0, 0)]
+    pieces = [xy[a:b + 1] for a, b in cuts]
+    tips = run_pieces(client, drop_piece, shared, pieces, progress, "drop-cutter")
+    return np.concatenate([tips[0]] + [t[1:] for t in tips[1:]])
+
+
 def drop_refined(xy, drop: ToolDrop, chord_tol, min_step):
     """Drop the tool along the polyline ``xy (k, 2)``, adding midpoints where the tip height
     leaves the chord by more than ``chord_tol``; returns tips ``(m, 3)``."""

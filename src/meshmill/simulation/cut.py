@@ -307,20 +307,31 @@ def _near(stock: Stock, moves: Moves):
     return moves, boxes
 
 
-def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=None) -> None:
-    """Cut the lines along ``a`` (those of the tile rows ``rows = (first, stop)`` along the axis
-    after ``a``, default all) by the moves, in place; ``hit (k,)`` marks the moves that hit."""
+def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern) -> tuple:
+    """What cutting the lines along ``a`` needs of the moves: their kinds, boxes, ends and axes in
+    the direction's frame, the constants of :mod:`~meshmill.kernels.carve`, and the moves of
+    each tile."""
     kind = (moves.rapid.astype(np.uint8) * RAPID) | (moves.body.astype(np.uint8) * BODY)
     u, v = (a + 1) % 3, (a + 2) % 3
     perm = [u, v, a]
-    nu, nv = int(stock.n[u]), int(stock.n[v])
-    lu, lv = float(stock.lo[u]), float(stock.lo[v])
     box = np.ascontiguousarray(np.column_stack([boxes[:, 0, u], boxes[:, 1, u], boxes[:, 0, v], boxes[:, 1, v],
                                                 boxes[:, 0, a], boxes[:, 1, a]]))
     pa, pb = np.ascontiguousarray(moves.pa[:, perm]), np.ascontiguousarray(moves.pb[:, perm])
     xa, xb = np.ascontiguousarray(moves.xa[:, perm]), np.ascontiguousarray(moves.xb[:, perm])
     chord, plane = kern.move_constants(pa, pb, xa, xb, moves.corner, moves.flutes)
-    tile_start, tile_moves = bin_moves(box, lu, lv, stock.step, nu, nv)
+    tile_start, tile_moves = bin_moves(box, float(lo[u]), float(lo[v]), step, int(n[u]), int(n[v]))
+    return kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves
+
+
+def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=None, prepared=None) -> None:
+    """Cut the lines along ``a`` (those of the tile rows ``rows = (first, stop)`` along the axis
+    after ``a``, default all) by the moves, in place; ``hit (k,)`` marks the moves that hit;
+    ``prepared``: what :func:`_direction_moves` gives (else made here)."""
+    u, v = (a + 1) % 3, (a + 2) % 3
+    nu, nv = int(stock.n[u]), int(stock.n[v])
+    lu, lv = float(stock.lo[u]), float(stock.lo[v])
+    kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves = (
+        prepared or _direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern))
     tiles = np.nonzero(np.diff(tile_start))[0]
     tv = (nv + TILE - 1) // TILE
     if rows is not None:
@@ -373,6 +384,8 @@ def cut_rows(shared: dict, piece):
     ``piece = (a, (first, stop) tile rows, start, iv)`` the block's lines (CSR); ``shared``: the
     ``moves``, their ``boxes``, the lattice ``lo, n, step``, the ``device``. Returns the block's
     lines cut (CSR) and the moves' hits."""
+    from ..cluster import worker_cached
+
     a, rows, start, iv = piece
     moves, boxes = shared["moves"], shared["boxes"]
     n = shared["n"]
@@ -389,7 +402,10 @@ def cut_rows(shared: dict, piece):
     stock = Stock(lo=shared["lo"], step=shared["step"], n=n, iv=[None] * 3, off=[None] * 3, count=[None] * 3)
     stock.iv[a], stock.off[a], stock.count[a] = block_iv, off, count
     hit = np.zeros(len(moves), np.uint8)
-    _cut_direction(stock, a, moves, boxes, implementation(shared["device"]), hit, rows)
+    kern = implementation(shared["device"])
+    prepared = worker_cached(shared, f"moves {a}", lambda: _direction_moves(shared["lo"], n, shared["step"], a, moves,
+                                                                          boxes, kern))
+    _cut_direction(stock, a, moves, boxes, kern, hit, rows, prepared)
     s, out = compact_lines(stock.iv[a], stock.off[a][first:first + k + 1], stock.count[a][first:first + k])
     return s, out, hit
 

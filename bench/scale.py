@@ -1,0 +1,102 @@
+"""The heavy operations on a Dask cluster against one process, on this machine (issue 21).
+
+    .venv/bin/python bench/scale.py               # about 3 minutes on 2 cores
+    .venv/bin/python bench/scale.py --step 0.1
+
+Per operation: one process (no Dask), a LocalCluster of 1 worker x 2 threads and one of 2
+workers x 1 thread (started before the clock; its start-up is given apart): wall seconds (best
+of ``--repeat``), the overhead against one process, and whether the result is the one
+process's (tool path tips, report or summary, dexel model). Operations: ``simulate`` of the
+100 000-move 5-axis ball path over the wavy 60 x 60 mm part (seed 000's goal job,
+``bench/dexel_seed_tables.py``) at ``--step``, ``dexel`` of that part, ``verify`` of the same path,
+``raster`` of the vase (B4, stepover 0.25, sample 0.1). Prints a table and writes
+bench/out/scale.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, os.path.join(ROOT, "src"))
+sys.path.insert(0, HERE)
+
+
+def best(fn, repeat):
+    out, times = None, []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t)
+    return min(times), out
+
+
+def main():
+    import numpy as np
+    from distributed import Client, LocalCluster
+
+    from dexel_seed_tables import sim_job
+    from meshmill import api
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--step", type=float, default=0.2, help="dexel step of simulate and dexel, mm (0.2)")
+    ap.add_argument("--repeat", type=int, default=2)
+    a = ap.parse_args()
+    design, tp, tools = sim_job(60.0, 100_000, 3.0)
+    vase = api.load_part(os.path.join(ROOT, "src", "meshmill", "data", "vase.stl"))
+    table = api.load_tools(os.path.join(ROOT, "src", "meshmill", "data", "tools.toml"))
+
+    def simulate(cluster):
+        r = api.simulate(design, tp, tools, step=a.step, device="cpu", cluster=cluster)
+        r.summary.pop("seconds")
+        return r.summary
+
+    def dexel(cluster):
+        m = api.dexel(design, step=a.step, device="cpu", cluster=cluster).model
+        return [np.concatenate([m.iv[d].ravel() for d in range(3)]), [m.start[d] for d in range(3)]]
+
+    def verify(cluster):
+        return api.verify(design, tp, tools, device="cpu", cluster=cluster).report
+
+    def raster(cluster):
+        return api.raster(vase, table, tool="B4", stepover=0.25, sample=0.1, device="cpu", cluster=cluster).toolpath.tip
+
+    def same(x, y):
+        if isinstance(x, np.ndarray):
+            return np.array_equal(x, y)
+        if isinstance(x, list):
+            return all(same(p, q) for p, q in zip(x, y))
+        return x == y
+
+    ops = {"simulate": simulate, "dexel": dexel, "verify": verify, "raster": raster}
+    for fn in ops.values():  # compile and load everything once
+        fn(None)
+    rows = []
+    base = {name: best(lambda: fn(None), a.repeat) for name, fn in ops.items()}
+    for workers, threads in ((1, 2), (2, 1)):
+        t = time.perf_counter()
+        with LocalCluster(n_workers=workers, threads_per_worker=threads, processes=True,
+                          dashboard_address=None) as lc, Client(lc) as client:
+            start_s = time.perf_counter() - t
+            for name, fn in ops.items():
+                fn(client)  # the workers compile / load once
+                s, out = best(lambda: fn(client), a.repeat)
+                rows.append({"operation": name, "cluster": f"{workers} x {threads}", "one_process_s": round(base[name][0], 2),
+                             "cluster_s": round(s, 2), "overhead": round(s / base[name][0] - 1.0, 3),
+                             "same_result": bool(same(base[name][1], out)), "cluster_start_s": round(start_s, 2)})
+                print(rows[-1], flush=True)
+    keys = list(rows[0])
+    print("| " + " | ".join(keys) + " |\n|" + "---|" * len(keys))
+    for r in rows:
+        print("| " + " | ".join(str(r[k]) for k in keys) + " |")
+    os.makedirs(os.path.join(HERE, "out"), exist_ok=True)
+    with open(os.path.join(HERE, "out", "scale.json"), "w") as fh:
+        json.dump({"step": a.step, "moves": len(tp), "rows": rows}, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
