@@ -117,3 +117,12 @@ def test_raster_dropped_on_a_cluster_is_the_same_path(client):
     for a, b in ((one.toolpath.tip, many.toolpath.tip), (one.toolpath.rapid, many.toolpath.rapid)):
         assert np.array_equal(a, b)
     assert one.summary["cl_points"] == many.summary["cl_points"]
+
+
+def test_finish_searched_on_a_cluster_is_the_same_path(client):
+    part = shapes.post_with_fillet(segments=48)
+    one = api.finish(part, TOOLS, step_down=3.0, device="cpu")
+    many = api.finish(part, TOOLS, step_down=3.0, device="cpu", cluster=client)
+    assert np.array_equal(one.toolpath.tip, many.toolpath.tip)
+    assert np.array_equal(one.toolpath.axis, many.toolpath.axis)
+    assert one.summary["cc_points"] == many.summary["cc_points"]

@@ -220,12 +220,13 @@ def _path_result(operation, tp, summary, mesh, tools, device, arrays=None):
 @_named_errors
 def finish(part, tools, *, step_down, sample=0.5, max_tilt=60.0, tilt_step=5.0, order="contour", safe_z=None,
            tolerance=GOUGE_TOL, clearance=HOLDER_CLEARANCE, lead=2.0, machine=None, scallop=None, min_run=1.0,
-           whole_contours=False, stock=None, stock_allowance=STOCK_ALLOWANCE, device="auto",
+           whole_contours=False, stock=None, stock_allowance=STOCK_ALLOWANCE, device="auto", cluster=None,
            progress=None) -> PathResult:
     """5-axis Z-constant finishing with the ball-end tools of ``tools`` (seed 004 and beyond):
     ``step_down`` mm between levels, ``machine`` the 5-axis machine the axes are for, ``scallop``
     mm adds levels where the surface is shallow, ``stock`` the material rapids keep clear of (a
-    closed mesh or file; else ``stock_allowance`` on the part)."""
+    closed mesh or file; else ``stock_allowance`` on the part); ``cluster``: the axis search in
+    groups of contours there (the same path)."""
     import numpy as np
 
     from .ops.finish import AREA_STATUS, FinishParams
@@ -240,7 +241,11 @@ def finish(part, tools, *, step_down, sample=0.5, max_tilt=60.0, tilt_step=5.0, 
     device = _device(device)
     if isinstance(machine, (str, os.PathLike)):
         machine = load_machine(machine)
-    tp, summary, detail = run(part, tools, params, progress=progress, device=device, stock=stock, machine=machine)
+    from .cluster import connect
+
+    with connect(cluster) as client:
+        tp, summary, detail = run(part, tools, params, progress=progress, device=device, stock=stock,
+                                  machine=machine, cluster=client)
     con = detail["contours"]
     arrays = dict(points=con.points, offsets=con.offsets, z=con.z, closed=con.closed,
                   machinable=detail["contour_tool"] >= 0, surface_points=detail["surface_points"],

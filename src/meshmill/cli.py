@@ -199,7 +199,7 @@ def cmd_finish(args):
 
     tools = api.load_tools(args.tools)
     mesh = _load_part(args, args.part)
-    res = api.finish(mesh, tools, stock=_stock(args), progress=_progress(args),
+    res = api.finish(mesh, tools, stock=_stock(args), progress=_progress(args), cluster=_cluster(args),
                      **_options(args, "step_down", "sample", "max_tilt", "tilt_step", "order", "safe_z", "tolerance",
                                 "clearance", "lead", "machine", "scallop", "min_run", "whole_contours",
                                 "stock_allowance", "device"))
@@ -560,6 +560,7 @@ def build_parser():
                         "cut (default: every run of a contour that a ball fits is cut, with its own ball)")
     _add_stock(f)
     f.add_argument("--out", default="out", help="output folder (out)")
+    _add_cluster(f)
     _add_device(f)
     f.add_argument("--quiet", action="store_true", help="print nothing but errors")
     f.set_defaults(func=cmd_finish)

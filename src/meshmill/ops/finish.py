@@ -578,7 +578,37 @@ def facing_down(mesh, max_tilt):
     ``max_tilt`` deg from +Z can touch (its cutting half faces down the axis; the flutes square to it)."""
     return mesh.face_normals[:, 2] < -math.sin(math.radians(max_tilt)) - 1e-9
 
-def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", stock=None, machine=None):
+def axis_piece(shared: dict, piece) -> np.ndarray:
+    """The axis search of a group of contours on a worker of a cluster
+    (:func:`meshmill.cluster.run_pieces`): ``piece = (centres, feed, side, tool, offsets)`` of its
+    contours; ``shared``: the ``part``, the candidates and the tools as the search takes them,
+    the ``device``. The part's kernels are built once per worker."""
+    from ..cluster import worker_cached
+
+    kern = worker_cached(shared, "part", lambda: solid_kernels(shared["part"], shared["device"]))
+    ce, feed, side, tool, offsets = piece
+    return kern.axis_search(ce, feed, side, tool, shared["cand"], shared["cand_tilt"], shared["slack"],
+                            shared["radii"], shared["body"], offsets)
+
+
+def _axes_on(client, mesh, device, ce, feed, side, tool, cand, cand_tilt, slack, radii, body, offsets, say):
+    """The axis search of every contour (``offsets`` of their points) in groups of contours on
+    ``client``'s workers; each contour is searched on its own, so the axes are the one process's."""
+    from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+
+    groups = ranges(len(offsets) - 1, PIECES_PER_WORKER * workers(client))
+    if not groups:
+        return np.zeros(0, np.int64)
+    pieces = []
+    for a, b in groups:
+        p0, p1 = offsets[a], offsets[b]
+        pieces.append((ce[p0:p1], feed[p0:p1], side[p0:p1], tool[p0:p1], offsets[a:b + 1] - p0))
+    shared = dict(part=mesh, device=device, cand=cand, cand_tilt=cand_tilt, slack=slack, radii=radii, body=body)
+    return np.concatenate(run_pieces(client, axis_piece, shared, pieces, say, "axes"))
+
+
+def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", stock=None, machine=None,
+           cluster=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, detail)``.
 
     ``tools``: the whole tool table (ball tools are used); ``progress(stage)`` is called as each
@@ -659,8 +689,13 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     # shank and holder keep the clearance from the part, and stay out of the allowance on it
     body, _ = pack_cylinders(balls, params.tol, max(params.clearance, rapid_stock.allowance))
     slack = math.radians(params.tilt_step) + 1e-9
-    choice = kern.axis_search(con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir, con.feed, side,
-                              point_tool, cand, cand_tilt, slack, radii, body, con.offsets)
+    centres = con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir
+    if cluster is not None:  # groups of contours searched on the workers: the same axes
+        choice = _axes_on(cluster, mesh, device, centres, con.feed, side, point_tool, cand, cand_tilt, slack, radii,
+                          body, con.offsets, say)
+    else:
+        choice = kern.axis_search(centres, con.feed, side, point_tool, cand, cand_tilt, slack, radii, body,
+                                  con.offsets)
     fallback = 0
     if not params.whole_contours:  # no free axis for the run's ball: a smaller one, with a thinner shank
         point_tool, choice, fallback = _smaller_balls(point_tool, choice, con, centre_dir, side, radii, params, kern,
