@@ -126,3 +126,11 @@ def test_finish_searched_on_a_cluster_is_the_same_path(client):
     assert np.array_equal(one.toolpath.tip, many.toolpath.tip)
     assert np.array_equal(one.toolpath.axis, many.toolpath.axis)
     assert one.summary["cc_points"] == many.summary["cc_points"]
+
+
+def test_waterline_levels_on_a_cluster_are_the_same_path(client):
+    part = shapes.post_with_fillet(segments=48)
+    one = api.waterline(part, TOOLS, tool="B6", step_down=2.0, device="cpu")
+    many = api.waterline(part, TOOLS, tool="B6", step_down=2.0, device="cpu", cluster=client)
+    assert np.array_equal(one.toolpath.tip, many.toolpath.tip)
+    assert one.summary["passes"] == many.summary["passes"]

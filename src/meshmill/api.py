@@ -284,9 +284,10 @@ def raster(part, tools, *, tool, stepover=None, scallop=None, angle=0.0, sample=
 @_named_errors
 def waterline(part, tools, *, tool, step_down, sample=0.5, tolerance=GOUGE_TOL, clearance=HOLDER_CLEARANCE,
               stock=None, stock_allowance=STOCK_ALLOWANCE, allowance=0.0, rest=None, rest_stock=None,
-              device="auto", progress=None) -> PathResult:
+              device="auto", cluster=None, progress=None) -> PathResult:
     """3-axis Z-level loops with the tool named ``tool``, ``step_down`` mm apart, ``allowance`` mm
-    of material left on the part; ``rest`` mm:
+    of material left on the part; ``cluster``: groups of levels found there (the same path);
+    ``rest`` mm:
     with a ``stock``, only the pieces of the loops that remove more than that depth of it."""
     from .ops.waterline import WaterlineParams
     from .ops.waterline import waterline as run
@@ -295,8 +296,11 @@ def waterline(part, tools, *, tool, step_down, sample=0.5, tolerance=GOUGE_TOL, 
                              clearance=clearance, allowance=allowance, rest=rest)
     params.check()
     device = _device(device)
-    tp, summary, _ = run(part, tools, tool, params, progress=progress, device=device, stock=_load_stock(stock),
-                         rest_stock=_load_stock(rest_stock))
+    from .cluster import connect
+
+    with connect(cluster) as client:
+        tp, summary, _ = run(part, tools, tool, params, progress=progress, device=device, stock=_load_stock(stock),
+                             rest_stock=_load_stock(rest_stock), cluster=client)
     return _path_result("waterline", tp, summary, part, tools, device)
 
 

@@ -252,7 +252,7 @@ def cmd_raster(args):
 def cmd_waterline(args):
     from . import api
 
-    return _three_axis(args, api.waterline, stock=_stock(args),
+    return _three_axis(args, api.waterline, stock=_stock(args), cluster=_cluster(args),
                        **_options(args, "step_down", "sample", "tolerance", "clearance", "stock_allowance", "allowance",
                                                     "rest"))
 
@@ -605,6 +605,7 @@ def build_parser():
                    help="rest machining: with --stock, cut only the pieces of the loops that remove more than MM of it "
                         "(1.5 samples of loop kept on each side) (off)")
     w.add_argument("--out", default="out", help="output folder (out)")
+    _add_cluster(w)
     _add_device(w)
     w.add_argument("--quiet", action="store_true", help="print nothing but errors")
     w.set_defaults(func=cmd_waterline)

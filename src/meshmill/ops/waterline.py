@@ -216,15 +216,76 @@ def _refine_loop(loop, z, chord_tol, reach, drop: ToolDrop):
     return [p for p in np.split(loop, cuts + 1) if len(p) >= 2]
 
 
+def _level_loops(z, grid, drop, cx, cy, centre_cache, tol, spacing):
+    """``([(z, (k, 3) loop or piece), ...], seconds in the grid)``: the loops of level ``z`` of the
+    drop grid, refined within ``tol``; ``centre_cache`` keeps the cell centres dropped for saddles."""
+    found, grid_s = [], 0.0
+    t = time.perf_counter()
+    inside = grid.inside(z)
+    grid_s += time.perf_counter() - t
+    mixed = (inside[:-1, :-1] != inside[1:, :-1]) | (inside[:-1, :-1] != inside[:-1, 1:]) | \
+        (inside[:-1, :-1] != inside[1:, 1:])
+    saddle = mixed & (inside[:-1, :-1] == inside[1:, 1:]) & (inside[1:, :-1] == inside[:-1, 1:]) & \
+        (inside[:-1, :-1] != inside[1:, :-1])
+    centre_inside = np.zeros_like(mixed)
+    si, sj = np.nonzero(saddle)
+    if len(si):
+        missing = [(a, b) for a, b in zip(si, sj) if (a, b) not in centre_cache]
+        if missing:
+            pts = np.array([[cx[a], cy[b]] for a, b in missing])
+            zc = drop(pts)
+            centre_cache.update(zip(missing, zc))
+        centre_inside[si, sj] = np.array([centre_cache[(a, b)] for a, b in zip(si, sj)]) > z
+    segs = _cell_segments(inside, centre_inside)
+    if len(segs) == 0:
+        return found, grid_s
+    edge_loops = _chain_loops(segs)
+    all_edges = np.concatenate(edge_loops)
+    pts = _crossings(grid, z, all_edges, drop)
+    start = 0
+    for el in edge_loops:
+        p = pts[start:start + len(el)]
+        start += len(el)
+        if len(p) < 3:
+            continue
+        loop = np.column_stack([p, np.full(len(p), z)])[::-1]  # clockwise: climb milling
+        loop = simplify_polyline(np.vstack([loop, loop[:1]]), 0.25 * tol)
+        for piece in _refine_loop(loop[:, :2], z, 0.5 * tol, spacing, drop):
+            found.append((float(z), np.column_stack([piece, np.full(len(piece), z)])))
+    return found, grid_s
+
+
+def level_piece(shared: dict, levels) -> list:
+    """The loops of a group of ``levels`` on a worker of a cluster (:func:`meshmill.cluster.run_pieces`);
+    ``shared``: the ``part``, the ``tool`` and its drop (``floor``, ``grow``, ``body_grow``), the
+    grid ``xs, ys``, ``tol``, ``spacing``, ``device``. The drop grid is built once per worker."""
+    from ..cluster import worker_cached
+
+    def build():
+        kern = solid_kernels(shared["part"], shared["device"])
+        drop = ToolDrop(shared["tool"], kern, shared["floor"], grow=shared["grow"], body_grow=shared["body_grow"])
+        return drop, DropGrid(drop, shared["xs"], shared["ys"]), {}
+
+    drop, grid, centres = worker_cached(shared, "grid", build)
+    xs, ys = shared["xs"], shared["ys"]
+    cx, cy = 0.5 * (xs[:-1] + xs[1:]), 0.5 * (ys[:-1] + ys[1:])
+    found = []
+    for z in levels:
+        found += _level_loops(z, grid, drop, cx, cy, centres, shared["tol"], shared["spacing"])[0]
+    return found
+
+
 def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progress=None,
-              device: str = "cpu", stock=None, rest_stock=None):
+              device: str = "cpu", stock=None, rest_stock=None, cluster=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, passes)`` with ``passes`` a list of
     ``(z, (k, 3) array)`` from the top level down: closed loops (first point repeated at the end),
     or pieces of loops where a stretch could not be cut without gouging. ``stock``: a closed
     :class:`Mesh` of the material it starts from (else the part with ``params.stock_allowance`` on
     it), which rapids keep ``params.clearance`` from; with ``params.rest`` only the pieces of the
     loops that remove more than that depth of it are cut (:mod:`meshmill.pathing.rest`), with a
-    lead of 1.5 samples on each side."""
+    lead of 1.5 samples on each side, measured from ``rest_stock`` (a closed Mesh) where given
+    (the job's: the stock's own surface, where ``stock`` is a hull around it); ``cluster``: a
+    ``distributed.Client`` groups of levels are found on (the same loops)."""
     params.check()
     if params.rest is not None and stock is None:
         raise InputError("--rest needs --stock: the material the operation starts from")
@@ -262,40 +323,20 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     say("levels")
     t_levels = time.perf_counter()
     loops = []
-    centre_cache = {}
-    for z in levels:
-        t = time.perf_counter()
-        inside = grid.inside(z)
-        seconds["grid"] += time.perf_counter() - t
-        mixed = (inside[:-1, :-1] != inside[1:, :-1]) | (inside[:-1, :-1] != inside[:-1, 1:]) | \
-            (inside[:-1, :-1] != inside[1:, 1:])
-        saddle = mixed & (inside[:-1, :-1] == inside[1:, 1:]) & (inside[1:, :-1] == inside[:-1, 1:]) & \
-            (inside[:-1, :-1] != inside[1:, :-1])
-        centre_inside = np.zeros_like(mixed)
-        si, sj = np.nonzero(saddle)
-        if len(si):
-            missing = [(a, b) for a, b in zip(si, sj) if (a, b) not in centre_cache]
-            if missing:
-                pts = np.array([[cx[a], cy[b]] for a, b in missing])
-                zc = drop(pts)
-                centre_cache.update(zip(missing, zc))
-            centre_inside[si, sj] = np.array([centre_cache[(a, b)] for a, b in zip(si, sj)]) > z
-        segs = _cell_segments(inside, centre_inside)
-        if len(segs) == 0:
-            continue
-        edge_loops = _chain_loops(segs)
-        all_edges = np.concatenate(edge_loops)
-        pts = _crossings(grid, z, all_edges, drop)
-        start = 0
-        for el in edge_loops:
-            p = pts[start:start + len(el)]
-            start += len(el)
-            if len(p) < 3:
-                continue
-            loop = np.column_stack([p, np.full(len(p), z)])[::-1]  # clockwise: climb milling
-            loop = simplify_polyline(np.vstack([loop, loop[:1]]), 0.25 * params.tol)
-            for piece in _refine_loop(loop[:, :2], z, 0.5 * params.tol, spacing, drop):
-                loops.append((float(z), np.column_stack([piece, np.full(len(piece), z)])))
+    if cluster is not None:  # groups of levels on the workers: the same loops
+        from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+
+        shared = dict(part=mesh, device=device, tool=tool, floor=float(bounds[0, 2]) - 1.0, grow=params.allowance,
+                      body_grow=body_grow(stock, params), xs=xs, ys=ys, tol=params.tol, spacing=spacing)
+        groups = [levels[a:b] for a, b in ranges(len(levels), PIECES_PER_WORKER * workers(cluster))]
+        for found in run_pieces(cluster, level_piece, shared, groups, say, "levels"):
+            loops += found
+    else:
+        centre_cache = {}
+        for z in levels:
+            found, grid_s = _level_loops(z, grid, drop, cx, cy, centre_cache, params.tol, spacing)
+            loops += found
+            seconds["grid"] += grid_s
     seconds["levels"] = time.perf_counter() - t_levels - seconds["grid"]
     rapid_stock = stock_check(stock, params, device)
     rest_kern = solid_kernels(rest_stock, device) if rest_stock is not None else rapid_stock.kern
