@@ -134,3 +134,16 @@ def test_waterline_levels_on_a_cluster_are_the_same_path(client):
     many = api.waterline(part, TOOLS, tool="B6", step_down=2.0, device="cpu", cluster=client)
     assert np.array_equal(one.toolpath.tip, many.toolpath.tip)
     assert one.summary["passes"] == many.summary["passes"]
+
+
+def test_a_job_on_a_cluster_is_the_same_job(client, tmp_path):
+    from meshmill.job import Job
+    from test_job import job_toml
+
+    path = job_toml(str(tmp_path))
+    one = Job.from_toml(path).run()
+    many = Job.from_toml(path).run(cluster=client)
+    for a, b in zip(one.operations, many.operations):
+        assert np.array_equal(a.path.toolpath.tip, b.path.toolpath.tip)
+        assert a.stock.volume == b.stock.volume
+    assert one.program == many.program

@@ -392,7 +392,7 @@ def cmd_job(args):
         job.device = args.device
     for w in job.part.warnings:
         _say(args, f"warning: {w}")
-    res = job.run(progress=_progress(args))
+    res = job.run(progress=_progress(args), cluster=_cluster(args))
     res.save(args.out, report=not args.no_report, progress=_progress(args))
     s = res.summary
     for op in s["operations"]:
@@ -706,6 +706,7 @@ def build_parser():
     jb.add_argument("--no-report", action="store_true", help="do not write report.html")
     jb.add_argument("--device", choices=("cpu", "cuda", "auto"), default=None,
                     help="run the heavy kernels on the CPU or an NVIDIA GPU (default: the job file's, else auto)")
+    _add_cluster(jb)
     jb.add_argument("--quiet", action="store_true", help="print nothing but errors")
     jb.add_argument("--json", action="store_true", help="print job.json on stdout (and nothing on stderr)")
     jb.set_defaults(func=cmd_job)

@@ -41,7 +41,7 @@ CYLINDER_SEGMENTS = 128
 _JOB_KEYS = {"name", "machine", "tools", "step", "tolerance", "rest", "in_process", "device", "clearance", "part",
              "stock", "fixtures", "operations"}
 _SET_BY_JOB = {"part", "tools", "stock", "rest", "rest_stock", "device", "progress", "machine", "simulate", "surface",
-               "tool_pair", "flip"}
+               "tool_pair", "flip", "cluster"}
 
 
 def _number(value, what, low=None, positive=False):
@@ -387,8 +387,16 @@ class Job:
 
     # ------------------------------------------------------------ running
 
-    def run(self, progress=None) -> JobResult:
-        """Run the operations in order from the stock; returns the :class:`JobResult`."""
+    def run(self, progress=None, cluster=None) -> JobResult:
+        """Run the operations in order from the stock; returns the :class:`JobResult`.
+        ``cluster`` (local workers, a Dask scheduler's address or a Client): the operations and
+        the cutting of the in-process stock split there, as each operation splits (the same job)."""
+        from .cluster import connect
+
+        with connect(cluster) as client:
+            return self._run(progress, client)
+
+    def _run(self, progress, client) -> JobResult:
         from .geometry.mesh import closed_mesh
         from .kernels.backend import solid_kernels
         from .ops.simulate import cut_path, measure
@@ -411,11 +419,11 @@ class Job:
             pad = self.stock.allowance + self.step
             bounds = part.bounds + np.array([[-pad], [pad]])
         say("the in-process stock: dexels of the design and the stock")
-        design_model = dexelize(part, self.step, bounds=bounds, device=device)
+        design_model = dexelize(part, self.step, bounds=bounds, device=device, cluster=client)
         if stock_mesh is None:
             st = cutting.stock_from_model(design_model, self.stock.allowance)
         else:
-            st = cutting.stock_from_model(dexelize(stock_mesh, self.step, bounds=bounds, device=device))
+            st = cutting.stock_from_model(dexelize(stock_mesh, self.step, bounds=bounds, device=device, cluster=client))
         start_model = st.to_model("stock")
         floor = float(bounds[0, 2])
         top = float(bounds[1, 2])
@@ -439,7 +447,7 @@ class Job:
                 say(f"{label}: {text}")
 
             res = self._path(op, label, current if self.in_process else None, surface if self.in_process else None,
-                             device, stage)
+                             device, stage, client)
             tp, trimmed = res.toolpath, 0
             if fix_kern is not None:
                 tp, trimmed = _clear_fixtures(tp, self.tools, fix_kern, safe_z, self.tolerance, label)
@@ -456,7 +464,7 @@ class Job:
             before = start_model.volume if not results else results[-1].stock.volume
             stage("cut from the in-process stock")
             t_cut = time.perf_counter()
-            cuts = cut_path(st, tp, self.tools, self.tolerance, "sweep", None, device)
+            cuts = cut_path(st, tp, self.tools, self.tolerance, "sweep", None, device, client)
             machined = st.to_model(f"stock after {op.name}")
             verts, faces, stride = machined_mesh(machined)
             deviation, volumes, warnings, (pts, e) = measure(machined, start_model, part, design_model, floor,
@@ -523,7 +531,7 @@ class Job:
         }
         return JobResult(self, results, posted.lines, posted.report, summary)
 
-    def _path(self, op: Operation, label, stock, surface, device, stage):
+    def _path(self, op: Operation, label, stock, surface, device, stage, client=None):
         """The operation's :class:`~meshmill.api.PathResult` from the part (and the in-process
         stock: its hull ``stock`` and its ``surface``, or None), its tools numbered as the job's
         table."""
@@ -537,6 +545,8 @@ class Job:
         if op.kind in ("raster", "waterline") and stock is not None and op.rest is not None:
             params["rest"] = op.rest
             params["rest_stock"] = surface
+        if client is not None and op.kind in ("raster", "waterline", "finish"):
+            params["cluster"] = client
         if stock is not None and op.kind != "choose":  # choose links its zones over the part alone
             params["stock"] = stock
             if op.kind != "plunge":  # the hull's corners are cut by up to half a cell: rapids keep that too
