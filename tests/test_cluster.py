@@ -147,3 +147,22 @@ def test_a_job_on_a_cluster_is_the_same_job(client, tmp_path):
         assert np.array_equal(a.path.toolpath.tip, b.path.toolpath.tip)
         assert a.stock.volume == b.stock.volume
     assert one.program == many.program
+
+
+def test_a_cut_too_large_for_a_worker_is_refused_before_it_starts():
+    from meshmill.errors import InputError
+    from meshmill.simulation import cut as cutting
+    from meshmill.simulation.dexel import dexelize
+
+    class Small:  # a cluster of two workers of 1 MB each
+        def nthreads(self):
+            return {"a": 1, "b": 1}
+
+        def scheduler_info(self):
+            return {"workers": {"a": {"memory_limit": 1 << 20}, "b": {"memory_limit": 1 << 20}}}
+
+    part = shapes.post_with_fillet(segments=48)
+    tp = api.raster(part, TOOLS, tool="B6", stepover=3.0, device="cpu").toolpath
+    stock = cutting.stock_from_model(dexelize(shapes.box(*part.bounds), 0.25))
+    with pytest.raises(InputError, match=r"on each worker need about .* of memory, 1 MB is available: use more workers"):
+        cutting.cut(stock, cutting.toolpath_moves(tp, TOOLS), cluster=Small())

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import uuid
 
+from . import memory
 from .errors import InputError
 
 RETRIES = 3  # times a piece is computed again after its worker died
@@ -72,7 +73,7 @@ def run_pieces(client, func, shared, pieces, progress=None, what="pieces") -> li
     from distributed import as_completed
 
     shared = dict(shared, token=uuid.uuid4().hex)
-    handle = client.scatter(shared, broadcast=True)
+    [handle] = client.scatter([shared], broadcast=True)  # one piece of data (a dict alone scatters by key)
     futures = [client.submit(func, handle, piece, pure=False, retries=RETRIES) for piece in pieces]
     done = 0
     for _ in as_completed(futures):
@@ -93,3 +94,18 @@ def worker_cached(shared: dict, name: str, build):
             _CACHE.clear()
         _CACHE[key] = build()
     return _CACHE[key]
+
+
+def worker_memory(client) -> int:
+    """The smallest memory limit of the cluster's workers, bytes (0: none is set)."""
+    limits = [w.get("memory_limit") or 0 for w in client.scheduler_info()["workers"].values()]
+    limits = [x for x in limits if x > 0]
+    return min(limits) if limits else 0
+
+
+def check_workers(client, need: float, what: str, change: str) -> None:
+    """Refuse, before it starts, work whose estimate ``need`` (bytes per worker) exceeds
+    :data:`~meshmill.memory.SHARE` of a worker's memory limit, in one line with the figures."""
+    limit = worker_memory(client)
+    if limit:
+        memory.check(need, f"{what} on each worker", change, available=limit)

@@ -30,6 +30,7 @@ SAME_AXIS = 1e-9  # rad: axes closer than this are one axis (the move is cut wit
 MAX_MOVE_TURN = 179.0  # degrees: a larger turn in one move has no interpolation (the axis passes 0)
 RAPID_CUT = 1e-3  # mm of a dexel a rapid move must remove (or a shank or holder meet) to count as cutting
 SLACK = 2  # spare interval slots a line starts with
+MOVE_BYTES = 1200  # a move on a worker of a cluster: its arrays, and per direction its frame, constants, box, tiles
 
 
 @dataclass
@@ -423,9 +424,9 @@ def _with_room(start, iv):
 
 def _cut_on(client, stock: Stock, moves: Moves, boxes, hit, progress, device) -> None:
     """:func:`cut` of ``stock`` (replaced in place) by blocks of tile rows on ``client``'s workers."""
-    from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+    from ..cluster import PIECES_PER_WORKER, check_workers, ranges, run_pieces, workers
 
-    pieces = []
+    pieces, peak = [], 0.0
     for a in range(3):
         u, v = (a + 1) % 3, (a + 2) % 3
         nv = int(stock.n[v])
@@ -434,12 +435,19 @@ def _cut_on(client, stock: Stock, moves: Moves, boxes, hit, progress, device) ->
             l0, l1 = r0 * TILE * nv, min(int(stock.n[u]), r1 * TILE) * nv
             start, iv = compact_lines(stock.iv[a], stock.off[a][l0:l1 + 1], stock.count[a][l0:l1])
             pieces.append((a, (r0, r1), start, iv))
+            # a worker holds the direction's line offsets and counts, the block's intervals with room
+            # (doubled while a line grows) and what it returns
+            peak = max(peak, 16.0 * int(stock.n[u]) * nv + 2 * 16.0 * (len(iv) + SLACK * (l1 - l0)) + 16.0 * len(iv))
+    # and the moves with, per direction it cuts, their frame, constants, boxes and tiles
+    check_workers(client, peak + MOVE_BYTES * len(moves), f"cutting {len(moves):,} moves in blocks of dexel lines",
+                  "use more workers, or a coarser --step")
+    pieces.sort(key=lambda p: -len(p[3]))  # the largest blocks first: the slow ones do not come last
     shared = dict(moves=moves, boxes=boxes, lo=stock.lo, n=stock.n, step=stock.step, device=device)
     done = run_pieces(client, cut_rows, shared, pieces, progress, "cutting")
     for a in range(3):
-        blocks = [(s, iv) for (d, *_), (s, iv, _) in zip(pieces, done) if d == a]
+        blocks = sorted((rows, s, iv) for (d, rows, *_), (s, iv, _) in zip(pieces, done) if d == a)
         starts, ivs, base = [np.zeros(1, np.int64)], [], 0
-        for s, iv in blocks:
+        for _, s, iv in blocks:
             starts.append(s[1:] + base)
             ivs.append(iv)
             base += len(iv)
