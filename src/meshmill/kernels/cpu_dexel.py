@@ -175,7 +175,7 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
 @numba.njit(parallel=True, cache=True)
 def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
               pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit,
-              overflow):
+              overflow, row0=0):
     """Cut the lines of the given ``tiles`` with their moves, in move order within each line.
 
     Moves as in :mod:`meshmill.kernels.carve`, ``box (k, 6)`` their bounds, ``kind (k,)`` bits
@@ -183,7 +183,8 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
     of a dexel (a rapid that cuts; a feed move in material, not in air) or a body move (shank,
     holder: it removes nothing) meets that much material, and ``overflow[t]`` when a line of tile t ran out of room: the tile stops there, so
     rerunning it after growing the line is exact (removal is idempotent, and moves before the stop
-    saw the material in path order)."""
+    saw the material in path order). ``iv, off, count`` may hold the lines from row ``row0`` on
+    only (a block of rows: the tiles given must lie in it)."""
     tv = (nv + TILE - 1) // TILE
     for q in prange(tiles.shape[0]):
         t = tiles[q]
@@ -202,13 +203,14 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
             for i in range(i0, i1 + 1):
                 u0 = lu + (i + 0.5) * step
                 for j in range(j0, j1 + 1):
+                    line = (i - row0) * nv + j
                     if kind[m] & BODY:
-                        if not hit[m] and _touch_line(m, i * nv + j, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5],
+                        if not hit[m] and _touch_line(m, line, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5],
                                                       iv, off, count, pa, pb, xa, xb, radius, corner, flutes,
                                                       strips) > hit_min:
                             hit[m] = 1
                         continue
-                    removed = _cut_line(m, i * nv + j, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5], iv, off, count,
+                    removed = _cut_line(m, line, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5], iv, off, count,
                                         pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane)
                     if removed < 0.0:
                         overflow[t] = 1

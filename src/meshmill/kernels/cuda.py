@@ -293,7 +293,7 @@ def _move_constants(pa, pb, xa, xb, corner, flutes, chord, plane):
 
 @cuda.jit
 def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb, radius, corner,
-               flutes, strips, chord, plane, box, kind, hit_min, hit, overflow):
+               flutes, strips, chord, plane, box, kind, hit_min, hit, overflow, row0):
     t = tiles[cuda.blockIdx.x]
     tv = (nv + TILE - 1) // TILE
     i = (t // tv) * TILE + cuda.threadIdx.x // TILE
@@ -309,12 +309,12 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_mov
         if i < i0 or i > i1 or j < j0 or j > j1:
             continue
         if kind[m] & 2:  # BODY: a shank or holder meets material, it removes none
-            if _touch_line(m, i * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb, radius,
-                           corner, flutes, strips) > hit_min:
+            if _touch_line(m, (i - row0) * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
+                           radius, corner, flutes, strips) > hit_min:
                 hit[m] = 1
             continue
-        removed = _cut_line(m, i * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb, radius,
-                            corner, flutes, strips, chord, plane)
+        removed = _cut_line(m, (i - row0) * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
+                            radius, corner, flutes, strips, chord, plane)
         if removed < 0.0:
             overflow[t] = 1
             return
@@ -332,7 +332,7 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
 
 
 def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
-              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, overflow):
+              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, overflow, row0=0):
     """As :func:`meshmill.kernels.cpu_dexel.cut_tiles` (host arrays updated in place): one block per
     tile, one thread per line, each line cut by the tile's moves in path order. A line that runs out
     of room stops and flags its tile; the others go on (removal is idempotent, so the rerun of
@@ -345,7 +345,7 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
                                         _d(off, np.int64), d_count, _d(tiles, np.int64), _d(tile_start, np.int64),
                                         _d(tile_moves, np.int64), _d(pa), _d(pb), _d(xa), _d(xb), _d(radius),
                                         _d(corner), _d(flutes), _d(strips, np.int64), _d(chord), _d(plane), _d(box),
-                                        _d(kind, np.uint8), float(hit_min), d_hit, d_over)
+                                        _d(kind, np.uint8), float(hit_min), d_hit, d_over, int(row0))
     iv[...] = d_iv.copy_to_host()
     count[...] = d_count.copy_to_host()
     hit[...] = d_hit.copy_to_host()

@@ -326,8 +326,9 @@ def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern) -> tuple:
 
 def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=None, prepared=None) -> None:
     """Cut the lines along ``a`` (those of the tile rows ``rows = (first, stop)`` along the axis
-    after ``a``, default all) by the moves, in place; ``hit (k,)`` marks the moves that hit;
-    ``prepared``: what :func:`_direction_moves` gives (else made here)."""
+    after ``a``, which ``stock`` then holds alone for that direction; default all) by the moves, in
+    place; ``hit (k,)`` marks the moves that hit; ``prepared``: what :func:`_direction_moves` gives
+    (else made here)."""
     u, v = (a + 1) % 3, (a + 2) % 3
     nu, nv = int(stock.n[u]), int(stock.n[v])
     lu, lv = float(stock.lo[u]), float(stock.lo[v])
@@ -335,18 +336,20 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
         prepared or _direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern))
     tiles = np.nonzero(np.diff(tile_start))[0]
     tv = (nv + TILE - 1) // TILE
+    row0 = 0
     if rows is not None:
         tiles = tiles[(tiles // tv >= rows[0]) & (tiles // tv < rows[1])]
+        row0 = rows[0] * TILE
     np.random.default_rng(0).shuffle(tiles)  # spread the busy tiles over the threads
     while len(tiles):
         overflow = np.zeros(len(tile_start) - 1, np.uint8)
         kern.cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, tile_start,
                        tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips, chord, plane,
-                       box, kind, RAPID_CUT, hit, overflow)
+                       box, kind, RAPID_CUT, hit, overflow, row0)
         tiles = np.nonzero(overflow)[0]
         if len(tiles):
             full = np.nonzero(stock.count[a] == np.diff(stock.off[a]))[0]
-            ti, tj = (full // nv) // TILE, (full % nv) // TILE
+            ti, tj = (full // nv + row0) // TILE, (full % nv) // TILE
             _grow(stock, a, full[overflow[ti * tv + tj] == 1])
 
 
@@ -390,24 +393,14 @@ def cut_rows(shared: dict, piece):
     a, rows, start, iv = piece
     moves, boxes = shared["moves"], shared["boxes"]
     n = shared["n"]
-    u, v = (a + 1) % 3, (a + 2) % 3
-    n_lines = int(n[u] * n[v])
-    first = rows[0] * TILE * int(n[v])  # the block's first line
-    k = len(start) - 1
-    block_iv, block_off, block_count = _with_room(start, iv)
-    count = np.zeros(n_lines, np.int64)
-    count[first:first + k] = block_count
-    off = np.zeros(n_lines + 1, np.int64)  # the lines outside the block have no room and are not cut
-    off[first:first + k + 1] = block_off
-    off[first + k + 1:] = block_off[-1]
     stock = Stock(lo=shared["lo"], step=shared["step"], n=n, iv=[None] * 3, off=[None] * 3, count=[None] * 3)
-    stock.iv[a], stock.off[a], stock.count[a] = block_iv, off, count
+    stock.iv[a], stock.off[a], stock.count[a] = _with_room(start, iv)  # the block's lines alone
     hit = np.zeros(len(moves), np.uint8)
     kern = implementation(shared["device"])
     prepared = worker_cached(shared, f"moves {a}", lambda: _direction_moves(shared["lo"], n, shared["step"], a, moves,
                                                                           boxes, kern))
     _cut_direction(stock, a, moves, boxes, kern, hit, rows, prepared)
-    s, out = compact_lines(stock.iv[a], stock.off[a][first:first + k + 1], stock.count[a][first:first + k])
+    s, out = compact_lines(stock.iv[a], stock.off[a], stock.count[a])
     return s, out, hit
 
 
@@ -435,9 +428,9 @@ def _cut_on(client, stock: Stock, moves: Moves, boxes, hit, progress, device) ->
             l0, l1 = r0 * TILE * nv, min(int(stock.n[u]), r1 * TILE) * nv
             start, iv = compact_lines(stock.iv[a], stock.off[a][l0:l1 + 1], stock.count[a][l0:l1])
             pieces.append((a, (r0, r1), start, iv))
-            # a worker holds the direction's line offsets and counts, the block's intervals with room
-            # (doubled while a line grows) and what it returns
-            peak = max(peak, 16.0 * int(stock.n[u]) * nv + 2 * 16.0 * (len(iv) + SLACK * (l1 - l0)) + 16.0 * len(iv))
+            # a worker holds the block's lines: offsets and counts, intervals with room (doubled while
+            # a line grows), and what it returns
+            peak = max(peak, 16.0 * (l1 - l0) + 2 * 16.0 * (len(iv) + SLACK * (l1 - l0)) + 24.0 * len(iv))
     # and the moves with, per direction it cuts, their frame, constants, boxes and tiles
     check_workers(client, peak + MOVE_BYTES * len(moves), f"cutting {len(moves):,} moves in blocks of dexel lines",
                   "use more workers, or a coarser --step")
