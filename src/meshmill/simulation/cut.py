@@ -22,7 +22,7 @@ from ..errors import InputError
 from ..kernels.backend import implementation
 from ..kernels.cpu_dexel import BODY, RAPID, TILE, bin_moves
 from ..kernels.sweep import SEARCH_SAMPLES
-from .dexel import DexelModel, compact_lines
+from .dexel import DexelModel, compact_lines, join_lines
 
 SWEEP_TOL = 1e-3  # mm: largest gap between the cut and the true swept volume of a turning tool
 MAX_TURN = 0.05  # rad: largest turn of a piece of a flat or bull-nose move (searched over poses)
@@ -439,13 +439,6 @@ def _cut_on(client, stock: Stock, moves: Moves, boxes, hit, progress, device) ->
     done = run_pieces(client, cut_rows, shared, pieces, progress, "cutting")
     for a in range(3):
         blocks = sorted((rows, s, iv) for (d, rows, *_), (s, iv, _) in zip(pieces, done) if d == a)
-        starts, ivs, base = [np.zeros(1, np.int64)], [], 0
-        for _, s, iv in blocks:
-            starts.append(s[1:] + base)
-            ivs.append(iv)
-            base += len(iv)
-        start = np.concatenate(starts)
-        iv = np.concatenate(ivs) if ivs else np.zeros((0, 2))
-        stock.iv[a], stock.off[a], stock.count[a] = _with_room(start, iv)
+        stock.iv[a], stock.off[a], stock.count[a] = _with_room(*join_lines([(s, iv) for _, s, iv in blocks]))
     for *_, h in done:
         hit |= h

@@ -234,8 +234,8 @@ def cast_block(shared: dict, piece) -> tuple:
             info)
 
 
-def _join(blocks):
-    """The CSR ``(start, iv)`` of consecutive blocks of lines."""
+def join_lines(blocks):
+    """The CSR ``(start, iv)`` of consecutive blocks of lines, each ``(start, iv, ...)``."""
     starts, ivs, base = [np.zeros(1, np.int64)], [], 0
     for s, iv, *_ in blocks:
         starts.append(s[1:] + base)
@@ -294,7 +294,7 @@ def _dexelize_on(client, mesh, source, lo, n, step, index, progress, device) -> 
     starts, ivs, odd = [], [], {}
     for a in range(3):
         mine = [b for (d, _, _), b in zip(pieces, blocks) if d == a]
-        s, iv = _join(mine)
+        s, iv = join_lines(mine)
         starts.append(s)
         ivs.append(iv)
         if sum(b[2] for b in mine):
