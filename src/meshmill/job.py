@@ -48,7 +48,8 @@ def _number(value, what, low=None, positive=False):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise InputError(f"{what} must be a number of mm, got {value!r}")
     if positive and value <= 0 or low is not None and value < low:
-        raise InputError(f"{what} must be {'positive' if positive else f'at least {low:g}'}, got {value:g}")
+        raise InputError(f"{what} must be {'a positive number of mm' if positive else f'at least {low:g} mm'}, "
+                         f"got {value:g}")
     return float(value)
 
 
