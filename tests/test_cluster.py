@@ -166,3 +166,18 @@ def test_a_cut_too_large_for_a_worker_is_refused_before_it_starts():
     stock = cutting.stock_from_model(dexelize(shapes.box(*part.bounds), 0.25))
     with pytest.raises(InputError, match=r"on each worker need about .* of memory, 1 MB is available: use more workers"):
         cutting.cut(stock, cutting.toolpath_moves(tp, TOOLS), cluster=Small())
+
+
+def test_casting_too_large_for_a_worker_is_refused_before_it_starts():
+    from meshmill.errors import InputError
+    from meshmill.simulation.dexel import dexelize
+
+    class Small:  # a cluster of one worker of 1 MB
+        def nthreads(self):
+            return {"a": 1}
+
+        def scheduler_info(self):
+            return {"workers": {"a": {"memory_limit": 1 << 20}}}
+
+    with pytest.raises(InputError, match=r"casting .* dexel lines in blocks on each worker need about"):
+        dexelize(shapes.post_with_fillet(segments=48), 0.1, cluster=Small())

@@ -201,6 +201,10 @@ def _resolve_lines(a, lines, lo, n, step, dense, count, material, bvh, source, f
     return dense, count
 
 
+LINE_BYTES = 112  # a line being cast on a worker: its room for crossings, count, and the compacted result
+TRIANGLE_BYTES = 400  # a triangle on a worker: the mesh, the solid, its BVH
+
+
 def _cast(caster, a, lo, n, step, mesh, bvh, source, rows=None):
     """``(start, iv, uneven lines)`` of the lines along ``a`` of the lattice ``lo, n`` (of its rows
     ``rows = (i0, i1)`` along the axis after ``a``, default all)."""
@@ -282,13 +286,18 @@ def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", min
 
 def _dexelize_on(client, mesh, source, lo, n, step, index, progress, device) -> DexelModel:
     """:func:`dexelize` with blocks of lines cast on the workers of ``client``."""
-    from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+    from ..cluster import PIECES_PER_WORKER, check_workers, ranges, run_pieces, workers
 
     if index != "bvh":
         raise InputError("--workers and --scheduler cast lines through the BVH index only (leave --index out)")
     t1 = time.perf_counter()
     count = PIECES_PER_WORKER * workers(client)
     pieces = [(a, i0, i1) for a in range(3) for i0, i1 in ranges(int(n[(a + 1) % 3]), count)]
+    # a worker holds the mesh and its BVH, and a block's lines with room for four crossing pairs
+    block = max((i1 - i0) * int(n[(a + 2) % 3]) for a, i0, i1 in pieces)
+    check_workers(client, LINE_BYTES * block + TRIANGLE_BYTES * len(mesh.faces),
+                  f"casting {sum(int(n[(a + 1) % 3] * n[(a + 2) % 3]) for a in range(3)):,} dexel lines in blocks",
+                  "use more workers, or a coarser --step")
     shared = dict(mesh=mesh, source=source, lo=lo, n=n, step=step, device=device)
     blocks = run_pieces(client, cast_block, shared, pieces, progress, "dexel lines")
     starts, ivs, odd = [], [], {}
