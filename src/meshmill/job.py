@@ -400,7 +400,8 @@ class Job:
     def _run(self, progress, client) -> JobResult:
         from .geometry.mesh import closed_mesh
         from .kernels.backend import solid_kernels
-        from .ops.simulate import cut_path, measure
+        from .ops.simulate import cut_path, measure, simulate_summary
+        from .pathing.verify import verify_toolpath
         from .simulation import cut as cutting
         from .simulation.dexel import dexelize
         from .simulation.surface import machined_mesh, stock_hull
@@ -435,6 +436,7 @@ class Job:
         if stock_mesh is None:
             stock_mesh = closed_mesh(*stock_hull(start_model), "stock")
         fix_kern = solid_kernels(fix_mesh, device) if fix_mesh is not None else None
+        part_kern = solid_kernels(part, device)  # every path verified against it
         results = []
         # the in-process stock for the next operation: a hull around every dexel (what rapids,
         # shanks and holders keep clear of) and its surface (what rest depths are measured from)
@@ -449,18 +451,12 @@ class Job:
 
             res = self._path(op, label, current if self.in_process else None, surface if self.in_process else None,
                              device, stage, client)
-            tp, trimmed = res.toolpath, 0
-            if fix_kern is not None:
-                tp, trimmed = _clear_fixtures(tp, self.tools, fix_kern, safe_z, self.tolerance, label)
-            tp = _linked(tp, safe_z)
+            tp, trimmed, fixture_check = _linked(res.toolpath, safe_z), 0, None
             stage("verify against the part and the fixtures")
-            check = api.verify(part, tp, self.tools, tolerance=self.tolerance, device=device).report
-            fixture_check = None
             if fix_kern is not None:
-                from .pathing.verify import verify_toolpath
-
-                fixture_check = verify_toolpath(fix_kern, tp, self.tools, 0.0)
-                fixture_check.pop("problem_moves")
+                tp, trimmed, fixture_check = _clear_fixtures(tp, self.tools, fix_kern, safe_z, label)
+            check = verify_toolpath(part_kern, tp, self.tools, self.tolerance)
+            check.pop("problem_moves")
             op_s = time.perf_counter() - t_op
             before = start_model.volume if not results else results[-1].stock.volume
             stage("cut from the in-process stock")
@@ -495,14 +491,10 @@ class Job:
                 "machining_s": timed["total"]["total_s"], "time": timed,
                 "seconds": {"operation": round(op_s, 3), "cut_and_measure": round(cut_s, 3)},
             }
-            stock_summary = {
-                "operation": "simulate", "mode": "sweep", "step": self.step, "lattice": machined.summary(),
-                "moves": len(tp), **{kk: v for kk, v in cuts.items() if kk != "seconds"},
-                "volumes_mm3": volumes, "deviation": deviation,
-                "machined_mesh": {"vertices": int(len(verts)), "triangles": int(len(faces)), "lattice_stride": int(stride)},
-                "warnings": warnings, "design": api._part_entry(part), "tools_file": api._tools_file(self.tools),
-                "device": device, "seconds": {"cut": cuts["seconds"], "total": round(cut_s, 3)},
-            }
+            stock_summary = simulate_summary("sweep", self.step, machined, len(tp), cuts, volumes, deviation,
+                                             (verts, faces, stride), warnings,
+                                             {"cut": cuts["seconds"], "total": round(cut_s, 3)})
+            stock_summary.update(design=api._part_entry(part), tools_file=api._tools_file(self.tools), device=device)
             results.append(OperationResult(op, res, machined, (verts, faces), {"points": pts, "e": e}, stock_summary))
             current = closed_mesh(*stock_hull(machined), f"stock after {op.name}")
             surface = closed_mesh(verts, faces, f"stock after {op.name}")
@@ -603,19 +595,19 @@ def _linked(tp, safe_z):
                     np.r_[0, tp.line, 0], np.r_[np.nan, tp.feed, np.nan], tp.source, list(tp.warnings))
 
 
-def _clear_fixtures(tp, tools, fix_kern, safe_z, tolerance, label):
-    """``(toolpath, trimmed moves)``: ``tp`` with the moves that bring a cutter, shank or holder
-    into a fixture left out; each stretch left out is linked over (a rapid up the tool axis to
-    ``safe_z``, across, and down to the next point kept at feed). Raises :class:`InputError`
-    when the links themselves enter a fixture."""
+def _clear_fixtures(tp, tools, fix_kern, safe_z, label):
+    """``(toolpath, trimmed moves, its check against the fixtures)``: ``tp`` with the moves that
+    bring a cutter, shank or holder into a fixture left out; each stretch left out is linked over
+    (a rapid up the tool axis to ``safe_z``, across, and down to the next point kept at feed).
+    Raises :class:`InputError` when the links themselves enter a fixture."""
     from .pathing.verify import verify_toolpath
     from .toolpath.model import Toolpath
 
     report = verify_toolpath(fix_kern, tp, tools, 0.0)
     bad = np.zeros(len(tp), bool)
-    bad[report["problem_moves"]] = True  # the move into point i
+    bad[report.pop("problem_moves")] = True  # the move into point i
     if not bad.any():
-        return tp, 0
+        return tp, 0, report
     # a point is kept when neither move at it enters a fixture
     keep = ~bad & ~np.r_[bad[1:], False]
     tips, axes, rapid, tool, feed = [], [], [], [], []
@@ -643,8 +635,8 @@ def _clear_fixtures(tp, tools, fix_kern, safe_z, tolerance, label):
     out = Toolpath(np.array(tips), np.array(axes), np.array(rapid), np.array(tool, np.int64), None,
                    np.array(feed, float), tp.source, list(tp.warnings))
     again = verify_toolpath(fix_kern, out, tools, 0.0)
+    again.pop("problem_moves")
     if not again["ok"]:
-        w = again["worst"][0] if again["worst"] else {}
-        raise InputError(f"{label}: the path cannot be linked clear of the fixtures (a link at "
-                         f"{w.get('tip', '?')} meets one): raise the job's clearance or move the fixture")
-    return out, int(bad.sum())
+        raise InputError(f"{label}: the path cannot be linked clear of the fixtures ({again['worst'][0]}): raise the "
+                         "job's clearance or move the fixture")
+    return out, int(bad.sum()), again

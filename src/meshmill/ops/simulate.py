@@ -115,22 +115,31 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
                                                  tolerance, step, device)
     warnings += more
     deviation_s = time.perf_counter() - t1
-    summary = {
+    summary = simulate_summary(mode, step, machined, len(toolpath), cuts, volumes, deviation, (verts, faces, stride),
+                               warnings, {"models": round(build_s, 4), "cut": cuts["seconds"],
+                                          "deviation": round(deviation_s, 4), "mesh": round(mesh_s, 4),
+                                          "total": round(time.perf_counter() - t0, 4)})
+    return deviation, summary, machined, (verts, faces), {"points": pts, "e": e}
+
+
+def simulate_summary(mode, step, machined, moves, cuts, volumes, deviation, mesh, warnings, seconds) -> dict:
+    """``summary.json`` of a simulation: the ``machined`` model, the ``moves`` count, what
+    :func:`cut_path` found (``cuts``), the ``volumes`` and ``deviation`` of :func:`measure`, the
+    machined ``mesh`` ``(vertices, faces, stride)``, ``warnings`` and ``seconds``."""
+    verts, faces, stride = mesh
+    return {
         "operation": "simulate",
         "mode": mode,
         "step": step,
         "lattice": machined.summary(),
-        "moves": len(toolpath),
+        "moves": moves,
         **{k: v for k, v in cuts.items() if k != "seconds"},
         "volumes_mm3": volumes,
         "deviation": deviation,
-        "machined_mesh": {"vertices": int(len(verts)), "triangles": int(len(faces)),
-                          "lattice_stride": int(stride)},
+        "machined_mesh": {"vertices": int(len(verts)), "triangles": int(len(faces)), "lattice_stride": int(stride)},
         "warnings": warnings,
-        "seconds": {"models": round(build_s, 4), "cut": cuts["seconds"], "deviation": round(deviation_s, 4),
-                    "mesh": round(mesh_s, 4), "total": round(time.perf_counter() - t0, 4)},
+        "seconds": seconds,
     }
-    return deviation, summary, machined, (verts, faces), {"points": pts, "e": e}
 
 
 def cut_path(st, toolpath, tools, tolerance=0.01, mode="sweep", progress=None, device="cpu", cluster=None) -> dict:
