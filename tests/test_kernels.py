@@ -39,7 +39,10 @@ def _sampled_axis_dist(tri, a, u, t0, t1, n=120):
     w1, w2 = i[keep] / n, j[keep] / n
     pts = tri[0] + w1[:, None] * (tri[1] - tri[0]) + w2[:, None] * (tri[2] - tri[0])
     h = (pts - a) @ u
-    pts, h = pts[(h >= t0) & (h <= t1)], h[(h >= t0) & (h <= t1)]
+    # a sample within rounding of a slab end is not known to be inside (a triangle touching the
+    # plane t0 = 1e-194 from outside samples at h = 1e-17)
+    inside = (h >= t0 + 1e-12) & (h <= t1 - 1e-12)
+    pts, h = pts[inside], h[inside]
     if len(pts) == 0:
         return np.inf, 0.0
     r = np.linalg.norm(pts - a - h[:, None] * u, axis=1)
