@@ -99,15 +99,50 @@ def test_dexel_lines_cast_on_a_cluster_are_the_same_model(client):
     assert many.info["pieces"] >= 3
 
 
-def test_simulate_on_a_cluster_gives_the_same_summary(client):
+@pytest.mark.parametrize("stock", ["box", "allowance", "mesh"])
+def test_simulate_on_a_cluster_gives_the_same_results(client, stock):
+    part = shapes.post_with_fillet(segments=48)
+    tp = zigzag_with_problems(part)  # gouges: design ends cut away, bounded by machined ends of other blocks
+    kw = {"box": {}, "allowance": {"allowance": 0.5},
+          "mesh": {"stock": shapes.box(*(part.bounds + np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 2.0]])))}}[stock]
+    one = api.simulate(part, tp, TOOLS, step=0.5, device="cpu", **kw)
+    many = api.simulate(part, tp, TOOLS, step=0.5, device="cpu", cluster=client, **kw)
+    for s in (one.summary, many.summary):
+        s.pop("seconds")
+    assert one.deviation["design_ends_cut_away"] and one.summary["colliding_moves"]
+    assert many.summary == one.summary and many.deviation == one.deviation
+    for a, b in [*zip(one.machined, many.machined), *((one.samples[k], many.samples[k]) for k in ("points", "e"))]:
+        assert np.array_equal(a, b)
+
+
+def test_simulate_on_a_cluster_without_outputs_gathers_no_model(client, tmp_path):
     part = shapes.post_with_fillet(segments=48)
     tp = api.raster(part, TOOLS, tool="B6", stepover=3.0, device="cpu").toolpath
     one = api.simulate(part, tp, TOOLS, step=0.5, device="cpu")
-    many = api.simulate(part, tp, TOOLS, step=0.5, device="cpu", cluster=client)
+    bare = api.simulate(part, tp, TOOLS, step=0.5, device="cpu", cluster=client, outputs=())
+    assert bare.machined is None and bare.samples is None and bare.summary["machined_mesh"] is None
+    assert bare.deviation == one.deviation and bare.summary["lattice"] == one.summary["lattice"]
+    written = bare.save(str(tmp_path / "sim"))
+    assert sorted(os.path.basename(p) for p in written) == ["deviation.json", "summary.json"]
+
+
+def test_a_worker_that_dies_mid_simulation_loses_nothing(client):
+    part = shapes.post_with_fillet(segments=48)
+    tp = api.raster(part, TOOLS, tool="B6", stepover=3.0, device="cpu").toolpath
+    one = api.simulate(part, tp, TOOLS, step=0.4, device="cpu")
+    pids = list(client.run(os.getpid).values())
+    killed = []
+
+    def kill_one(stage):  # once the blocks are cut: a worker dies with its blocks, cast and cut again elsewhere
+        if stage.startswith("cutting:") and not killed:
+            os.kill(pids[0], signal.SIGKILL)
+            killed.append(pids[0])
+
+    many = api.simulate(part, tp, TOOLS, step=0.4, device="cpu", cluster=client, progress=kill_one)
+    client.wait_for_workers(2, timeout=60)
     for s in (one.summary, many.summary):
         s.pop("seconds")
-    assert many.summary == one.summary and many.deviation == one.deviation
-    assert np.array_equal(one.machined[1], many.machined[1])
+    assert killed and many.summary == one.summary and np.array_equal(many.samples["e"], one.samples["e"])
 
 
 def test_raster_dropped_on_a_cluster_is_the_same_path(client):
@@ -119,10 +154,12 @@ def test_raster_dropped_on_a_cluster_is_the_same_path(client):
     assert one.summary["cl_points"] == many.summary["cl_points"]
 
 
-def test_finish_searched_on_a_cluster_is_the_same_path(client):
+def test_finish_on_a_cluster_is_the_same_path(client):
+    """Tools, axes and the verification (with its repairs) by groups of contours and ranges of moves."""
     part = shapes.post_with_fillet(segments=48)
     one = api.finish(part, TOOLS, step_down=3.0, device="cpu")
     many = api.finish(part, TOOLS, step_down=3.0, device="cpu", cluster=client)
+    assert one.summary["verify"] == many.summary["verify"]
     assert np.array_equal(one.toolpath.tip, many.toolpath.tip)
     assert np.array_equal(one.toolpath.axis, many.toolpath.axis)
     assert one.summary["cc_points"] == many.summary["cc_points"]
@@ -149,35 +186,44 @@ def test_a_job_on_a_cluster_is_the_same_job(client, tmp_path):
     assert one.program == many.program
 
 
+class Small:
+    """What the memory checks ask of a cluster: ``n`` single-threaded workers of 1 MB each."""
+
+    def __init__(self, n):
+        self.names = [f"w{k}" for k in range(n)]
+
+    def nthreads(self):
+        return {w: 1 for w in self.names}
+
+    def scheduler_info(self):
+        return {"workers": {w: {"memory_limit": 1 << 20} for w in self.names}}
+
+
 def test_a_cut_too_large_for_a_worker_is_refused_before_it_starts():
     from meshmill.errors import InputError
     from meshmill.simulation import cut as cutting
     from meshmill.simulation.dexel import dexelize
 
-    class Small:  # a cluster of two workers of 1 MB each
-        def nthreads(self):
-            return {"a": 1, "b": 1}
-
-        def scheduler_info(self):
-            return {"workers": {"a": {"memory_limit": 1 << 20}, "b": {"memory_limit": 1 << 20}}}
-
     part = shapes.post_with_fillet(segments=48)
     tp = api.raster(part, TOOLS, tool="B6", stepover=3.0, device="cpu").toolpath
     stock = cutting.stock_from_model(dexelize(shapes.box(*part.bounds), 0.25))
     with pytest.raises(InputError, match=r"on each worker need about .* of memory, 1 MB is available: use more workers"):
-        cutting.cut(stock, cutting.toolpath_moves(tp, TOOLS), cluster=Small())
+        cutting.cut(stock, cutting.toolpath_moves(tp, TOOLS), cluster=Small(2))
+
+
+def test_a_simulation_too_large_for_its_workers_is_refused_before_it_starts():
+    from meshmill.errors import InputError
+    from meshmill.ops.simulate_blocks import simulate_on
+
+    part = shapes.post_with_fillet(segments=48)
+    tp = api.raster(part, TOOLS, tool="B6", stepover=3.0, device="cpu").toolpath
+    with pytest.raises(InputError, match=r"simulating .* dexel lines in blocks on each worker need about .*: use more"):
+        simulate_on(Small(2), part, tp, TOOLS, 0.25, device="cpu")
 
 
 def test_casting_too_large_for_a_worker_is_refused_before_it_starts():
     from meshmill.errors import InputError
     from meshmill.simulation.dexel import dexelize
 
-    class Small:  # a cluster of one worker of 1 MB
-        def nthreads(self):
-            return {"a": 1}
-
-        def scheduler_info(self):
-            return {"workers": {"a": {"memory_limit": 1 << 20}}}
-
     with pytest.raises(InputError, match=r"casting .* dexel lines in blocks on each worker need about"):
-        dexelize(shapes.post_with_fillet(segments=48), 0.1, cluster=Small())
+        dexelize(shapes.post_with_fillet(segments=48), 0.1, cluster=Small(1))

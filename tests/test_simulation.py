@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 import trimesh
 
 from meshmill.cli import main
@@ -13,6 +15,7 @@ from meshmill.kernels.cpu_dexel import swp
 from meshmill.ops.simulate import simulate
 from meshmill.simulation.cut import SWEEP_TOL, cut, stock_from_model, toolpath_moves, turn_pieces
 from meshmill.simulation.dexel import dexelize
+from meshmill.simulation.exactsum import expansion, total
 from meshmill.simulation.surface import machined_mesh
 from meshmill.toolpath.model import Toolpath
 from meshmill.tools.table import Tool
@@ -417,3 +420,67 @@ def test_an_open_surface_is_simulated_as_the_solid_below_it(tools):
     low = Toolpath(tp.tip - np.where(tp.rapid, 0.0, 0.2)[:, None] * [0, 0, 1], tp.axis, tp.rapid, tp.tool)
     dev, *_ = simulate(sheet, low, tools, 0.5, allowance=0.5)
     assert dev["gouge_max"] == pytest.approx(0.2, abs=0.012)
+
+
+@given(st.lists(st.floats(-1e12, 1e12, allow_nan=False).filter(lambda x: x == 0 or abs(x) > 1e-300), max_size=60),
+       st.integers(1, 7))
+def test_exact_sums_do_not_depend_on_the_grouping(values, size):
+    x = np.array(values, float)
+    groups = [expansion(x[i:i + size]) for i in range(0, len(x), size)]
+    assert total(*groups) == total(expansion(x)) == math.fsum(values)
+
+
+def test_blocks_of_lines_measure_and_mesh_as_the_whole_model():
+    """What a cluster's workers compute per block of lines, joined, is the whole model's: the
+    deviation figures, the cut-away depths, the mesh's field and its snapped vertices (split at
+    rows that need not be tiles)."""
+    from meshmill.geometry.shapes import post_with_fillet, sphere
+    from meshmill.kernels.backend import MeshKernels
+    from meshmill.kernels.bvh import build_bvh
+    from meshmill.simulation.deviation import join_measures, measure_lines, nearest_end
+    from meshmill.simulation.surface import empty_field, field_rows, field_surface, snap_lines
+
+    design = post_with_fillet(segments=32)
+    bounds = design.bounds + np.array([[-2.0], [2.0]])
+    step = 0.9
+    dm = dexelize(design, step, bounds=bounds)
+    stock = dexelize(box(design.bounds[0] - 1.0, design.bounds[1] + 1.0), step, bounds=bounds)
+    machined = dexelize(sphere(30.0, center=(6.0, 0.0, -5.0)), step, bounds=bounds)  # gouges and leaves excess
+    kern = MeshKernels(build_bvh(design.vertices, design.faces), "cpu")
+    lo, n = dm.lo, dm.n
+
+    def rows(m, a, i0, i1):
+        nv = int(n[(a + 2) % 3])
+        s = m.start[a][i0 * nv:i1 * nv + 1]
+        return s - s[0], m.iv[a][s[0]:s[-1]]
+
+    def measured(cuts):
+        parts, blocks = [], []
+        for a in range(3):
+            edges = [0, *cuts, int(n[(a + 1) % 3])]
+            for i0, i1 in zip(edges[:-1], edges[1:]):
+                blocks.append((a, i0, i1))
+                parts.append(measure_lines(lo, n, step, a, i0, rows(machined, a, i0, i1), rows(stock, a, i0, i1),
+                                           rows(dm, a, i0, i1), kern, 0.05))
+        away = np.concatenate([p["away_points"] for p in parts])
+        near = np.min([nearest_end(lo, n, step, a, i0, rows(machined, a, i0, i1), away) for a, i0, i1 in blocks], axis=0)
+        return join_measures(parts, near, step), parts
+
+    whole, wp = measured([])
+    split, sp = measured([1, 7, 8, 30])
+    assert whole["samples"] and len(whole["away_depth"]) and whole["gouge_max"] > 0 and whole["excess_max"] > 0
+    for k, v in whole.items():
+        assert np.array_equal(v, split[k]) if isinstance(v, np.ndarray) else v == split[k], k
+    assert np.array_equal(np.concatenate([p["e"] for p in wp]), np.concatenate([p["e"] for p in sp]))
+
+    field = empty_field(n, step)
+    for i0, i1 in ((0, 5), (5, 6), (6, int(n[0]))):
+        a0, slab = field_rows(lo, n, step, *rows(machined, 2, i0, i1), i0, i1)
+        field[a0 + 1:a0 + 1 + len(slab)] = slab
+    verts, faces = field_surface(field, lo, step, n)
+    whole_v, whole_f, _ = machined_mesh(machined)
+    for a in (0, 1):
+        for i0, i1 in ((0, 9), (9, int(n[(a + 1) % 3]))):
+            idx, w = snap_lines(verts, lo, n, step, a, *rows(machined, a, i0, i1), i0)
+            verts[idx, a] = w
+    assert np.array_equal(verts, whole_v) and len(faces) == len(whole_f)

@@ -465,17 +465,18 @@ class SimulateResult(_Saved):
         return not (self.summary["rapid_moves_cutting"] or self.summary["colliding_moves"])
 
     def save(self, folder) -> list:
-        """Write deviation.npz, machined.stl, deviation.json and summary.json into ``folder``."""
+        """Write deviation.json, summary.json and, where the run kept them, deviation.npz and
+        machined.stl into ``folder`` (an earlier run's files there are removed)."""
         import numpy as np
 
         def write(run):
-            np.savez_compressed(run.tmp(os.path.join(folder, "deviation.npz")), points=self.samples["points"],
-                                e=self.samples["e"])
-            verts, faces = self.machined
-            if len(faces):
+            if self.samples is not None:
+                np.savez_compressed(run.tmp(os.path.join(folder, "deviation.npz")), points=self.samples["points"],
+                                    e=self.samples["e"])
+            if self.machined is not None and len(self.machined[1]):
                 import trimesh
 
-                trimesh.Trimesh(verts, faces, process=False).export(run.tmp(os.path.join(folder, "machined.stl")))
+                trimesh.Trimesh(*self.machined, process=False).export(run.tmp(os.path.join(folder, "machined.stl")))
             write_json(run.tmp(os.path.join(folder, "deviation.json")), self.deviation)
             write_json(run.tmp(os.path.join(folder, "summary.json")), self.summary)
 
@@ -484,12 +485,17 @@ class SimulateResult(_Saved):
 
 @_named_errors
 def simulate(design, toolpath, tools, *, step, stock="box", allowance=None, tolerance=GOUGE_TOL, mode="sweep",
-             tool=None, machine=None, device="auto", cluster=None, progress=None) -> SimulateResult:
+             tool=None, machine=None, device="auto", cluster=None, outputs=("deviation", "mesh"),
+             progress=None) -> SimulateResult:
     """Cut ``toolpath`` (a Toolpath or a file, read for ``machine`` and ``tool``) from the stock
     with dexels ``step`` mm apart and measure the result against ``design``: ``stock`` "box",
     a closed mesh or file, or ``allowance`` mm on the design; ``mode`` sweep (exact swept volumes)
-    or points (the seed's); ``cluster``: the dexel lines cast there (the same result)."""
-    from .ops.simulate import simulate as run
+    or points (the seed's); ``cluster``: blocks of dexel lines cast, cut and measured there (the
+    same result; this process never holds the models); ``outputs``: what is kept beyond the
+    summary and deviation figures, ``"deviation"`` (every dexel end's deviation, ``samples``)
+    and ``"mesh"`` (the machined surface); a run without them is faster and smaller."""
+    from .ops.simulate import simulate as one_process
+    from .ops.simulate_blocks import simulate_on
 
     if not (_finite(step) and step > 0):
         raise InputError(f"--step must be a positive number of mm, got {step}")
@@ -504,9 +510,10 @@ def simulate(design, toolpath, tools, *, step, stock="box", allowance=None, tole
     from .cluster import connect
 
     with connect(cluster) as client:
+        run = one_process if client is None else functools.partial(simulate_on, client)
         deviation, summary, _, machined, samples = run(design, toolpath, tools, step, stock=stock,
                                                        allowance=allowance, tolerance=tolerance, mode=mode,
-                                                       progress=progress, device=device, cluster=client)
+                                                       progress=progress, device=device, outputs=tuple(outputs))
     summary["device"] = device
     summary["tools_file"] = _tools_file(tools)
     summary["design"] = _part_entry(design)

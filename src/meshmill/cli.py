@@ -331,6 +331,17 @@ def _mesh_volume(mesh):
     return float(np.einsum("ij,ij->", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6.0)
 
 
+def _outputs(text: str) -> tuple:
+    """``--outputs`` of simulate: a comma list of summary, deviation, mesh (or all)."""
+    names = {w.strip() for w in text.split(",") if w.strip()}
+    if names == {"all"}:
+        return ("deviation", "mesh")
+    unknown = names - {"summary", "deviation", "mesh"}
+    if unknown or not names:
+        raise InputError(f"--outputs: give a comma list of summary, deviation, mesh (or all), got '{text}'")
+    return tuple(k for k in ("deviation", "mesh") if k in names)
+
+
 def cmd_simulate(args):
     from . import api
 
@@ -341,8 +352,9 @@ def cmd_simulate(args):
     for w in tp.warnings:
         _say(args, f"warning: {w}")
     res = api.simulate(design, tp, tools, stock="box" if stock is None else stock, progress=_progress(args),
-                       cluster=_cluster(args), **_options(args, "step", "allowance", "tolerance", "mode", "device"))
-    res.save(args.out)
+                       cluster=_cluster(args), outputs=_outputs(args.outputs),
+                       **_options(args, "step", "allowance", "tolerance", "mode", "device"))
+    written = ", ".join(os.path.basename(p) for p in res.save(args.out))
     summary, deviation = res.summary, res.deviation
     for w in summary["warnings"]:
         _say(args, f"warning: {w}")
@@ -359,8 +371,7 @@ def cmd_simulate(args):
     c = summary["cutting_mm"]
     _say(args, f"feed moves: {c['in_material']:.1f} mm in material, {c['in_air']:.1f} mm in air "
                f"({100 * c['air_share']:.1f} %)")
-    _say(args, f"wrote deviation.json, summary.json, machined.stl in {args.out} ({summary['seconds']['total']:.1f} s, "
-               f"device {summary['device']})")
+    _say(args, f"wrote {written} in {args.out} ({summary['seconds']['total']:.1f} s, device {summary['device']})")
     _finish_json(args, summary)
     return 0 if res.ok else 1
 
@@ -683,6 +694,9 @@ def build_parser():
     s.add_argument("--mode", choices=("sweep", "points"), default="sweep",
                    help="exact swept volume of every move, or the tool at the points only (seed) (sweep)")
     s.add_argument("--out", default="sim", help="output folder (sim)")
+    s.add_argument("--outputs", default="all",
+                   help="what to write beside summary.json and deviation.json: a comma list of summary (those alone), "
+                        "deviation (deviation.npz: every dexel end), mesh (machined.stl), or all (all)")
     _add_device(s)
     _add_cluster(s)
     s.add_argument("--quiet", action="store_true", help="print nothing but errors")

@@ -12,6 +12,7 @@ order, so the result is the one process's.
 from __future__ import annotations
 
 import contextlib
+import os
 import uuid
 
 from . import memory
@@ -42,8 +43,8 @@ def connect(cluster):
     if isinstance(cluster, int):
         if cluster < 1:
             raise InputError(f"--workers must be at least 1, got {cluster}")
-        with LocalCluster(n_workers=cluster, threads_per_worker=1, processes=True, dashboard_address=None) as lc, \
-                Client(lc) as client:
+        with LocalCluster(n_workers=cluster, threads_per_worker=1, processes=True, dashboard_address=None,
+                          env=worker_env(cluster)) as lc, Client(lc) as client:
             yield client
         return
     try:
@@ -52,6 +53,12 @@ def connect(cluster):
         raise InputError(f"--scheduler {cluster}: cannot reach the scheduler ({exc})") from None
     with client:
         yield client
+
+
+def worker_env(n: int) -> dict:
+    """The environment of ``n`` local worker processes: numba's kernels share the cores among
+    them (each its share; numba would otherwise start a thread per core in every worker)."""
+    return {"NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // n))}
 
 
 def workers(client) -> int:
@@ -66,20 +73,35 @@ def ranges(n: int, pieces: int) -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
 
 
-def run_pieces(client, func, shared, pieces, progress=None, what="pieces") -> list:
-    """``[func(shared, piece) for piece in pieces]`` on the cluster: ``shared`` scattered once to
-    every worker (with a ``token`` for :func:`worker_cached`), the results in the pieces' order;
-    ``progress`` is told each time a piece completes."""
+def share(client, shared: dict):
+    """``shared`` (with a ``token`` for :func:`worker_cached`) scattered once to every worker: a
+    future to pass to tasks."""
+    [handle] = client.scatter([dict(shared, token=uuid.uuid4().hex)], broadcast=True)  # a dict alone scatters by key
+    return handle
+
+
+def submit(client, func, *args):
+    """``func(*args)`` as a task (retried where its worker dies); futures among ``args`` are the
+    results of earlier tasks, which stay on the workers."""
+    return client.submit(func, *args, pure=False, retries=RETRIES)
+
+
+def wait(futures, progress=None, what="pieces") -> None:
+    """Wait for every future, telling ``progress`` each time one completes."""
     from distributed import as_completed
 
-    shared = dict(shared, token=uuid.uuid4().hex)
-    [handle] = client.scatter([shared], broadcast=True)  # one piece of data (a dict alone scatters by key)
-    futures = [client.submit(func, handle, piece, pure=False, retries=RETRIES) for piece in pieces]
-    done = 0
-    for _ in as_completed(futures):
-        done += 1
+    for done, _ in enumerate(as_completed(futures), 1):
         if progress:
             progress(f"{what}: {done} of {len(futures)} done ({100 * done // len(futures)} %)")
+
+
+def run_pieces(client, func, shared, pieces, progress=None, what="pieces") -> list:
+    """``[func(shared, piece) for piece in pieces]`` on the cluster: ``shared`` scattered once to
+    every worker (:func:`share`), the results in the pieces' order; ``progress`` is told each
+    time a piece completes."""
+    handle = share(client, shared)
+    futures = [submit(client, func, handle, piece) for piece in pieces]
+    wait(futures, progress, what)
     results = client.gather(futures)
     client.cancel([handle])
     return results

@@ -491,7 +491,7 @@ class Job:
                 "machining_s": timed["total"]["total_s"], "time": timed,
                 "seconds": {"operation": round(op_s, 3), "cut_and_measure": round(cut_s, 3)},
             }
-            stock_summary = simulate_summary("sweep", self.step, machined, len(tp), cuts, volumes, deviation,
+            stock_summary = simulate_summary("sweep", self.step, machined.summary(), len(tp), cuts, volumes, deviation,
                                              (verts, faces, stride), warnings,
                                              {"cut": cuts["seconds"], "total": round(cut_s, 3)})
             stock_summary.update(design=api._part_entry(part), tools_file=api._tools_file(self.tools), device=device)

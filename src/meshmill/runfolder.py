@@ -4,8 +4,8 @@ report). ``summary.json``'s ``operation`` names the kind of run.
 
 A folder holds ``summary.json`` and, by kind: ``toolpath.cl`` (APT CL, mm) and ``part.stl`` (the
 placed part, work frame) for finish, raster, waterline, plunge; ``contours.npz`` (finish);
-``tools.toml`` and ``zones.npz`` (choose); ``deviation.npz``, ``deviation.json`` and
-``machined.stl`` (simulate); ``analysis.npz`` (analyze). ``dexel`` writes its model file and a
+``tools.toml`` and ``zones.npz`` (choose); ``deviation.json`` and, as ``--outputs`` asks,
+``deviation.npz`` and ``machined.stl`` (simulate); ``analysis.npz`` (analyze). ``dexel`` writes its model file and a
 ``summary.json`` beside it.
 """
 from __future__ import annotations

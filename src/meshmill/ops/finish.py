@@ -39,7 +39,7 @@ from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
 from .finish_levels import added_contours
 from .finish_shallow import shallow_facets, shallow_fill
-from ..pathing.verify import DEFAULT_STEP, StockCheck, rapid_reach, verify_toolpath
+from ..pathing.verify import DEFAULT_STEP, StockCheck, merge_reports, rapid_reach, verify_piece, verify_toolpath
 
 REPAIR_ROUNDS = 7
 # Ways into and out of a pass, tried in this order: (lead along the outward side, vertical retract
@@ -383,25 +383,33 @@ def gentle_turns(tp: Toolpath, radius, singular, margin=POLE_MARGIN, step=POLE_S
 
 def _largest_balls(kern, con, centre_dir, radii, tol):
     """``(k,)`` the largest ball (rank into ``radii``) that fits at each CC point of ``con`` and
-    touches the part there, -1 where none does. In a concave crease the ball sits on the bisector
+    touches the part there, -1 where none does (:func:`largest_balls` of its points)."""
+    return largest_balls(kern, con.points, con.reach, centre_dir, radii, tol)
+
+
+def largest_balls(kern, points, reach, centre_dir, radii, tol):
+    """``(k,)`` the largest ball (rank into ``radii``) that fits at each CC point ``points (k, 3)``
+    (centre along ``centre_dir (k, 3)`` times its radius, ``reach (k,)`` the crease factor of
+    the contours) and touches the part there, -1 where none does; each point on its own. In a
+    concave crease the ball sits on the bisector
     touching both facets R·tan(θ/2) from the crease: where the facets end sooner (a crease sharp
     for its facets' size), or the centre's reach was capped (``MIN_HALF_COS``), that ball floats
     off the part and cuts nothing; a smaller one, nearer the crease, may touch."""
-    best = kern.largest_ball(con.points, centre_dir, radii, tol)
-    best[con.reach >= 1.0 / MIN_HALF_COS - 1e-9] = -1
-    crease = np.nonzero((best >= 0) & (con.reach > 1.0 + 1e-9))[0]
+    best = kern.largest_ball(points, centre_dir, radii, tol)
+    best[reach >= 1.0 / MIN_HALF_COS - 1e-9] = -1
+    crease = np.nonzero((best >= 0) & (reach > 1.0 + 1e-9))[0]
     for _ in range(len(radii)):
         if not len(crease):
             break
         r = radii[best[crease]]
-        floats = kern.mesh_distances(con.points[crease] + r[:, None] * centre_dir[crease]) > r + tol
+        floats = kern.mesh_distances(points[crease] + r[:, None] * centre_dir[crease]) > r + tol
         crease = crease[floats]
         for t in np.unique(best[crease]) + 1:
             sel = crease[best[crease] + 1 == t]
             if t >= len(radii):
                 best[sel] = -1
                 continue
-            res = kern.largest_ball(con.points[sel], centre_dir[sel], radii[t:], tol)
+            res = kern.largest_ball(points[sel], centre_dir[sel], radii[t:], tol)
             best[sel] = np.where(res >= 0, t + res, -1)
         crease = crease[best[crease] >= 0]
     return best
@@ -607,6 +615,53 @@ def _axes_on(client, mesh, device, ce, feed, side, tool, cand, cand_tilt, slack,
     return np.concatenate(run_pieces(client, axis_piece, shared, pieces, say, "axes"))
 
 
+def balls_piece(shared: dict, piece) -> np.ndarray:
+    """:func:`largest_balls` of a group of contours' points ``piece = (points, reach, centre_dir)``
+    on a worker of a cluster; ``shared``: the ``part``, the ``radii``, ``tol``, the ``device``."""
+    from ..cluster import worker_cached
+
+    kern = worker_cached(shared, "part", lambda: solid_kernels(shared["part"], shared["device"]))
+    return largest_balls(kern, *piece, shared["radii"], shared["tol"])
+
+
+def _balls_on(client, mesh, device, con, centre_dir, radii, tol, say):
+    """:func:`_largest_balls` of ``con`` in groups of contours on ``client``'s workers (each point
+    on its own: the one process's balls)."""
+    from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+
+    groups = ranges(len(con.offsets) - 1, PIECES_PER_WORKER * workers(client))
+    if not groups:
+        return np.zeros(0, np.int64)
+    cuts = [(con.offsets[a], con.offsets[b]) for a, b in groups]
+    pieces = [(con.points[p0:p1], con.reach[p0:p1], centre_dir[p0:p1]) for p0, p1 in cuts]
+    return np.concatenate(run_pieces(client, balls_piece, dict(part=mesh, device=device, radii=radii, tol=tol), pieces,
+                                     say, "tools"))
+
+
+class _ClusterCheck:
+    """:func:`~meshmill.pathing.verify.verify_toolpath` of finish's paths in ranges of moves on a
+    cluster's workers: the part (and stock) scattered and their kernels built once for every round
+    of repairs; the reports are the one process's."""
+
+    def __init__(self, client, mesh, stock, check: StockCheck, tools, tol, step, device, say):
+        from ..cluster import share
+
+        self.client, self.say, self.check = client, say, check
+        self.tol, self.step = tol, step
+        self.handle = share(client, dict(part=mesh, floor=None, stock=stock, allowance=check.allowance,
+                                         clearance=check.clearance, tools=list(tools), tol=tol, step=step,
+                                         device=device))
+
+    def __call__(self, tp):
+        from ..cluster import PIECES_PER_WORKER, ranges, submit, wait, workers
+
+        pieces = [(max(0, a - 1), tp.points(max(0, a - 1), b))
+                  for a, b in ranges(len(tp), PIECES_PER_WORKER * workers(self.client))]
+        futures = [submit(self.client, verify_piece, self.handle, p) for p in pieces]
+        wait(futures, self.say, "verify")
+        return merge_reports(tp, self.client.gather(futures), self.tol, self.step, self.check.summary(), 10)
+
+
 def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", stock=None, machine=None,
            cluster=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, detail)``.
@@ -672,7 +727,10 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     say("tools")
     t = time.perf_counter()
     centre_dir = con.normals * con.reach[:, None]  # ball centre = CC + R·centre_dir
-    best = _largest_balls(kern, con, centre_dir, radii, params.tol)
+    if cluster is not None:  # groups of contours on the workers: the same balls
+        best = _balls_on(cluster, mesh, device, con, centre_dir, radii, params.tol, say)
+    else:
+        best = _largest_balls(kern, con, centre_dir, radii, params.tol)
     fits = best >= 0
     if params.whole_contours:
         contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tol, kern)
@@ -786,10 +844,16 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
 
     say("verify")
     t = time.perf_counter()
+    step = min(DEFAULT_STEP, params.sample)
+    if cluster is not None:  # ranges of moves on the workers: the same reports
+        check = _ClusterCheck(cluster, mesh, stock, rapid_stock, tools, params.tol, step, device, say)
+    else:
+        def check(path):
+            return verify_toolpath(kern, path, tools, params.tol, step, stock=rapid_stock)
     dropped = 0
     for rnd in range(REPAIR_ROUNDS + 1):
         tp, owner, role = builder.build(passes)
-        report = verify_toolpath(kern, tp, tools, params.tol, min(DEFAULT_STEP, params.sample), stock=rapid_stock)
+        report = check(tp)
         if report["ok"] or not passes:
             break
         if rnd == REPAIR_ROUNDS:  # give up on what still fails
@@ -797,7 +861,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
             dropped += len(bad)
             passes = [p for k, p in enumerate(passes) if k not in bad]
             tp, owner, role = builder.build(passes)
-            report = verify_toolpath(kern, tp, tools, params.tol, min(DEFAULT_STEP, params.sample), stock=rapid_stock)
+            report = check(tp)
             break
         passes, lost = _repair(passes, report["problem_moves"], owner, role)
         dropped += lost

@@ -10,7 +10,9 @@ from ..errors import InputError
 from ..geometry import shapes
 from ..simulation import cut as cutting
 from ..simulation import partition
-from ..simulation.deviation import deviations, difference_volume, surface_parameters, uncovered_ends, uncut_ends
+from ..kernels.backend import MeshKernels
+from ..kernels.bvh import build_bvh
+from ..simulation.deviation import join_measures, measure_lines, nearest_end
 from ..simulation.dexel import MAX_PARTITIONS, DexelModel, dexelize, lattice, material_mesh, uneven_lines_warning
 from ..simulation.surface import machined_mesh
 
@@ -43,7 +45,7 @@ def dexel_model(mesh, step, index="bvh", partitions="1", init="k-means++", minib
     summary["operation"] = "dexel"
     summary.update(model.summary())
     summary["index"] = model.info
-    summary["warnings"] = uneven_lines_warning(model)
+    summary["warnings"] = uneven_lines_warning(model.info.get("uneven_lines"))
     return model, summary
 
 
@@ -55,17 +57,58 @@ def _stock_bounds(design, stock, allowance):
     return stock.bounds
 
 
+OUTPUTS = ("deviation", "mesh")  # what simulate may keep beyond the summary: the ends' deviations, the machined mesh
+
+
 def simulate(design, toolpath, tools, step, stock="box", allowance=None, tolerance=0.01, mode="sweep",
-             progress=None, device="cpu", cluster=None):
+             progress=None, device="cpu", outputs=OUTPUTS):
     """Cut ``toolpath`` from the stock (``"box"``: the design's box; a Mesh; or the design with
     ``allowance`` mm on both ends of every dexel) and measure the result against ``design``.
 
     Returns ``(deviation dict, summary dict, machined DexelModel, (vertices, faces) of the machined
-    mesh, {"points": (k, 3), "e": (k,)} the dexel ends and their signed deviations, mm)``. ``device``: ``"cpu"`` or ``"cuda"`` for dexel casting, cutting and distances;
-    ``cluster``: a ``distributed.Client`` the dexel lines are cast and cut on (the measures run
-    here)."""
+    mesh, {"points": (k, 3), "e": (k,)} the dexel ends and their signed deviations, mm)``; the
+    mesh and the ends only when ``outputs`` names ``"mesh"`` and ``"deviation"`` (else None).
+    ``device``: ``"cpu"`` or ``"cuda"`` for dexel casting, cutting and distances (on a cluster:
+    :func:`meshmill.ops.simulate_blocks.simulate_on`)."""
     say = progress or (lambda _: None)
     t0 = time.perf_counter()
+    bounds, warnings = prepare(design, toolpath, tools, step, stock, allowance, tolerance, outputs)
+    design_model = dexelize(design, step, bounds=bounds, device=device)
+    warnings += uneven_lines_warning(design_model.info.get("uneven_lines"))
+    say(f"design: {sum(design_model.dexel_count(a) for a in range(3)):,} dexels")
+    if allowance is not None:
+        stock_model = design_model
+    elif stock == "box":
+        stock_model = dexelize(shapes.box(*design.bounds), step, bounds=bounds, device=device)
+    else:
+        stock_model = dexelize(stock, step, bounds=bounds, device=device)
+    st = cutting.stock_from_model(stock_model, allowance or 0.0)
+    start_model = st.to_model()
+    build_s = time.perf_counter() - t0
+    cuts = cut_path(st, toolpath, tools, tolerance, mode, say, device)
+    machined = st.to_model()
+    t2 = time.perf_counter()
+    mesh = machined_mesh(machined) if "mesh" in outputs else None
+    mesh_s = time.perf_counter() - t2
+    t1 = time.perf_counter()
+    deviation, volumes, more, (pts, e) = measure(machined, start_model, design, design_model, float(bounds[0, 2]),
+                                                 tolerance, step, device, "deviation" in outputs)
+    deviation_s = time.perf_counter() - t1
+    summary = simulate_summary(mode, step, machined.summary(), len(toolpath), cuts, volumes, deviation, mesh,
+                               warnings + more, {"models": round(build_s, 4), "cut": cuts["seconds"],
+                                                 "deviation": round(deviation_s, 4), "mesh": round(mesh_s, 4),
+                                                 "total": round(time.perf_counter() - t0, 4)})
+    return (deviation, summary, machined, mesh[:2] if mesh else None,
+            {"points": pts, "e": e} if "deviation" in outputs else None)
+
+
+def prepare(design, toolpath, tools, step, stock, allowance, tolerance, outputs) -> tuple[np.ndarray, list]:
+    """``(bounds (2, 3), warnings)`` of :func:`simulate`'s arguments: the lattice's box (the
+    stock's and the design's) and what the user should know of the tools and the step; refuses a
+    path that never reaches the stock, unknown ``outputs``."""
+    unknown = set(outputs) - set(OUTPUTS)
+    if unknown:
+        raise InputError(f"--outputs: unknown {', '.join(sorted(unknown))} (choose from summary, {', '.join(OUTPUTS)})")
     if allowance is not None and not (np.isfinite(allowance) and allowance >= 0):
         raise InputError(f"--allowance must be a number of mm >= 0, got {allowance}")
     if not (np.isfinite(tolerance) and tolerance >= 0):
@@ -89,54 +132,25 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     if step > smallest:
         warnings.append(f"--step {step:g} mm is coarser than the smallest tool radius ({smallest:g} mm): "
                         "scallops and small features are not resolved")
-    design_model = dexelize(design, step, bounds=bounds, device=device, cluster=cluster)
-    warnings += uneven_lines_warning(design_model)
-    say(f"design: {sum(design_model.dexel_count(a) for a in range(3)):,} dexels")
-    if allowance is not None:
-        stock_model = design_model
-    elif stock == "box":
-        stock_model = dexelize(shapes.box(*design.bounds), step, bounds=bounds, device=device, cluster=cluster)
-    else:
-        stock_model = dexelize(stock, step, bounds=bounds, device=device, cluster=cluster)
-    st = cutting.stock_from_model(stock_model, allowance or 0.0)
-    start_model = st.to_model()
-    outside = difference_volume(design_model, start_model)
-    if outside > 1e-6 * max(design_model.volume, 1.0):
-        warnings.append(f"{outside:.3f} mm^3 of the design lies outside the stock: the stock is short of the design "
-                        "there (not counted as gouged by the path)")
-    build_s = time.perf_counter() - t0
-    cuts = cut_path(st, toolpath, tools, tolerance, mode, say, device, cluster)
-    machined = st.to_model()
-    t2 = time.perf_counter()
-    verts, faces, stride = machined_mesh(machined)
-    mesh_s = time.perf_counter() - t2
-    t1 = time.perf_counter()
-    deviation, volumes, more, (pts, e) = measure(machined, start_model, design, design_model, float(bounds[0, 2]),
-                                                 tolerance, step, device)
-    warnings += more
-    deviation_s = time.perf_counter() - t1
-    summary = simulate_summary(mode, step, machined, len(toolpath), cuts, volumes, deviation, (verts, faces, stride),
-                               warnings, {"models": round(build_s, 4), "cut": cuts["seconds"],
-                                          "deviation": round(deviation_s, 4), "mesh": round(mesh_s, 4),
-                                          "total": round(time.perf_counter() - t0, 4)})
-    return deviation, summary, machined, (verts, faces), {"points": pts, "e": e}
+    return bounds, warnings
 
 
-def simulate_summary(mode, step, machined, moves, cuts, volumes, deviation, mesh, warnings, seconds) -> dict:
-    """``summary.json`` of a simulation: the ``machined`` model, the ``moves`` count, what
-    :func:`cut_path` found (``cuts``), the ``volumes`` and ``deviation`` of :func:`measure`, the
-    machined ``mesh`` ``(vertices, faces, stride)``, ``warnings`` and ``seconds``."""
-    verts, faces, stride = mesh
+def simulate_summary(mode, step, lattice, moves, cuts, volumes, deviation, mesh, warnings, seconds) -> dict:
+    """``summary.json`` of a simulation: the machined model's ``lattice`` summary, the ``moves``
+    count, what :func:`cut_path` found (``cuts``), the ``volumes`` and ``deviation`` of
+    :func:`measure`, the machined ``mesh`` ``(vertices, faces, stride)`` (None: not made),
+    ``warnings`` and ``seconds``."""
     return {
         "operation": "simulate",
         "mode": mode,
         "step": step,
-        "lattice": machined.summary(),
+        "lattice": lattice,
         "moves": moves,
         **{k: v for k, v in cuts.items() if k != "seconds"},
         "volumes_mm3": volumes,
         "deviation": deviation,
-        "machined_mesh": {"vertices": int(len(verts)), "triangles": int(len(faces)), "lattice_stride": int(stride)},
+        "machined_mesh": None if mesh is None else {"vertices": int(len(mesh[0])), "triangles": int(len(mesh[1])),
+                                                    "lattice_stride": int(mesh[2])},
         "warnings": warnings,
         "seconds": seconds,
     }
@@ -145,15 +159,27 @@ def simulate_summary(mode, step, machined, moves, cuts, volumes, deviation, mesh
 def cut_path(st, toolpath, tools, tolerance=0.01, mode="sweep", progress=None, device="cpu", cluster=None) -> dict:
     """Cut ``toolpath`` from the stock ``st`` (:class:`~meshmill.simulation.cut.Stock`, in place):
     its cutters remove material, its shanks and holders (grown by ``tolerance`` less) collide
-    with what is left. Returns the summary's figures: ``pieces_cut``, the rapid moves that cut
-    and the moves that collide (counts, tool-path point indices, ``errors`` lines),
-    ``cutting_mm`` (feed length in material and in air) and ``seconds``."""
-    moves = cutting.toolpath_moves(toolpath, tools, mode)
-    if mode == "sweep":  # the shank and holder, checked against the stock they pass (beyond the tolerance)
-        moves = cutting.Moves.merge(moves, cutting.body_moves(toolpath, tools, tolerance))
+    with what is left. Returns :func:`cut_figures`."""
+    moves = path_moves(toolpath, tools, tolerance, mode)
     if progress:
         progress(f"cutting {len(moves):,} moves ({len(toolpath):,} points, mode {mode})")
-    result = cutting.cut(st, moves, progress=progress, device=device, cluster=cluster)
+    return cut_figures(toolpath, len(moves), cutting.cut(st, moves, progress=progress, device=device, cluster=cluster))
+
+
+def path_moves(toolpath, tools, tolerance=0.01, mode="sweep") -> cutting.Moves:
+    """The pieces a path cuts (``mode`` sweep: with its shanks and holders, grown by ``tolerance``
+    less, checked against the stock they pass; points: the tool at the points, the seed's)."""
+    moves = cutting.toolpath_moves(toolpath, tools, mode)
+    if mode == "sweep":
+        moves = cutting.Moves.merge(moves, cutting.body_moves(toolpath, tools, tolerance))
+    return moves
+
+
+def cut_figures(toolpath, pieces: int, result: dict) -> dict:
+    """The summary's figures of a cut (``result`` of :func:`~meshmill.simulation.cut.cut` with
+    ``pieces`` moves): ``pieces_cut``, the rapid moves that cut and the moves that collide
+    (counts, tool-path point indices, ``errors`` lines), ``cutting_mm`` (feed length in material
+    and in air) and ``seconds``."""
     errors = [f"rapid move to point {i} (source line {int(toolpath.line[i])}) cuts material"
               for i in result["rapid_cuts"][:1000]]
     errors += [f"move to point {i} (source line {int(toolpath.line[i])}): the shank or holder meets the stock"
@@ -165,7 +191,7 @@ def cut_path(st, toolpath, tools, tolerance=0.01, mode="sweep", progress=None, d
     in_material[result["in_material"]] = True
     material_mm = float(step_mm[feed & in_material].sum())
     air_mm = float(step_mm[feed & ~in_material].sum())
-    return {"pieces_cut": len(moves),
+    return {"pieces_cut": pieces,
             "rapid_moves_cutting": len(result["rapid_cuts"]),
             "rapid_cutting_points": result["rapid_cuts"][:1000],
             "colliding_moves": len(result["collisions"]),
@@ -176,49 +202,54 @@ def cut_path(st, toolpath, tools, tolerance=0.01, mode="sweep", progress=None, d
             "seconds": result["seconds"]}
 
 
-def measure(machined, start_model, design, design_model, floor, tolerance, step, device="cpu"):
+def measure(machined, start_model, design, design_model, floor, tolerance, step, device="cpu", samples=True):
     """The machined dexel model against the design: ``(deviation dict, volumes dict (mm^3),
-    warnings, (points (k, 3), e (k,)))`` the dexel ends and their signed deviations (mm). The
-    stock's own ends inside the design (``start_model`` short of it) are not counted as gouges;
-    ``floor`` is the Z an open design's solid reaches down to."""
-    warnings = []
-    outside = difference_volume(design_model, start_model)
+    warnings, (points (k, 3), e (k,)))`` the dexel ends and their signed deviations (mm; None
+    without ``samples``). The stock's own ends inside the design (``start_model`` short of it) are
+    not counted as gouges; ``floor`` is the Z an open design's solid reaches down to."""
     # an open design: deviations to the solid it bounds (its sheets, curtains and floor)
-    pts, e, cut_pts, cut_depth = deviations(machined, design_model, material_mesh(design, floor), device)
-    params = surface_parameters(pts, e, tolerance)
-    # the stock's own ends inside the design (a stock short of the design) are not the path's gouges
-    short = uncut_ends(machined, start_model) & (e < 0.0)
-    path = surface_parameters(pts[~short], e[~short], tolerance)
-    params.update(gouge_max=path["gouge_max"], gouge_at=path["gouge_at"], gouge_samples=path["gouge_samples"])
-    if len(cut_pts) and outside > 0.0:  # design ends the stock never held were not cut away by the path
-        never = uncovered_ends(design_model, start_model)[0]
-        if len(never):
-            from scipy.spatial import cKDTree
+    material = material_mesh(design, floor)
+    kern = MeshKernels(build_bvh(material.vertices, material.faces), device)
+    lo, n = machined.lo, machined.n
+    blocks = [(machined.start[a], machined.iv[a]) for a in range(3)]
+    parts = [measure_lines(lo, n, step, a, 0, blocks[a], (start_model.start[a], start_model.iv[a]),
+                           (design_model.start[a], design_model.iv[a]), kern, tolerance, samples) for a in range(3)]
+    away = np.concatenate([p["away_points"] for p in parts])
+    nearest = np.min([nearest_end(lo, n, step, a, 0, blocks[a], away) for a in range(3)], axis=0) if len(away) else None
+    deviation, volumes, warnings = measured(join_measures(parts, nearest, step), tolerance, step)
+    return deviation, volumes, warnings, ((np.concatenate([p["points"] for p in parts]),
+                                           np.concatenate([p["e"] for p in parts])) if samples else (None, None))
 
-            was = cKDTree(never).query(cut_pts)[0] < 1e-9
-            cut_pts, cut_depth = cut_pts[~was], cut_depth[~was]
-    stock_volume = start_model.volume
-    removed = stock_volume - machined.volume
-    remaining = difference_volume(machined, design_model)
-    gouged = max(0.0, difference_volume(design_model, machined) - outside)
-    deviation = {k: params[k] for k in DEVIATION_KEYS if k in params}
-    deviation.update(removed_volume=removed, remaining_volume=remaining)
-    deviation = {k: deviation[k] for k in DEVIATION_KEYS}
+
+def measured(m: dict, tolerance: float, step: float) -> tuple[dict, dict, list]:
+    """``(deviation, volumes, warnings)`` of the summary from :func:`~meshmill.simulation.deviation.join_measures`."""
+    warnings = []
+    vol = m["volumes"]
+    outside = vol["design_outside_stock"]
+    if outside > 1e-6 * max(vol["design"], 1.0):
+        warnings.append(f"{outside:.3f} mm^3 of the design lies outside the stock: the stock is short of the design "
+                        "there (not counted as gouged by the path)")
+    removed = vol["stock"] - vol["machined"]
+    gouged = max(0.0, vol["design_cut"] - outside)
+    deviation = {k: m[k] for k in DEVIATION_KEYS[:8]}
+    deviation.update(removed_volume=removed, remaining_volume=vol["remaining"])
+    cut_pts, cut_depth = m["away_points"], m["away_depth"]
     deep = int(np.argmax(cut_depth)) if len(cut_depth) else -1
-    deviation.update(units="mm, mm^3", tolerance=tolerance, gouge_at=params["gouge_at"],
-                     excess_at=params["excess_at"], gouged_volume=gouged, samples=params["samples"],
-                     stock_short_ends=int(short.sum()), stock_short_max=float(-e[short].min()) if short.any() else 0.0,
-                     stock_short_at=pts[short][int(np.argmin(e[short]))].round(6).tolist() if short.any() else None,
+    short, short_low = m["short"], m["short_low"]
+    deviation.update(units="mm, mm^3", tolerance=tolerance, gouge_at=m["gouge_at"], excess_at=m["excess_at"],
+                     gouged_volume=gouged, samples=m["samples"], stock_short_ends=short,
+                     stock_short_max=-short_low[0] if short else 0.0,
+                     stock_short_at=short_low[1].round(6).tolist() if short else None,
                      design_ends_cut_away=int(len(cut_depth)),
                      cut_away_depth_max=float(cut_depth[deep]) if deep >= 0 else 0.0,
                      cut_away_at=cut_pts[deep].round(6).tolist() if deep >= 0 else None)
-    if short.any() and -e[short].min() > tolerance:
-        warnings.append(f"the stock lies inside the design at {int(short.sum())} dexel end(s) the path does not cut, "
-                        f"up to {-e[short].min():.3f} mm at {deviation['stock_short_at']}: the stock is short of the "
+    if short and -short_low[0] > tolerance:
+        warnings.append(f"the stock lies inside the design at {short} dexel end(s) the path does not cut, "
+                        f"up to {-short_low[0]:.3f} mm at {deviation['stock_short_at']}: the stock is short of the "
                         "design there (not a gouge of this path)")
     if deep >= 0 and cut_depth[deep] > max(tolerance, step):
         warnings.append(f"{len(cut_depth)} design dexel end(s) cut away, up to {cut_depth[deep]:.3f} mm deep at "
                         f"{cut_pts[deep].round(3).tolist()} (a bound; gouged volume {gouged:.3f} mm^3)")
-    volumes = {"design": design_model.volume, "stock": stock_volume, "machined": machined.volume,
-               "removed": removed, "remaining": remaining, "gouged": gouged}
-    return deviation, volumes, warnings, (pts, e)
+    volumes = {"design": vol["design"], "stock": vol["stock"], "machined": vol["machined"],
+               "removed": removed, "remaining": vol["remaining"], "gouged": gouged}
+    return deviation, volumes, warnings

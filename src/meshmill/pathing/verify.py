@@ -386,8 +386,8 @@ def _found(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth,
 def verify_piece(shared: dict, piece) -> dict:
     """:func:`verify_moves` of one piece ``(first, toolpath)`` of a path on a worker of a cluster
     (:func:`meshmill.cluster.run_pieces`); ``shared``: the part, its ``floor``, the ``stock`` mesh
-    (or None) and ``allowance``, the ``tools``, ``tol``, ``step``, ``device``. The kernels are built
-    once per worker."""
+    (or None), ``allowance`` and ``clearance`` (rapids keep it from both; default 0), the ``tools``,
+    ``tol``, ``step``, ``device``. The kernels are built once per worker."""
     from ..cluster import worker_cached
 
     first, tp = piece
@@ -395,7 +395,7 @@ def verify_piece(shared: dict, piece) -> dict:
     stock_kern = None
     if shared["stock"] is not None:
         stock_kern = worker_cached(shared, "stock", lambda: solid_kernels(shared["stock"], shared["device"]))
-    check = StockCheck(allowance=shared["allowance"], kern=stock_kern)
+    check = StockCheck(allowance=shared["allowance"], kern=stock_kern, clearance=shared.get("clearance", 0.0))
     return verify_moves(kern, tp, shared["tools"], shared["tol"], shared["step"], check, first)
 
 

@@ -91,6 +91,12 @@ def stock_from_model(model: DexelModel, allowance: float = 0.0) -> Stock:
     return Stock(lo=model.lo.copy(), step=model.step, n=model.n.copy(), iv=ivs, off=offs, count=counts)
 
 
+def widened(start, iv, allowance: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """CSR ``(start, iv)`` of the lines ``(start, iv)`` as :func:`stock_from_model` makes them
+    (every dexel lengthened by ``allowance`` mm at both ends, those then touching merged)."""
+    return compact_lines(*_spread(start, iv, float(allowance), 0))
+
+
 def _grow(stock: Stock, a: int, lines: np.ndarray) -> None:
     """Double the room of the given lines of direction ``a``."""
     room = np.diff(stock.off[a])
@@ -294,11 +300,10 @@ def material_bounds(stock: Stock):
     return lo, hi
 
 
-def _near(stock: Stock, moves: Moves):
-    """``(moves, boxes)``: the moves less the shanks and holders that never come near the
-    stock's material (they cannot meet it), and their boxes."""
+def near_moves(moves: Moves, lo, hi):
+    """``(moves, boxes)``: the moves less the shanks and holders that never come near the box
+    ``lo, hi (3,)`` of the stock's material (they cannot meet it), and their boxes."""
     boxes = _boxes(moves)
-    lo, hi = material_bounds(stock)
     near = np.all((boxes[:, 0] <= hi) & (boxes[:, 1] >= lo), axis=1)
     if (moves.body & ~near).any():
         keep = ~moves.body | near
@@ -353,7 +358,8 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
             _grow(stock, a, full[overflow[ti * tv + tj] == 1])
 
 
-def _hits(moves: Moves, hit) -> dict:
+def hits(moves: Moves, hit) -> dict:
+    """The tool-path points whose moves ``hit (k,)``: rapids cutting, bodies colliding, feeds in material."""
     rapid_cuts = np.unique(moves.source[(hit == 1) & ~moves.body & moves.rapid])
     collisions = np.unique(moves.source[(hit == 1) & moves.body])
     in_material = np.unique(moves.source[(hit == 1) & ~moves.body & ~moves.rapid])
@@ -370,7 +376,7 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None) -
     ``distributed.Client`` whose workers cut blocks of tile rows of each direction (the same
     result)."""
     t0 = time.perf_counter()
-    moves, boxes = _near(stock, moves)
+    moves, boxes = near_moves(moves, *material_bounds(stock))
     hit = np.zeros(len(moves), np.uint8)
     if cluster is not None:
         _cut_on(cluster, stock, moves, boxes, hit, progress, device)
@@ -380,7 +386,7 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None) -
             _cut_direction(stock, a, moves, boxes, kern, hit)
             if progress:
                 progress(f"cut lines along {'XYZ'[a]}")
-    return {**_hits(moves, hit), "seconds": round(time.perf_counter() - t0, 4)}
+    return {**hits(moves, hit), "seconds": round(time.perf_counter() - t0, 4)}
 
 
 def cut_rows(shared: dict, piece):
@@ -388,9 +394,17 @@ def cut_rows(shared: dict, piece):
     ``piece = (a, (first, stop) tile rows, start, iv)`` the block's lines (CSR); ``shared``: the
     ``moves``, their ``boxes``, the lattice ``lo, n, step``, the ``device``. Returns the block's
     lines cut (CSR) and the moves' hits."""
+    a, rows, start, iv = piece
+    return cut_lines(shared, a, rows, start, iv)
+
+
+def cut_lines(shared: dict, a: int, rows, start, iv):
+    """``(start, iv, hit)``: the lines along ``a`` of the tile rows ``rows = (first, stop)`` (CSR
+    ``start, iv``) cut by the ``moves`` of ``shared`` (with their ``boxes``, the lattice ``lo, n,
+    step`` and the ``device``; scattered to a worker, whose moves in each direction's frame are
+    made once, :func:`meshmill.cluster.worker_cached`), and ``hit (k,)`` the moves that hit."""
     from ..cluster import worker_cached
 
-    a, rows, start, iv = piece
     moves, boxes = shared["moves"], shared["boxes"]
     n = shared["n"]
     stock = Stock(lo=shared["lo"], step=shared["step"], n=n, iv=[None] * 3, off=[None] * 3, count=[None] * 3)

@@ -19,7 +19,12 @@ seed used a signed Sv and so Sz = max + min; the standard's values are used here
 A stock given as a mesh (say the ``machined.stl`` of an earlier simulation, whose marching-cubes
 surface cuts the corners of convex edges by up to about half a lattice step) may lie inside the
 design where the path never cuts. Such dexel ends are the stock's, not a gouge of the path: the
-ends left exactly where the stock had them are told apart (:func:`uncut_ends`).
+ends left exactly where the stock had them are told apart (:func:`measure_lines`).
+
+Everything is measured by blocks of lines (:func:`measure_lines`, one direction's rows) and
+joined (:func:`join_measures`): one process measures each direction as one block, the workers of a
+cluster their own blocks, and both get the same floats (sums kept exact, extremes the first in
+the lattice's order).
 """
 from __future__ import annotations
 
@@ -29,6 +34,7 @@ import numpy as np
 from ..kernels.bvh import build_bvh
 from ..kernels.backend import MeshKernels
 from .dexel import DexelModel
+from .exactsum import ROOM, expansion, grow, total
 
 
 @numba.njit(cache=True)
@@ -75,9 +81,10 @@ def _cut_away(dstart, div, mstart, miv, depth):
 
 
 @numba.njit(cache=True)
-def _difference_length(astart, aiv, bstart, biv):
-    """Total length of (A minus B) over all lines, two sorted interval sets per line."""
-    total = 0.0
+def _difference_length(astart, aiv, bstart, biv, p):
+    """Total length of (A minus B) over all lines (two sorted interval sets per line), as the
+    expansion ``p`` (:mod:`~meshmill.simulation.exactsum`); returns its length."""
+    m = 0
     for line in range(astart.shape[0] - 1):
         q = bstart[line]
         qe = bstart[line + 1]
@@ -87,15 +94,15 @@ def _difference_length(astart, aiv, bstart, biv):
             while q < qe and biv[q, 1] <= s:
                 q += 1
             cur = s
-            p = q
-            while p < qe and biv[p, 0] < e:
-                if biv[p, 0] > cur:
-                    total += biv[p, 0] - cur
-                cur = max(cur, biv[p, 1])
-                p += 1
+            r = q
+            while r < qe and biv[r, 0] < e:
+                if biv[r, 0] > cur:
+                    m = grow(p, m, biv[r, 0] - cur)
+                cur = max(cur, biv[r, 1])
+                r += 1
             if cur < e:
-                total += e - cur
-    return total
+                m = grow(p, m, e - cur)
+    return m
 
 
 @numba.njit(cache=True)
@@ -112,33 +119,145 @@ def _same_end(start, iv, sstart, siv, out):
                         break
 
 
-def uncut_ends(machined: DexelModel, stock: DexelModel) -> np.ndarray:
-    """``(k,) bool`` over the dexel ends of ``machined`` in the order of :func:`deviations`: those
-    the cut left exactly where the ``stock`` (same lattice) had them."""
-    out = []
-    for a in range(3):
-        same = np.zeros(2 * len(machined.iv[a]), np.bool_)
-        _same_end(machined.start[a], machined.iv[a], stock.start[a], stock.iv[a], same)
-        out.append(same)
-    return np.concatenate(out)
+def difference_length(a: tuple, b: tuple) -> np.ndarray:
+    """The length of ``a`` minus ``b``, two CSR ``(start, iv)`` sets of the same lines, as an
+    exact-sum expansion."""
+    p = np.zeros(ROOM)
+    return p[:_difference_length(a[0], a[1], b[0], b[1], p)].copy()
 
 
 def difference_volume(a: DexelModel, b: DexelModel) -> float:
     """Volume of ``a`` minus ``b`` (same lattice), mean of the three directions, mm^3."""
-    vols = [_difference_length(a.start[k], a.iv[k], b.start[k], b.iv[k]) * a.step ** 2 for k in range(3)]
-    return float(np.mean(vols))
+    return float(np.mean([total(difference_length((a.start[k], a.iv[k]), (b.start[k], b.iv[k]))) * a.step ** 2
+                          for k in range(3)]))
 
 
-def end_points(model: DexelModel, a: int) -> np.ndarray:
-    """``(2m, 3)`` points of the interval ends of direction ``a`` (start, end of each dexel)."""
+def end_points(lo, n, step, a: int, start, iv, first_row: int = 0) -> np.ndarray:
+    """``(2m, 3)`` points of the interval ends ``(start, iv)`` (CSR) of the lines along ``a`` from
+    the lattice row ``first_row`` (along the axis after ``a``) on: start, end of each dexel."""
     u, v = (a + 1) % 3, (a + 2) % 3
-    nu, nv = model.shape(a)
-    line = np.repeat(np.arange(nu * nv), np.diff(model.start[a]))
+    nv = int(n[v])
+    line = np.repeat(np.arange(len(start) - 1), np.diff(start))
     p = np.empty((2 * len(line), 3))
-    p[:, u] = np.repeat(model.lo[u] + (line // nv + 0.5) * model.step, 2)
-    p[:, v] = np.repeat(model.lo[v] + (line % nv + 0.5) * model.step, 2)
-    p[:, a] = model.iv[a].reshape(-1)
+    p[:, u] = np.repeat(lo[u] + (first_row + line // nv + 0.5) * step, 2)
+    p[:, v] = np.repeat(lo[v] + (line % nv + 0.5) * step, 2)
+    p[:, a] = iv.reshape(-1)
     return p
+
+
+def _uncovered(design: tuple, model: tuple) -> np.ndarray:
+    """``(2m,)`` over the design's dexel ends: how far along the line the nearest material of
+    ``model`` (same lines) is where no interval of it holds the end, NaN where one does."""
+    depth = np.full(2 * len(design[1]), np.nan)
+    _cut_away(design[0], design[1], model[0], model[1], depth)
+    return depth
+
+
+def _extreme(e, pts, keep, low: bool):
+    """``(value, point)`` of the first smallest (``low``) or largest ``e`` among ``keep``; None
+    when none is kept."""
+    idx = np.nonzero(keep)[0]
+    if not len(idx):
+        return None
+    k = idx[int(np.argmin(e[idx]) if low else np.argmax(e[idx]))]
+    return float(e[k]), pts[k]
+
+
+def measure_lines(lo, n, step, a: int, first_row: int, machined: tuple, stock: tuple, design: tuple, kern,
+                  tolerance: float, samples: bool = True) -> dict:
+    """The deviation figures of one block of lines along ``a`` (from lattice row ``first_row``):
+    the ``machined``, the ``stock`` it was cut from and the ``design``, each CSR ``(start, iv)``
+    over the same lines; ``kern``: :class:`~meshmill.kernels.backend.MeshKernels` of the solid
+    the design bounds. Sums are exact-sum expansions and extremes the first in line order, so
+    :func:`join_measures` gives the same figures however the lattice was split into blocks;
+    ``samples``: keep the ends and their deviations (the block's size) for ``deviation.npz``."""
+    pts = end_points(lo, n, step, a, *machined, first_row)
+    inside = np.zeros(len(pts), np.bool_)
+    _inside(machined[0], machined[1], design[0], design[1], inside)
+    d = kern.mesh_distances(pts)
+    e = np.where(inside, -d, d)
+    same = np.zeros(len(pts), np.bool_)
+    _same_end(machined[0], machined[1], stock[0], stock[1], same)
+    short = same & (e < 0.0)  # the stock's own ends inside the design: not the path's gouges
+    gone = _uncovered(design, machined)
+    # design ends cut away, less those the stock never held (not the path's doing)
+    away = ~np.isnan(gone) & np.isnan(_uncovered(design, stock))
+    length = [expansion(iv[:, 1] - iv[:, 0]) for _, iv in (design, stock, machined)]
+    return {
+        "a": a, "first_row": first_row, "dexels": int(len(machined[1])), "samples": int(len(e)),
+        "abs": expansion(np.abs(e)), "square": expansion(e * e),
+        "low": _extreme(e, pts, np.ones(len(e), bool), True), "high": _extreme(e, pts, np.ones(len(e), bool), False),
+        "path_low": _extreme(e, pts, ~short, True),
+        "within": int(np.sum(np.abs(e) <= tolerance)), "excess_samples": int(np.sum(e > tolerance)),
+        "gouge_samples": int(np.sum((e < -tolerance) & ~short)),
+        "short": int(short.sum()), "short_low": _extreme(e, pts, short, True),
+        "away_points": end_points(lo, n, step, a, *design, first_row)[away], "away_depth": gone[away],
+        "design": length[0], "stock": length[1], "machined": length[2],
+        "design_outside_stock": difference_length(design, stock), "remaining": difference_length(machined, design),
+        "design_cut": difference_length(design, machined),
+        "points": pts if samples else None, "e": e if samples else None,
+    }
+
+
+def nearest_end(lo, n, step, a: int, first_row: int, machined: tuple, points: np.ndarray) -> np.ndarray:
+    """``(j,)`` distance from each of ``points (j, 3)`` to the nearest dexel end of a block of
+    machined lines along ``a`` (CSR ``(start, iv)`` from lattice row ``first_row``); inf without ends."""
+    from scipy.spatial import cKDTree
+
+    ends = end_points(lo, n, step, a, *machined, first_row)
+    if not len(ends) or not len(points):
+        return np.full(len(points), np.inf)
+    return cKDTree(ends).query(points)[0]
+
+
+def _first(items, low: bool):
+    """The first smallest (``low``) or largest of ``(value, point)`` items (None left out)."""
+    best = None
+    for it in items:
+        if it is not None and (best is None or (it[0] < best[0] if low else it[0] > best[0])):
+            best = it
+    return best
+
+
+def join_measures(parts: list, nearest: np.ndarray | None, step: float) -> dict:
+    """The whole model's figures from the blocks' :func:`measure_lines` (in the order of the
+    lattice: direction, then first row) and ``nearest``, the distance from each cut-away design
+    end (in that order) to the nearest machined end (:func:`nearest_end` over all blocks).
+
+    Returns the ISO 25178 heights and tolerance figures of :func:`surface_parameters` (the
+    gouge over the path's own ends), ``volumes`` (mm^3, mean of the three directions), the stock's
+    short ends and the design ends cut away with their depth bounds (see the module notes)."""
+    k = sum(p["samples"] for p in parts)
+    low, high = _first([p["low"] for p in parts], True), _first([p["high"] for p in parts], False)
+    path_low = _first([p["path_low"] for p in parts], True)
+    short_low = _first([p["short_low"] for p in parts], True)
+    sp = max(0.0, high[0]) if high else 0.0
+    sv = max(0.0, -low[0]) if low else 0.0
+    gouge = max(0.0, -path_low[0]) if path_low else 0.0
+
+    def volume(key):
+        return float(np.mean([total(*[p[key] for p in parts if p["a"] == a]) * step ** 2 for a in range(3)]))
+
+    away_pts = np.concatenate([p["away_points"] for p in parts]) if parts else np.zeros((0, 3))
+    away_depth = np.concatenate([p["away_depth"] for p in parts]) if parts else np.zeros(0)
+    if nearest is not None and len(away_depth):
+        away_depth = np.minimum(away_depth, nearest)
+    return {
+        "Sa": total(*[p["abs"] for p in parts]) / k if k else 0.0,
+        "Sq": float(np.sqrt(total(*[p["square"] for p in parts]) / k)) if k else 0.0,
+        "Sp": sp, "Sv": sv, "Sz": sp + sv,
+        "gouge_max": gouge, "gouge_at": path_low[1].round(6).tolist() if gouge > 0 else None,
+        "excess_max": sp, "excess_at": high[1].round(6).tolist() if sp > 0 else None,
+        "within_tolerance": sum(p["within"] for p in parts) / k if k else 1.0,
+        "gouge_samples": sum(p["gouge_samples"] for p in parts),
+        "excess_samples": sum(p["excess_samples"] for p in parts), "samples": k,
+        "short": sum(p["short"] for p in parts), "short_low": short_low,
+        "away_points": away_pts, "away_depth": away_depth,
+        "dexels": [sum(p["dexels"] for p in parts if p["a"] == a) for a in range(3)],
+        "volumes_by_direction": [total(*[p["machined"] for p in parts if p["a"] == a]) * step ** 2 for a in range(3)],
+        "volumes": {key: volume(key) for key in ("design", "stock", "machined", "design_outside_stock", "remaining",
+                                                 "design_cut")},
+    }
 
 
 def deviations(machined: DexelModel, design_model: DexelModel, design_mesh, device="cpu"):
@@ -146,38 +265,16 @@ def deviations(machined: DexelModel, design_model: DexelModel, design_mesh, devi
     ``machined`` and its signed distance to the design, mm (excess > 0, gouge < 0); and the design's
     dexel ends the cut left without material, with an upper bound of how deep they were cut (see
     the module notes). The distances run on ``device``."""
-    from scipy.spatial import cKDTree
-
     kern = MeshKernels(build_bvh(design_mesh.vertices, design_mesh.faces), device)
-    pts, devs, gone_pts, gone_depth = [], [], [], []
-    for a in range(3):
-        p = end_points(machined, a)
-        inside = np.zeros(len(p), np.bool_)
-        _inside(machined.start[a], machined.iv[a], design_model.start[a], design_model.iv[a], inside)
-        d = kern.mesh_distances(p)
-        pts.append(p)
-        devs.append(np.where(inside, -d, d))
-    machined_pts = np.concatenate(pts)
-    gone_pts, gone_depth = uncovered_ends(design_model, machined)
-    if len(gone_pts) and len(machined_pts):
-        # nearer than the material along the line: the nearest machined dexel end (on its surface)
-        gone_depth = np.minimum(gone_depth, cKDTree(machined_pts).query(gone_pts)[0])
-    return machined_pts, np.concatenate(devs), gone_pts, gone_depth
-
-
-def uncovered_ends(design_model: DexelModel, model: DexelModel):
-    """``(points (j, 3), depth (j,))``: the design's dexel ends that no interval of ``model`` (same
-    lattice) holds, and how far along the line the nearest material of ``model`` is (a wall cut
-    through leaves no machined end to measure)."""
-    pts, depths = [], []
-    for a in range(3):
-        q = end_points(design_model, a)
-        depth = np.full(len(q), np.nan)
-        _cut_away(design_model.start[a], design_model.iv[a], model.start[a], model.iv[a], depth)
-        gone = ~np.isnan(depth)
-        pts.append(q[gone])
-        depths.append(depth[gone])
-    return np.concatenate(pts), np.concatenate(depths)
+    parts = [measure_lines(machined.lo, machined.n, machined.step, a, 0, (machined.start[a], machined.iv[a]),
+                           (design_model.start[a], design_model.iv[a]), (design_model.start[a], design_model.iv[a]),
+                           kern, 0.0) for a in range(3)]
+    gone = np.concatenate([p["away_points"] for p in parts])
+    nearest = np.min([nearest_end(machined.lo, machined.n, machined.step, a, 0, (machined.start[a], machined.iv[a]),
+                                  gone) for a in range(3)], axis=0) if len(gone) else None
+    joined = join_measures(parts, nearest, machined.step)
+    return (np.concatenate([p["points"] for p in parts]), np.concatenate([p["e"] for p in parts]),
+            joined["away_points"], joined["away_depth"])
 
 
 def surface_parameters(points: np.ndarray, e: np.ndarray, tolerance: float) -> dict:

@@ -27,6 +27,7 @@ from ..kernels import cpu_dexel
 from ..kernels.backend import LineCaster
 from ..kernels.cpu_dexel import MAX_HITS
 from . import partition
+from .exactsum import expansion, total
 
 LINE_BYTES = 200  # one line while casting (its dense rows, count and CSR share) and its intervals after
 FORMAT = "meshmill-dexel-1"
@@ -58,8 +59,9 @@ class DexelModel:
         return int(len(self.iv[a]))
 
     def volumes(self) -> np.ndarray:
-        """``(3,)`` volume measured by each direction's dexels, mm^3."""
-        return np.array([float(np.sum(self.iv[a][:, 1] - self.iv[a][:, 0])) * self.step ** 2 for a in range(3)])
+        """``(3,)`` volume measured by each direction's dexels, mm^3 (exact sums: the same
+        however the lines are grouped)."""
+        return np.array([total(expansion(self.iv[a][:, 1] - self.iv[a][:, 0])) * self.step ** 2 for a in range(3)])
 
     @property
     def volume(self) -> float:
@@ -67,16 +69,21 @@ class DexelModel:
         return float(self.volumes().mean())
 
     def summary(self) -> dict:
-        names = "XYZ"
-        return {
-            "step": self.step,
-            "lattice_corner": [round(float(x), 9) for x in self.lo],
-            "cells": [int(x) for x in self.n],
-            "lines": {names[a]: self.line_count(a) for a in range(3)},
-            "dexels": {names[a]: self.dexel_count(a) for a in range(3)},
-            "volume_mm3": round(self.volume, 6),
-            "volume_by_direction_mm3": {names[a]: round(float(v), 6) for a, v in enumerate(self.volumes())},
-        }
+        return lattice_summary(self.lo, self.step, self.n, [self.dexel_count(a) for a in range(3)], self.volumes())
+
+
+def lattice_summary(lo, step, n, dexels, volumes) -> dict:
+    """A model's summary from its lattice, its dexel count and volume (mm^3) per direction."""
+    names = "XYZ"
+    return {
+        "step": step,
+        "lattice_corner": [round(float(x), 9) for x in lo],
+        "cells": [int(x) for x in n],
+        "lines": {names[a]: int(n[(a + 1) % 3]) * int(n[(a + 2) % 3]) for a in range(3)},
+        "dexels": {names[a]: int(dexels[a]) for a in range(3)},
+        "volume_mm3": round(float(np.mean(volumes)), 6),
+        "volume_by_direction_mm3": {names[a]: round(float(v), 6) for a, v in enumerate(volumes)},
+    }
 
 
 def lattice(bounds: np.ndarray, step: float, pad: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -155,9 +162,9 @@ def material_mesh(mesh, floor=None):
                 placement=mesh.placement)
 
 
-def uneven_lines_warning(model) -> list[str]:
-    """The one-line warning of a model whose lines crossed its mesh unevenly (none: [])."""
-    odd = model.info.get("uneven_lines")
+def uneven_lines_warning(odd: dict | None) -> list[str]:
+    """The one-line warning of a model whose lines crossed its mesh unevenly (``odd``: how many
+    along each axis, its ``info["uneven_lines"]``; none: [])."""
     if not odd:
         return []
     lines = ", ".join(f"{k} along {axis}" for axis, k in odd.items())
@@ -223,19 +230,28 @@ def _cast(caster, a, lo, n, step, mesh, bvh, source, rows=None):
     return s, iv, int(len(bad))
 
 
+def cast_rows(shared: dict, key: str, a: int, rows) -> tuple:
+    """``(start, iv, uneven lines)`` of the lines along ``a`` of the lattice rows ``rows = (i0,
+    i1)`` cast on a worker of a cluster: ``shared[key]`` is ``(material mesh, source part)`` (its
+    index and caster built once per worker), ``shared`` also holds the lattice ``lo, n, step``
+    and the ``device``."""
+    from ..cluster import worker_cached
+
+    mesh, source = shared[key]
+    idx, _ = worker_cached(shared, f"{key} index", lambda: mesh_index(mesh))
+    caster = worker_cached(shared, f"{key} caster", lambda: LineCaster(idx, shared["device"]))
+    return _cast(caster, a, shared["lo"], shared["n"], shared["step"], mesh, idx[1], source, rows)
+
+
 def cast_block(shared: dict, piece) -> tuple:
     """One block of lines on a worker of a cluster (:func:`meshmill.cluster.run_pieces`): the
     lines along ``a`` whose first lattice index (along the axis after ``a``) is in ``i0 .. i1 - 1``,
-    as :func:`dexelize` casts them; ``shared``: the material ``mesh``, the ``source`` part, the
-    lattice ``lo, n, step``, the ``device``."""
+    as :func:`dexelize` casts them (:func:`cast_rows` of ``shared["mesh"]``), and the index's info."""
     from ..cluster import worker_cached
 
     a, i0, i1 = piece
-    mesh = shared["mesh"]
-    idx, info = worker_cached(shared, "index", lambda: mesh_index(mesh))
-    caster = worker_cached(shared, "caster", lambda: LineCaster(idx, shared["device"]))
-    return (*_cast(caster, a, shared["lo"], shared["n"], shared["step"], mesh, idx[1], shared["source"], (i0, i1)),
-            info)
+    start, iv, bad = cast_rows(shared, "mesh", a, (i0, i1))
+    return start, iv, bad, worker_cached(shared, "mesh index", lambda: None)[1]
 
 
 def join_lines(blocks):
@@ -298,7 +314,7 @@ def _dexelize_on(client, mesh, source, lo, n, step, index, progress, device) -> 
     check_workers(client, LINE_BYTES * block + TRIANGLE_BYTES * len(mesh.faces),
                   f"casting {sum(int(n[(a + 1) % 3] * n[(a + 2) % 3]) for a in range(3)):,} dexel lines in blocks",
                   "use more workers, or a coarser --step")
-    shared = dict(mesh=mesh, source=source, lo=lo, n=n, step=step, device=device)
+    shared = dict(mesh=(mesh, source), lo=lo, n=n, step=step, device=device)
     blocks = run_pieces(client, cast_block, shared, pieces, progress, "dexel lines")
     starts, ivs, odd = [], [], {}
     for a in range(3):
