@@ -65,26 +65,26 @@ def main():
 
     stages = {}
 
-    def simulate(cluster):
-        r = api.simulate(design, tp, tools, step=a.step, device="cpu", cluster=cluster)
+    def simulate(cluster, warm=False):
+        r = api.simulate(design, tp, tools, step=1.0 if warm else a.step, device="cpu", cluster=cluster)
         stages["cluster" if cluster else "one_process"] = {
             "seconds": r.summary.pop("seconds"), "lines": r.summary["lattice"]["lines"],
             "machined_dexels": r.summary["lattice"]["dexels"], "ends_measured": r.deviation["samples"],
             "pieces_cut": r.summary["pieces_cut"]}
         return [r.summary, r.deviation, *r.machined, r.samples["points"], r.samples["e"]]
 
-    def finish(cluster):
-        path, summary, _ = finish_op(model1, finish_tools, params_for(a.finish_step), cluster=cluster)
+    def finish(cluster, warm=False):
+        path, summary, _ = finish_op(model1, finish_tools, params_for(5.0 if warm else a.finish_step), cluster=cluster)
         return [path.tip, path.axis, summary["verify"]]
 
-    def dexel(cluster):
+    def dexel(cluster, warm=False):
         m = api.dexel(design, step=a.step, device="cpu", cluster=cluster).model
         return [np.concatenate([m.iv[d].ravel() for d in range(3)]), [m.start[d] for d in range(3)]]
 
-    def verify(cluster):
+    def verify(cluster, warm=False):
         return api.verify(design, tp, tools, device="cpu", cluster=cluster).report
 
-    def raster(cluster):
+    def raster(cluster, warm=False):
         return api.raster(vase, table, tool="B4", stepover=0.25, sample=0.1, device="cpu", cluster=cluster).toolpath.tip
 
     def same(x, y):
@@ -96,8 +96,8 @@ def main():
 
     ops = {name: fn for name, fn in (("simulate", simulate), ("dexel", dexel), ("verify", verify), ("raster", raster),
                                      ("finish", finish)) if name in a.only.split(",")}
-    for fn in ops.values():  # compile and load everything once
-        fn(None)
+    for fn in ops.values():  # compile and load everything once (simulate and finish on small sizes)
+        fn(None, warm=True)
     rows = []
     base = {name: best(lambda: fn(None), a.repeat) for name, fn in ops.items()}
     for workers, threads in ((1, 2), (2, 1)):
@@ -107,7 +107,7 @@ def main():
                 Client(lc) as client:
             start_s = time.perf_counter() - t
             for name, fn in ops.items():
-                fn(client)  # the workers compile / load once
+                fn(client, warm=True)  # the workers compile / load once
                 s, out = best(lambda: fn(client), a.repeat)
                 rows.append({"operation": name, "cluster": f"{workers} x {threads}", "one_process_s": round(base[name][0], 2),
                              "cluster_s": round(s, 2), "overhead": round(s / base[name][0] - 1.0, 3),

@@ -462,12 +462,22 @@ def test_blocks_of_lines_measure_and_mesh_as_the_whole_model():
                 blocks.append((a, i0, i1))
                 parts.append(measure_lines(lo, n, step, a, i0, rows(machined, a, i0, i1), rows(stock, a, i0, i1),
                                            rows(dm, a, i0, i1), kern, 0.05))
-        away = np.concatenate([p["away_points"] for p in parts])
-        near = np.min([nearest_end(lo, n, step, a, i0, rows(machined, a, i0, i1), away) for a, i0, i1 in blocks], axis=0)
+        away, depth = (np.concatenate([p[k] for p in parts]) for k in ("away_points", "away_depth"))
+        near = np.min([nearest_end(lo, n, step, a, i0, rows(machined, a, i0, i1), away, depth)
+                       for a, i0, i1 in blocks], axis=0)
         return join_measures(parts, near, step), parts
 
     whole, wp = measured([])
     split, sp = measured([1, 7, 8, 30])
+    # the depth bounds against every machined end's distance (no pruning by rows or bounds)
+    from scipy.spatial import cKDTree
+
+    from meshmill.simulation.deviation import end_points
+
+    ends = np.concatenate([end_points(lo, n, step, a, machined.start[a], machined.iv[a]) for a in range(3)])
+    line_depth = np.concatenate([p["away_depth"] for p in wp])
+    brute = np.minimum(line_depth, cKDTree(ends).query(whole["away_points"])[0])
+    assert np.array_equal(whole["away_depth"], brute) and (brute < line_depth).any()
     assert whole["samples"] and len(whole["away_depth"]) and whole["gouge_max"] > 0 and whole["excess_max"] > 0
     for k, v in whole.items():
         assert np.array_equal(v, split[k]) if isinstance(v, np.ndarray) else v == split[k], k

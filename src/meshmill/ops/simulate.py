@@ -214,8 +214,9 @@ def measure(machined, start_model, design, design_model, floor, tolerance, step,
     blocks = [(machined.start[a], machined.iv[a]) for a in range(3)]
     parts = [measure_lines(lo, n, step, a, 0, blocks[a], (start_model.start[a], start_model.iv[a]),
                            (design_model.start[a], design_model.iv[a]), kern, tolerance, samples) for a in range(3)]
-    away = np.concatenate([p["away_points"] for p in parts])
-    nearest = np.min([nearest_end(lo, n, step, a, 0, blocks[a], away) for a in range(3)], axis=0) if len(away) else None
+    away, depth = (np.concatenate([p[k] for p in parts]) for k in ("away_points", "away_depth"))
+    nearest = np.min([nearest_end(lo, n, step, a, 0, blocks[a], away, depth) for a in range(3)],
+                     axis=0) if len(away) else None
     deviation, volumes, warnings = measured(join_measures(parts, nearest, step), tolerance, step)
     return deviation, volumes, warnings, ((np.concatenate([p["points"] for p in parts]),
                                            np.concatenate([p["e"] for p in parts])) if samples else (None, None))

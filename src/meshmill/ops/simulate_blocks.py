@@ -97,8 +97,9 @@ def measure_block(shared: dict, block: Block, cut: tuple, tolerance: float, samp
 
 
 def nearest_block(shared: dict, block: Block, cut: tuple, points) -> np.ndarray:
-    """Distance from each of ``points`` to the nearest machined dexel end of the block."""
-    return nearest_end(shared["lo"], shared["n"], shared["step"], block.a, block.first_row, cut[:2], points)
+    """Distance from each of ``points = (points, depth bounds)`` to the nearest machined dexel end
+    of the block, where under its bound (:func:`~meshmill.simulation.deviation.nearest_end`)."""
+    return nearest_end(shared["lo"], shared["n"], shared["step"], block.a, block.first_row, cut[:2], *points)
 
 
 def field_block(shared: dict, block: Block, cut: tuple) -> tuple:
@@ -171,10 +172,10 @@ def simulate_on(client, design, toolpath, tools, step, stock="box", allowance=No
     parts = [submit(client, measure_block, handle, b, c, tolerance, samples) for b, c in zip(blocks, cuts)]
     wait(parts, say, "measuring")
     parts = client.gather(parts)
-    away = np.concatenate([p["away_points"] for p in parts])
+    away, depth = (np.concatenate([p[k] for p in parts]) for k in ("away_points", "away_depth"))
     nearest = None
     if len(away):
-        [points] = client.scatter([away], broadcast=True)
+        [points] = client.scatter([(away, depth)], broadcast=True)
         nearest = np.min(client.gather([submit(client, nearest_block, handle, b, c, points)
                                         for b, c in zip(blocks, cuts)]), axis=0)
     m = join_measures(parts, nearest, step)

@@ -199,15 +199,25 @@ def measure_lines(lo, n, step, a: int, first_row: int, machined: tuple, stock: t
     }
 
 
-def nearest_end(lo, n, step, a: int, first_row: int, machined: tuple, points: np.ndarray) -> np.ndarray:
+def nearest_end(lo, n, step, a: int, first_row: int, machined: tuple, points: np.ndarray,
+                within: np.ndarray) -> np.ndarray:
     """``(j,)`` distance from each of ``points (j, 3)`` to the nearest dexel end of a block of
-    machined lines along ``a`` (CSR ``(start, iv)`` from lattice row ``first_row``); inf without ends."""
+    machined lines along ``a`` (CSR ``(start, iv)`` from lattice row ``first_row``) where it is
+    under ``within (j,)`` (the depth bound it would improve), inf where no end of the block is
+    that near (the block's rows are farther, or it has no ends)."""
     from scipy.spatial import cKDTree
 
-    ends = end_points(lo, n, step, a, *machined, first_row)
-    if not len(ends) or not len(points):
-        return np.full(len(points), np.inf)
-    return cKDTree(ends).query(points)[0]
+    out = np.full(len(points), np.inf)
+    if not len(points) or not len(machined[1]):
+        return out
+    u, nv = (a + 1) % 3, int(n[(a + 2) % 3])
+    rows = (len(machined[0]) - 1) // nv
+    s0, s1 = lo[u] + (first_row + 0.5) * step, lo[u] + (first_row + rows - 0.5) * step
+    near = np.nonzero(np.maximum(0.0, np.maximum(s0 - points[:, u], points[:, u] - s1)) < within)[0]
+    if len(near):
+        ends = end_points(lo, n, step, a, *machined, first_row)
+        out[near] = cKDTree(ends).query(points[near], distance_upper_bound=float(within[near].max()))[0]
+    return out
 
 
 def _first(items, low: bool):
@@ -222,7 +232,8 @@ def _first(items, low: bool):
 def join_measures(parts: list, nearest: np.ndarray | None, step: float) -> dict:
     """The whole model's figures from the blocks' :func:`measure_lines` (in the order of the
     lattice: direction, then first row) and ``nearest``, the distance from each cut-away design
-    end (in that order) to the nearest machined end (:func:`nearest_end` over all blocks).
+    end (in that order) to the nearest machined end where it is under the end's depth bound
+    (:func:`nearest_end` over all blocks).
 
     Returns the ISO 25178 heights and tolerance figures of :func:`surface_parameters` (the
     gouge over the path's own ends), ``volumes`` (mm^3, mean of the three directions), the stock's
@@ -270,8 +281,9 @@ def deviations(machined: DexelModel, design_model: DexelModel, design_mesh, devi
                            (design_model.start[a], design_model.iv[a]), (design_model.start[a], design_model.iv[a]),
                            kern, 0.0) for a in range(3)]
     gone = np.concatenate([p["away_points"] for p in parts])
+    depth = np.concatenate([p["away_depth"] for p in parts])
     nearest = np.min([nearest_end(machined.lo, machined.n, machined.step, a, 0, (machined.start[a], machined.iv[a]),
-                                  gone) for a in range(3)], axis=0) if len(gone) else None
+                                  gone, depth) for a in range(3)], axis=0) if len(gone) else None
     joined = join_measures(parts, nearest, machined.step)
     return (np.concatenate([p["points"] for p in parts]), np.concatenate([p["e"] for p in parts]),
             joined["away_points"], joined["away_depth"])
