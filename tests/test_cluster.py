@@ -51,7 +51,8 @@ def test_verify_on_a_cluster_gives_the_report_of_one_process(client):
     assert many == one
 
 
-def test_a_worker_that_dies_is_replaced_and_the_report_is_the_same(client):
+def test_a_worker_that_dies_is_replaced_and_the_report_is_the_same(client, monkeypatch):
+    monkeypatch.setattr("meshmill.progress.QUIET_S", 0.0)  # every piece told
     part = shapes.post_with_fillet(segments=48)
     tp = zigzag_with_problems(part)
     one = api.verify(part, tp, TOOLS, device="cpu", step=0.1).report
@@ -126,7 +127,8 @@ def test_simulate_on_a_cluster_without_outputs_gathers_no_model(client, tmp_path
     assert sorted(os.path.basename(p) for p in written) == ["deviation.json", "summary.json"]
 
 
-def test_a_worker_that_dies_mid_simulation_loses_nothing(client):
+def test_a_worker_that_dies_mid_simulation_loses_nothing(client, monkeypatch):
+    monkeypatch.setattr("meshmill.progress.QUIET_S", 0.0)  # every piece told
     part = shapes.post_with_fillet(segments=48)
     tp = api.raster(part, TOOLS, tool="B6", stepover=3.0, device="cpu").toolpath
     one = api.simulate(part, tp, TOOLS, step=0.4, device="cpu")

@@ -399,7 +399,7 @@ def verify(part, toolpath, tools, *, tolerance=GOUGE_TOL, step=0.5, stock=None, 
         check = StockCheck(allowance=allowance, kern=solid_kernels(stock, device) if stock is not None else None)
         kern = solid_kernels(part, device, floor)
         say("certified check of every move")
-        report = verify_toolpath(kern, toolpath, tools, tolerance, step, worst=worst, stock=check)
+        report = verify_toolpath(kern, toolpath, tools, tolerance, step, worst=worst, stock=check, progress=say)
     report.pop("problem_moves")
     return VerifyResult(report, device, stock is not None or bool(allowance))
 

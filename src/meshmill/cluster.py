@@ -17,6 +17,7 @@ import uuid
 
 from . import memory
 from .errors import InputError
+from .progress import Meter, ranges  # noqa: F401 (ranges: how every split is cut)
 
 RETRIES = 3  # times a piece is computed again after its worker died
 PIECES_PER_WORKER = 4  # pieces a worker gets on average (the slow ones then even out)
@@ -66,13 +67,6 @@ def workers(client) -> int:
     return max(1, sum(client.nthreads().values()))
 
 
-def ranges(n: int, pieces: int) -> list[tuple[int, int]]:
-    """``pieces`` ranges ``(start, stop)`` of ``0..n`` as even as can be (none empty)."""
-    pieces = max(1, min(pieces, n))
-    bounds = [round(k * n / pieces) for k in range(pieces + 1)]
-    return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
-
-
 def share(client, shared: dict):
     """``shared`` (with a ``token`` for :func:`worker_cached`) scattered once to every worker: a
     future to pass to tasks."""
@@ -90,9 +84,9 @@ def wait(futures, progress=None, what="pieces") -> None:
     """Wait for every future, telling ``progress`` each time one completes."""
     from distributed import as_completed
 
-    for done, _ in enumerate(as_completed(futures), 1):
-        if progress:
-            progress(f"{what}: {done} of {len(futures)} done ({100 * done // len(futures)} %)")
+    meter = Meter(progress, what, len(futures))
+    for _ in as_completed(futures):
+        meter.done()
 
 
 def run_pieces(client, func, shared, pieces, progress=None, what="pieces") -> list:

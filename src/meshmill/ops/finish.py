@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..progress import PIECES, in_pieces, ranges
 from ..errors import InputError
 from ..geometry.analysis import sample_surface
 from ..geometry.mesh import Mesh
@@ -602,7 +603,7 @@ def axis_piece(shared: dict, piece) -> np.ndarray:
 def _axes_on(client, mesh, device, ce, feed, side, tool, cand, cand_tilt, slack, radii, body, offsets, say):
     """The axis search of every contour (``offsets`` of their points) in groups of contours on
     ``client``'s workers; each contour is searched on its own, so the axes are the one process's."""
-    from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+    from ..cluster import PIECES_PER_WORKER, run_pieces, workers
 
     groups = ranges(len(offsets) - 1, PIECES_PER_WORKER * workers(client))
     if not groups:
@@ -613,6 +614,11 @@ def _axes_on(client, mesh, device, ce, feed, side, tool, cand, cand_tilt, slack,
         pieces.append((ce[p0:p1], feed[p0:p1], side[p0:p1], tool[p0:p1], offsets[a:b + 1] - p0))
     shared = dict(part=mesh, device=device, cand=cand, cand_tilt=cand_tilt, slack=slack, radii=radii, body=body)
     return np.concatenate(run_pieces(client, axis_piece, shared, pieces, say, "axes"))
+
+
+def _points_of(con):
+    """The weight of a group ``a .. b - 1`` of ``con``'s contours: its points."""
+    return lambda a, b: con.offsets[b] - con.offsets[a]
 
 
 def balls_piece(shared: dict, piece) -> np.ndarray:
@@ -627,7 +633,7 @@ def balls_piece(shared: dict, piece) -> np.ndarray:
 def _balls_on(client, mesh, device, con, centre_dir, radii, tol, say):
     """:func:`_largest_balls` of ``con`` in groups of contours on ``client``'s workers (each point
     on its own: the one process's balls)."""
-    from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+    from ..cluster import PIECES_PER_WORKER, run_pieces, workers
 
     groups = ranges(len(con.offsets) - 1, PIECES_PER_WORKER * workers(client))
     if not groups:
@@ -653,7 +659,7 @@ class _ClusterCheck:
                                          device=device))
 
     def __call__(self, tp):
-        from ..cluster import PIECES_PER_WORKER, ranges, submit, wait, workers
+        from ..cluster import PIECES_PER_WORKER, submit, wait, workers
 
         pieces = [(max(0, a - 1), tp.points(max(0, a - 1), b))
                   for a, b in ranges(len(tp), PIECES_PER_WORKER * workers(self.client))]
@@ -729,8 +735,13 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     centre_dir = con.normals * con.reach[:, None]  # ball centre = CC + R·centre_dir
     if cluster is not None:  # groups of contours on the workers: the same balls
         best = _balls_on(cluster, mesh, device, con, centre_dir, radii, params.tol, say)
-    else:
-        best = _largest_balls(kern, con, centre_dir, radii, params.tol)
+    else:  # groups of contours, the share done told
+        def balls_of(a, b):
+            p0, p1 = con.offsets[a], con.offsets[b]
+            return largest_balls(kern, con.points[p0:p1], con.reach[p0:p1], centre_dir[p0:p1], radii, params.tol)
+
+        best = np.concatenate([np.zeros(0, np.int64),
+                               *in_pieces(balls_of, ranges(len(con.offsets) - 1, PIECES), say, "tools", _points_of(con))])
     fits = best >= 0
     if params.whole_contours:
         contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tol, kern)
@@ -751,9 +762,14 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     if cluster is not None:  # groups of contours searched on the workers: the same axes
         choice = _axes_on(cluster, mesh, device, centres, con.feed, side, point_tool, cand, cand_tilt, slack, radii,
                           body, con.offsets, say)
-    else:
-        choice = kern.axis_search(centres, con.feed, side, point_tool, cand, cand_tilt, slack, radii, body,
-                                  con.offsets)
+    else:  # groups of contours (each searched on its own: the same axes), the share done told
+        def axes_of(a, b):
+            p0, p1 = con.offsets[a], con.offsets[b]
+            return kern.axis_search(centres[p0:p1], con.feed[p0:p1], side[p0:p1], point_tool[p0:p1], cand, cand_tilt,
+                                    slack, radii, body, con.offsets[a:b + 1] - p0)
+
+        choice = np.concatenate([np.zeros(0, np.int64),
+                                 *in_pieces(axes_of, ranges(len(con.offsets) - 1, PIECES), say, "axes", _points_of(con))])
     fallback = 0
     if not params.whole_contours:  # no free axis for the run's ball: a smaller one, with a thinner shank
         point_tool, choice, fallback = _smaller_balls(point_tool, choice, con, centre_dir, side, radii, params, kern,
@@ -849,7 +865,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         check = _ClusterCheck(cluster, mesh, stock, rapid_stock, tools, params.tol, step, device, say)
     else:
         def check(path):
-            return verify_toolpath(kern, path, tools, params.tol, step, stock=rapid_stock)
+            return verify_toolpath(kern, path, tools, params.tol, step, stock=rapid_stock, progress=say)
     dropped = 0
     for rnd in range(REPAIR_ROUNDS + 1):
         tp, owner, role = builder.build(passes)

@@ -23,8 +23,8 @@ from ..geometry.mesh import Mesh
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
 from ..pathing.scallop import stepover
-from ..pathing.dropcutter import (ToolDrop, body_grow, check_stock_params, drop_refined, drop_refined_on, pick_tool,
-                                  safe_height, stock_check, verified_path)
+from ..pathing.dropcutter import (ToolDrop, body_grow, check_stock_params, drop_refined_on, drop_refined_pieces,
+                                  pick_tool, safe_height, stock_check, verified_path)
 from ..pathing.rest import REST_JOIN, REST_LEAD, in_material, material_runs
 from ..pathing.verify import DEFAULT_STEP
 
@@ -143,8 +143,9 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
                       device=device)
         tips = drop_refined_on(cluster, xy, shared, say)
     else:
-        tips = drop_refined(xy, ToolDrop(tool, kern, float(bounds[0, 2]), grow=params.allowance,
-                                         body_grow=body_grow(stock, params)), 0.5 * params.tol, params.sample / 64)
+        tips = drop_refined_pieces(xy, ToolDrop(tool, kern, float(bounds[0, 2]), grow=params.allowance,
+                                                body_grow=body_grow(stock, params)), 0.5 * params.tol,
+                                   params.sample / 64, say)
     dropped = len(tips)
     rapid_stock = stock_check(stock, params, device)
     rest_kern = solid_kernels(rest_stock, device) if rest_stock is not None else rapid_stock.kern
@@ -160,7 +161,8 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     safe_z = safe_height(mesh, stock, params)
     say("verify")
     t = time.perf_counter()
-    tp, report, passes = verified_path(passes, index, tools, kern, safe_z, params.tol, DEFAULT_STEP, rapid_stock)
+    tp, report, passes = verified_path(passes, index, tools, kern, safe_z, params.tol, DEFAULT_STEP, rapid_stock,
+                                       say)
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
     summary = {

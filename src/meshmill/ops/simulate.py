@@ -13,7 +13,9 @@ from ..simulation import partition
 from ..kernels.backend import MeshKernels
 from ..kernels.bvh import build_bvh
 from ..simulation.deviation import join_measures, measure_lines, nearest_end
-from ..simulation.dexel import MAX_PARTITIONS, DexelModel, dexelize, lattice, material_mesh, uneven_lines_warning
+from ..progress import PIECES, Meter, ranges
+from ..simulation.dexel import (MAX_PARTITIONS, DexelModel, dexelize, lattice, line_rows, material_mesh,
+                                uneven_lines_warning)
 from ..simulation.surface import machined_mesh
 
 DEVIATION_KEYS = ("Sa", "Sq", "Sp", "Sv", "Sz", "gouge_max", "excess_max", "within_tolerance",
@@ -92,7 +94,7 @@ def simulate(design, toolpath, tools, step, stock="box", allowance=None, toleran
     mesh_s = time.perf_counter() - t2
     t1 = time.perf_counter()
     deviation, volumes, more, (pts, e) = measure(machined, start_model, design, design_model, float(bounds[0, 2]),
-                                                 tolerance, step, device, "deviation" in outputs)
+                                                 tolerance, step, device, "deviation" in outputs, say)
     deviation_s = time.perf_counter() - t1
     summary = simulate_summary(mode, step, machined.summary(), len(toolpath), cuts, volumes, deviation, mesh,
                                warnings + more, {"models": round(build_s, 4), "cut": cuts["seconds"],
@@ -202,18 +204,28 @@ def cut_figures(toolpath, pieces: int, result: dict) -> dict:
             "seconds": result["seconds"]}
 
 
-def measure(machined, start_model, design, design_model, floor, tolerance, step, device="cpu", samples=True):
+def measure(machined, start_model, design, design_model, floor, tolerance, step, device="cpu", samples=True,
+            progress=None):
     """The machined dexel model against the design: ``(deviation dict, volumes dict (mm^3),
     warnings, (points (k, 3), e (k,)))`` the dexel ends and their signed deviations (mm; None
     without ``samples``). The stock's own ends inside the design (``start_model`` short of it) are
-    not counted as gouges; ``floor`` is the Z an open design's solid reaches down to."""
+    not counted as gouges; ``floor`` is the Z an open design's solid reaches down to. Measured in
+    blocks of lattice rows (the same figures), the share done told to ``progress``."""
     # an open design: deviations to the solid it bounds (its sheets, curtains and floor)
     material = material_mesh(design, floor)
     kern = MeshKernels(build_bvh(material.vertices, material.faces), device)
     lo, n = machined.lo, machined.n
     blocks = [(machined.start[a], machined.iv[a]) for a in range(3)]
-    parts = [measure_lines(lo, n, step, a, 0, blocks[a], (start_model.start[a], start_model.iv[a]),
-                           (design_model.start[a], design_model.iv[a]), kern, tolerance, samples) for a in range(3)]
+    cuts = [(a, i0, i1) for a in range(3) for i0, i1 in ranges(int(n[(a + 1) % 3]), PIECES // 3)]
+    meter = Meter(progress, "measuring", sum(len(m.iv[a]) for m in (machined, design_model) for a in range(3)))
+    parts = []
+    for a, i0, i1 in cuts:
+        def rows(m):
+            return line_rows(m.start[a], m.iv[a], int(n[(a + 2) % 3]), i0, i1)
+
+        parts.append(measure_lines(lo, n, step, a, i0, rows(machined), rows(start_model), rows(design_model), kern,
+                                   tolerance, samples))
+        meter.done(len(rows(machined)[1]) + len(rows(design_model)[1]))
     away, depth = (np.concatenate([p[k] for p in parts]) for k in ("away_points", "away_depth"))
     nearest = np.min([nearest_end(lo, n, step, a, 0, blocks[a], away, depth) for a in range(3)],
                      axis=0) if len(away) else None

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ..progress import Meter
 from .. import memory
 from ..errors import InputError
 from ..kernels.backend import solid_kernels
@@ -333,10 +334,12 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
             loops += found
     else:
         centre_cache = {}
+        meter = Meter(say, "levels", len(levels))
         for z in levels:
             found, grid_s = _level_loops(z, grid, drop, cx, cy, centre_cache, params.tol, spacing)
             loops += found
             seconds["grid"] += grid_s
+            meter.done()
     seconds["levels"] = time.perf_counter() - t_levels - seconds["grid"]
     rapid_stock = stock_check(stock, params, device)
     rest_kern = solid_kernels(rest_stock, device) if rest_stock is not None else rapid_stock.kern
@@ -359,7 +362,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     say("verify")
     t = time.perf_counter()
     tp, report, kept = verified_path([p for _, p in loops], index, tools, kern, safe_z, params.tol, DEFAULT_STEP,
-                                     rapid_stock)
+                                     rapid_stock, say)
     loops = [(float(p[0, 2]), p) for p in kept]
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 
+from ..progress import PIECES, in_pieces, ranges
 from ..errors import InputError
 from ..kernels.backend import bind, cutter_rise, solid_kernels
 from ..toolpath.linking import link_passes
@@ -146,13 +147,15 @@ class StockClearance:
         return np.max([d(xy) for d in self.drops], axis=0)
 
 
-def verified_path(passes, tool_index, tools, kern, safe_z, tol, step, stock: StockCheck | None = None):
+def verified_path(passes, tool_index, tools, kern, safe_z, tol, step, stock: StockCheck | None = None,
+                  progress=None):
     """Link 3-axis ``passes`` (``(k, 3)`` tips each) into a tool path, verify it against the solid
     of ``kern`` (:class:`~meshmill.kernels.backend.MeshKernels`, :func:`solid_kernels`), and split
     passes at the feed moves that fail (the tool lifts over them) until it verifies clean. Each
     pass is entered and left vertically: rapid down to where the tool is clear of the stock
     (:class:`StockClearance`), feed the rest, and back. Returns ``(toolpath, report, passes)``;
-    ``report["moves_left_out"]`` counts the moves given up."""
+    ``report["moves_left_out"]`` counts the moves given up; ``progress`` is told the share of each
+    round's check done."""
     stock = stock or StockCheck()
     clear = StockClearance(tools[tool_index], kern, float(kern.bvh.node_lo[0, 2]) - 1.0, stock)
     left_out = 0
@@ -161,7 +164,7 @@ def verified_path(passes, tool_index, tools, kern, safe_z, tol, step, stock: Sto
         z_in = clear(ends[:, :2]) if len(passes) else None
         z_out = clear(ends[:, 2:]) if len(passes) else None
         tp = link_passes(passes, tool_index, safe_z, z_in, z_out)
-        report = verify_toolpath(kern, tp, tools, tol, step, stock=stock)
+        report = verify_toolpath(kern, tp, tools, tol, step, stock=stock, progress=progress)
         bad = report.pop("problem_moves")
         if report["ok"] or rnd == REPAIR_ROUNDS:
             break
@@ -203,12 +206,29 @@ def drop_refined_on(client, xy, shared: dict, progress=None) -> np.ndarray:
     """:func:`drop_refined` of the polyline ``xy (k, 2)`` in pieces on ``client``'s workers (see
     :func:`drop_piece` for ``shared``): pieces share their end points, and each segment is refined
     on its own, so the tips are the one process's."""
-    from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+    from ..cluster import PIECES_PER_WORKER, run_pieces, workers
 
-    cuts = ranges(len(xy) - 1, PIECES_PER_WORKER * workers(client)) if len(xy) > 1 else [(0, 0)]
-    pieces = [xy[a:b + 1] for a, b in cuts]
-    tips = run_pieces(client, drop_piece, shared, pieces, progress, "drop-cutter")
+    pieces = [xy[a:b + 1] for a, b in _polyline_pieces(len(xy), PIECES_PER_WORKER * workers(client))]
+    return _joined(run_pieces(client, drop_piece, shared, pieces, progress, "drop-cutter"))
+
+
+def _polyline_pieces(k: int, count: int) -> list[tuple[int, int]]:
+    """``(a, b)``: pieces ``a .. b`` (both ends in) of a polyline of ``k`` points, each sharing its
+    first point with the piece before."""
+    return ranges(k - 1, count) if k > 1 else [(0, 0)]
+
+
+def _joined(tips: list) -> np.ndarray:
+    """The tips of consecutive pieces of a polyline (sharing their end points) as one."""
     return np.concatenate([tips[0]] + [t[1:] for t in tips[1:]])
+
+
+def drop_refined_pieces(xy, drop: "ToolDrop", chord_tol, min_step, progress=None) -> np.ndarray:
+    """:func:`drop_refined` of the polyline ``xy (k, 2)`` piece by piece (each segment is refined
+    on its own: the same tips), the share done and the time left told to ``progress``."""
+    cuts = _polyline_pieces(len(xy), PIECES)
+    return _joined(in_pieces(lambda a, b: drop_refined(xy[a:b + 1], drop, chord_tol, min_step), cuts, progress,
+                             "drop-cutter"))
 
 
 def drop_refined(xy, drop: ToolDrop, chord_tol, min_step):

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..progress import PIECES, in_pieces, ranges
 from .. import memory
 from ..kernels.backend import MeshKernels, solid_kernels
 from ..tolerances import GOUGE_TOL
@@ -247,17 +248,26 @@ class _Measure:
 
 
 def verify_toolpath(kern, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: float = DEFAULT_STEP,
-                    worst: int = 10, device: str = "cpu", stock: StockCheck | None = None) -> dict:
+                    worst: int = 10, device: str = "cpu", stock: StockCheck | None = None, progress=None) -> dict:
     """Check ``tp`` against the solid of ``kern`` (:class:`~meshmill.kernels.backend.MeshKernels`
     bound to it, :func:`~meshmill.kernels.backend.solid_kernels`; or a
     :class:`~meshmill.geometry.mesh.Mesh`, bound here on ``device``); returns a JSON-ready report
     with the counts of moves that gouge, collide or rapid into the stock, and the ``worst`` cases.
     Where the moves come from a file, ``lines`` counts its lines with moves and ``problem_lines``
-    its lines with a problem of each kind (a G-code arc or rotary block is read as several moves)."""
+    its lines with a problem of each kind (a G-code arc or rotary block is read as several moves).
+    With ``progress`` the moves are checked in ranges (:func:`verify_moves`, the same report), the
+    share done and the time left told after each."""
     stock = stock or StockCheck()
     if not isinstance(kern, MeshKernels):
         kern = solid_kernels(kern, device)
-    return merge_reports(tp, [verify_moves(kern, tp, tools, tol, step, stock)], tol, step, stock.summary(), worst)
+    if progress is None:
+        return merge_reports(tp, [verify_moves(kern, tp, tools, tol, step, stock)], tol, step, stock.summary(), worst)
+
+    def piece(a, b):
+        return verify_moves(kern, tp.points(max(0, a - 1), b), tools, tol, step, stock, max(0, a - 1))
+
+    parts = in_pieces(piece, ranges(len(tp), PIECES), progress, "certified check of every move")
+    return merge_reports(tp, parts, tol, step, stock.summary(), worst)
 
 
 def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: StockCheck, first: int = 0) -> dict:

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ..progress import PIECES, in_pieces, ranges
 from ..errors import InputError
 from ..kernels.backend import implementation
 from ..kernels.cpu_dexel import BODY, RAPID, TILE, bin_moves
@@ -329,11 +330,12 @@ def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern) -> tuple:
     return kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves
 
 
-def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=None, prepared=None) -> None:
+def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=None, prepared=None,
+                   alone: bool = True) -> None:
     """Cut the lines along ``a`` (those of the tile rows ``rows = (first, stop)`` along the axis
-    after ``a``, which ``stock`` then holds alone for that direction; default all) by the moves, in
-    place; ``hit (k,)`` marks the moves that hit; ``prepared``: what :func:`_direction_moves` gives
-    (else made here)."""
+    after ``a``, which ``stock`` then holds ``alone`` for that direction, else among all its lines;
+    default all) by the moves, in place; ``hit (k,)`` marks the moves that hit; ``prepared``: what
+    :func:`_direction_moves` gives (else made here)."""
     u, v = (a + 1) % 3, (a + 2) % 3
     nu, nv = int(stock.n[u]), int(stock.n[v])
     lu, lv = float(stock.lo[u]), float(stock.lo[v])
@@ -344,7 +346,7 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
     row0 = 0
     if rows is not None:
         tiles = tiles[(tiles // tv >= rows[0]) & (tiles // tv < rows[1])]
-        row0 = rows[0] * TILE
+        row0 = rows[0] * TILE if alone else 0
     np.random.default_rng(0).shuffle(tiles)  # spread the busy tiles over the threads
     while len(tiles):
         overflow = np.zeros(len(tile_start) - 1, np.uint8)
@@ -382,10 +384,13 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None) -
         _cut_on(cluster, stock, moves, boxes, hit, progress, device)
     else:
         kern = implementation(device)
-        for a in range(3):
-            _cut_direction(stock, a, moves, boxes, kern, hit)
-            if progress:
-                progress(f"cut lines along {'XYZ'[a]}")
+        for a in range(3):  # in blocks of tile rows (tiles are independent), the share done told
+            prepared = _direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern)
+            rows = -(-int(stock.n[(a + 1) % 3]) // TILE)
+            pairs = np.diff(prepared[8]).reshape(rows, -1).sum(axis=1)  # moves over each tile row's tiles
+            in_pieces(lambda r0, r1: _cut_direction(stock, a, moves, boxes, kern, hit, (r0, r1), prepared, False),
+                      ranges(rows, PIECES), progress, f"cutting lines along {'XYZ'[a]}",
+                      lambda r0, r1: 1 + int(pairs[r0:r1].sum()))
     return {**hits(moves, hit), "seconds": round(time.perf_counter() - t0, 4)}
 
 

@@ -254,6 +254,13 @@ def cast_block(shared: dict, piece) -> tuple:
     return start, iv, bad, worker_cached(shared, "mesh index", lambda: None)[1]
 
 
+def line_rows(start, iv, nv: int, i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
+    """CSR ``(start, iv)`` of the lattice rows ``i0 .. i1 - 1`` (``nv`` lines a row) of the lines
+    ``(start, iv)``."""
+    s = start[i0 * nv:i1 * nv + 1]
+    return s - s[0], iv[s[0]:s[-1]]
+
+
 def join_lines(blocks):
     """The CSR ``(start, iv)`` of consecutive blocks of lines, each ``(start, iv, ...)``."""
     starts, ivs, base = [np.zeros(1, np.int64)], [], 0
