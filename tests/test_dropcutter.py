@@ -157,3 +157,38 @@ def test_a_wider_body_that_touches_nothing_keeps_the_cutters_contact():
     z1, c1 = ToolDrop(ball, kern, -1.0, body_grow=0.5).with_contacts(xy)
     assert np.array_equal(z0, z1) and np.isfinite(c0[:, 0]).all()
     assert np.array_equal(c0, c1)
+
+
+def test_refinement_drops_only_the_new_segments_midpoints():
+    """Each round tests the halves of the segments split the round before: the tips are those of
+    testing every segment every round, from fewer drops."""
+    from meshmill.geometry import shapes
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.pathing.dropcutter import REFINE_ROUNDS, ToolDrop, drop_refined
+    from meshmill.tools.table import Tool
+
+    part = shapes.post_with_fillet(segments=48)
+    tool = Tool(name="B6", type="ball", diameter=6.0, corner_radius=3.0, flute_length=12.0, gauge_length=40.0,
+                shank_diameter=6.0, holder_diameter=30.0, holder_length=40.0, number=1)
+    drop = ToolDrop(tool, solid_kernels(part, "cpu"), float(part.bounds[0, 2]))
+    counted = []
+
+    def counting(xy):
+        counted.append(len(xy))
+        return drop(xy)
+
+    xy = np.column_stack([np.linspace(-45.0, 45.0, 91), np.full(91, 3.0)])  # over the fillets and the post's edge
+    tips = drop_refined(xy, counting, 0.001, 0.01)
+    ref_xy, z, every = xy, drop(xy), len(xy)  # every segment's midpoint, every round
+    for _ in range(REFINE_ROUNDS):
+        mid = 0.5 * (ref_xy[:-1] + ref_xy[1:])
+        idx = np.nonzero(np.linalg.norm(ref_xy[1:] - ref_xy[:-1], axis=1) > 0.01)[0]
+        zm = drop(mid[idx])
+        every += len(idx)
+        off = np.abs(zm - 0.5 * (z[idx] + z[idx + 1])) > 0.001
+        if not off.any():
+            break
+        ref_xy = np.insert(ref_xy, idx[off] + 1, mid[idx[off]], axis=0)
+        z = np.insert(z, idx[off] + 1, zm[off])
+    assert np.array_equal(tips, np.column_stack([ref_xy, z])) and len(tips) > len(xy) + 10
+    assert sum(counted) < every

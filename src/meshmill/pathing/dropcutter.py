@@ -233,20 +233,25 @@ def drop_refined_pieces(xy, drop: "ToolDrop", chord_tol, min_step, progress=None
 
 def drop_refined(xy, drop: ToolDrop, chord_tol, min_step):
     """Drop the tool along the polyline ``xy (k, 2)``, adding midpoints where the tip height
-    leaves the chord by more than ``chord_tol``; returns tips ``(m, 3)``."""
+    leaves the chord by more than ``chord_tol``; returns tips ``(m, 3)``. Each round drops only
+    the midpoints of the segments the round before split (the others' were within the chord)."""
     z = drop(xy)
+    fresh = np.ones(max(len(xy) - 1, 0), bool)  # segments whose midpoint is not dropped yet
     for _ in range(REFINE_ROUNDS):
         if len(xy) < 2:
             break
-        mid = 0.5 * (xy[:-1] + xy[1:])
-        idx = np.nonzero(np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step)[0]
+        idx = np.nonzero(fresh & (np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step))[0]
         if len(idx) == 0:
             break
-        zm = drop(mid[idx])
+        mid = 0.5 * (xy[idx] + xy[idx + 1])
+        zm = drop(mid)
         off = np.abs(zm - 0.5 * (z[idx] + z[idx + 1])) > chord_tol
         if not off.any():
             break
         ins = idx[off]
-        xy = np.insert(xy, ins + 1, mid[ins], axis=0)
+        xy = np.insert(xy, ins + 1, mid[off], axis=0)
         z = np.insert(z, ins + 1, zm[off])
+        split = np.zeros(len(fresh), bool)
+        split[ins] = True
+        fresh = np.repeat(split, np.where(split, 2, 1))  # a split segment's two halves are new
     return np.column_stack([xy, z])
