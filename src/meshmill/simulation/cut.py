@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ..progress import PIECES, in_pieces, ranges
+from ..progress import in_pieces, ranges
 from ..errors import InputError
 from ..kernels.backend import implementation
 from ..kernels.cpu_dexel import BODY, RAPID, TILE, bin_moves
@@ -31,6 +31,7 @@ SAME_AXIS = 1e-9  # rad: axes closer than this are one axis (the move is cut wit
 MAX_MOVE_TURN = 179.0  # degrees: a larger turn in one move has no interpolation (the axis passes 0)
 RAPID_CUT = 1e-3  # mm of a dexel a rapid move must remove (or a shank or holder meet) to count as cutting
 SLACK = 2  # spare interval slots a line starts with
+CUT_PIECES = 4  # blocks of tile rows a direction is cut in on one machine (each may regrow the whole direction)
 MOVE_BYTES = 1200  # a move on a worker of a cluster: its arrays, and per direction its frame, constants, box, tiles
 
 
@@ -389,7 +390,7 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None) -
             rows = -(-int(stock.n[(a + 1) % 3]) // TILE)
             pairs = np.diff(prepared[8]).reshape(rows, -1).sum(axis=1)  # moves over each tile row's tiles
             in_pieces(lambda r0, r1: _cut_direction(stock, a, moves, boxes, kern, hit, (r0, r1), prepared, False),
-                      ranges(rows, PIECES), progress, f"cutting lines along {'XYZ'[a]}",
+                      ranges(rows, CUT_PIECES), progress, f"cutting lines along {'XYZ'[a]}",
                       lambda r0, r1: 1 + int(pairs[r0:r1].sum()))
     return {**hits(moves, hit), "seconds": round(time.perf_counter() - t0, 4)}
 
