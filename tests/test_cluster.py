@@ -106,8 +106,8 @@ def test_simulate_on_a_cluster_gives_the_same_results(client, stock):
     tp = zigzag_with_problems(part)  # gouges: design ends cut away, bounded by machined ends of other blocks
     kw = {"box": {}, "allowance": {"allowance": 0.5},
           "mesh": {"stock": shapes.box(*(part.bounds + np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 2.0]])))}}[stock]
-    one = api.simulate(part, tp, TOOLS, step=0.5, device="cpu", **kw)
-    many = api.simulate(part, tp, TOOLS, step=0.5, device="cpu", cluster=client, **kw)
+    one = api.simulate(part, tp, TOOLS, step=0.8, device="cpu", **kw)
+    many = api.simulate(part, tp, TOOLS, step=0.8, device="cpu", cluster=client, **kw)
     for s in (one.summary, many.summary):
         s.pop("seconds")
     assert one.deviation["design_ends_cut_away"] and one.summary["colliding_moves"]
@@ -119,8 +119,8 @@ def test_simulate_on_a_cluster_gives_the_same_results(client, stock):
 def test_simulate_on_a_cluster_without_outputs_gathers_no_model(client, tmp_path):
     part = shapes.post_with_fillet(segments=48)
     tp = api.raster(part, TOOLS, tool="B6", stepover=3.0, device="cpu").toolpath
-    one = api.simulate(part, tp, TOOLS, step=0.5, device="cpu")
-    bare = api.simulate(part, tp, TOOLS, step=0.5, device="cpu", cluster=client, outputs=())
+    one = api.simulate(part, tp, TOOLS, step=1.0, device="cpu")
+    bare = api.simulate(part, tp, TOOLS, step=1.0, device="cpu", cluster=client, outputs=())
     assert bare.machined is None and bare.samples is None and bare.summary["machined_mesh"] is None
     assert bare.deviation == one.deviation and bare.summary["lattice"] == one.summary["lattice"]
     written = bare.save(str(tmp_path / "sim"))
@@ -131,7 +131,7 @@ def test_a_worker_that_dies_mid_simulation_loses_nothing(client, monkeypatch):
     monkeypatch.setattr("meshmill.progress.QUIET_S", 0.0)  # every piece told
     part = shapes.post_with_fillet(segments=48)
     tp = api.raster(part, TOOLS, tool="B6", stepover=3.0, device="cpu").toolpath
-    one = api.simulate(part, tp, TOOLS, step=0.4, device="cpu")
+    one = api.simulate(part, tp, TOOLS, step=0.6, device="cpu")
     pids = list(client.run(os.getpid).values())
     killed = []
 
@@ -140,7 +140,7 @@ def test_a_worker_that_dies_mid_simulation_loses_nothing(client, monkeypatch):
             os.kill(pids[0], signal.SIGKILL)
             killed.append(pids[0])
 
-    many = api.simulate(part, tp, TOOLS, step=0.4, device="cpu", cluster=client, progress=kill_one)
+    many = api.simulate(part, tp, TOOLS, step=0.6, device="cpu", cluster=client, progress=kill_one)
     client.wait_for_workers(2, timeout=60)
     for s in (one.summary, many.summary):
         s.pop("seconds")
