@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from meshmill import api
-from meshmill.cluster import ranges
+from meshmill.progress import ranges
 from meshmill.geometry import shapes
 from meshmill.tools.table import Tool
 from meshmill.toolpath.model import Toolpath

@@ -383,12 +383,11 @@ def verify(part, toolpath, tools, *, tolerance=GOUGE_TOL, step=0.5, stock=None, 
     floor = min(part.bounds[0, 2], stock.bounds[0, 2]) if stock is not None else None
     allowance = 0.0 if stock is not None else allowance
     if cluster is not None:
-        from .cluster import PIECES_PER_WORKER, connect, ranges, run_pieces, workers
-        from .pathing.verify import merge_reports, verify_piece
+        from .cluster import PIECES_PER_WORKER, connect, run_pieces, workers
+        from .pathing.verify import merge_reports, path_pieces, verify_piece
 
         with connect(cluster) as client:
-            pieces = [(max(0, a - 1), toolpath.points(max(0, a - 1), b))
-                      for a, b in ranges(len(toolpath), PIECES_PER_WORKER * workers(client))]
+            pieces = path_pieces(toolpath, PIECES_PER_WORKER * workers(client))
             shared = dict(part=part, floor=floor, stock=stock, allowance=allowance, tools=list(tools), tol=tolerance,
                           step=step, device=device)
             parts = run_pieces(client, verify_piece, shared, pieces, say, "certified check of every move")

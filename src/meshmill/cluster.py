@@ -17,7 +17,7 @@ import uuid
 
 from . import memory
 from .errors import InputError
-from .progress import Meter, ranges  # noqa: F401 (ranges: how every split is cut)
+from .progress import Meter
 
 RETRIES = 3  # times a piece is computed again after its worker died
 PIECES_PER_WORKER = 4  # pieces a worker gets on average (the slow ones then even out)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..progress import PIECES, in_pieces, ranges
+from ..progress import PIECES, Meter, ranges
 from ..errors import InputError
 from ..geometry.analysis import sample_surface
 from ..geometry.mesh import Mesh
@@ -40,7 +40,8 @@ from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
 from .finish_levels import added_contours
 from .finish_shallow import shallow_facets, shallow_fill
-from ..pathing.verify import DEFAULT_STEP, StockCheck, merge_reports, rapid_reach, verify_piece, verify_toolpath
+from ..pathing.verify import (DEFAULT_STEP, StockCheck, merge_reports, path_pieces, rapid_reach, verify_piece,
+                              verify_toolpath)
 
 REPAIR_ROUNDS = 7
 # Ways into and out of a pass, tried in this order: (lead along the outward side, vertical retract
@@ -600,48 +601,38 @@ def axis_piece(shared: dict, piece) -> np.ndarray:
                             shared["radii"], shared["body"], offsets)
 
 
-def _axes_on(client, mesh, device, ce, feed, side, tool, cand, cand_tilt, slack, radii, body, offsets, say):
-    """The axis search of every contour (``offsets`` of their points) in groups of contours on
-    ``client``'s workers; each contour is searched on its own, so the axes are the one process's."""
-    from ..cluster import PIECES_PER_WORKER, run_pieces, workers
-
-    groups = ranges(len(offsets) - 1, PIECES_PER_WORKER * workers(client))
-    if not groups:
-        return np.zeros(0, np.int64)
-    pieces = []
-    for a, b in groups:
-        p0, p1 = offsets[a], offsets[b]
-        pieces.append((ce[p0:p1], feed[p0:p1], side[p0:p1], tool[p0:p1], offsets[a:b + 1] - p0))
-    shared = dict(part=mesh, device=device, cand=cand, cand_tilt=cand_tilt, slack=slack, radii=radii, body=body)
-    return np.concatenate(run_pieces(client, axis_piece, shared, pieces, say, "axes"))
+def _contour_groups(offsets, count: int, *arrays) -> list[tuple]:
+    """``count`` groups of contours (``offsets (c + 1,)`` of their points) as pieces: every
+    per-point array of ``arrays`` sliced to the group's points, and the group's offsets from 0."""
+    return [(*(x[offsets[a]:offsets[b]] for x in arrays), offsets[a:b + 1] - offsets[a])
+            for a, b in ranges(len(offsets) - 1, count)]
 
 
-def _points_of(con):
-    """The weight of a group ``a .. b - 1`` of ``con``'s contours: its points."""
-    return lambda a, b: con.offsets[b] - con.offsets[a]
+def _by_contours(cluster, offsets, arrays, local, remote, shared, say, what) -> np.ndarray:
+    """``(k,) int64`` of a per-point search done by groups of contours (each point or contour on its
+    own: the same result however grouped): ``local(piece)`` here, the share done told, or
+    ``remote(shared, piece)`` on the workers of ``cluster``; pieces of :func:`_contour_groups`."""
+    if cluster is not None:
+        from ..cluster import PIECES_PER_WORKER, run_pieces, workers
+
+        out = run_pieces(cluster, remote, shared, _contour_groups(offsets, PIECES_PER_WORKER * workers(cluster),
+                                                                  *arrays), say, what)
+    else:
+        meter, out = Meter(say, what, offsets[-1]), []
+        for piece in _contour_groups(offsets, PIECES, *arrays):
+            out.append(local(piece))
+            meter.done(len(piece[0]))
+    return np.concatenate([np.zeros(0, np.int64), *out])
 
 
 def balls_piece(shared: dict, piece) -> np.ndarray:
-    """:func:`largest_balls` of a group of contours' points ``piece = (points, reach, centre_dir)``
-    on a worker of a cluster; ``shared``: the ``part``, the ``radii``, ``tol``, the ``device``."""
+    """:func:`largest_balls` of a group of contours' points ``piece = (points, reach, centre_dir,
+    offsets)`` on a worker of a cluster; ``shared``: the ``part``, the ``radii``, ``tol``, the
+    ``device``."""
     from ..cluster import worker_cached
 
     kern = worker_cached(shared, "part", lambda: solid_kernels(shared["part"], shared["device"]))
-    return largest_balls(kern, *piece, shared["radii"], shared["tol"])
-
-
-def _balls_on(client, mesh, device, con, centre_dir, radii, tol, say):
-    """:func:`_largest_balls` of ``con`` in groups of contours on ``client``'s workers (each point
-    on its own: the one process's balls)."""
-    from ..cluster import PIECES_PER_WORKER, run_pieces, workers
-
-    groups = ranges(len(con.offsets) - 1, PIECES_PER_WORKER * workers(client))
-    if not groups:
-        return np.zeros(0, np.int64)
-    cuts = [(con.offsets[a], con.offsets[b]) for a, b in groups]
-    pieces = [(con.points[p0:p1], con.reach[p0:p1], centre_dir[p0:p1]) for p0, p1 in cuts]
-    return np.concatenate(run_pieces(client, balls_piece, dict(part=mesh, device=device, radii=radii, tol=tol), pieces,
-                                     say, "tools"))
+    return largest_balls(kern, *piece[:3], shared["radii"], shared["tol"])
 
 
 class _ClusterCheck:
@@ -661,8 +652,7 @@ class _ClusterCheck:
     def __call__(self, tp):
         from ..cluster import PIECES_PER_WORKER, submit, wait, workers
 
-        pieces = [(max(0, a - 1), tp.points(max(0, a - 1), b))
-                  for a, b in ranges(len(tp), PIECES_PER_WORKER * workers(self.client))]
+        pieces = path_pieces(tp, PIECES_PER_WORKER * workers(self.client))
         futures = [submit(self.client, verify_piece, self.handle, p) for p in pieces]
         wait(futures, self.say, "verify")
         return merge_reports(tp, self.client.gather(futures), self.tol, self.step, self.check.summary(), 10)
@@ -733,15 +723,9 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     say("tools")
     t = time.perf_counter()
     centre_dir = con.normals * con.reach[:, None]  # ball centre = CC + R·centre_dir
-    if cluster is not None:  # groups of contours on the workers: the same balls
-        best = _balls_on(cluster, mesh, device, con, centre_dir, radii, params.tol, say)
-    else:  # groups of contours, the share done told
-        def balls_of(a, b):
-            p0, p1 = con.offsets[a], con.offsets[b]
-            return largest_balls(kern, con.points[p0:p1], con.reach[p0:p1], centre_dir[p0:p1], radii, params.tol)
-
-        best = np.concatenate([np.zeros(0, np.int64),
-                               *in_pieces(balls_of, ranges(len(con.offsets) - 1, PIECES), say, "tools", _points_of(con))])
+    best = _by_contours(cluster, con.offsets, (con.points, con.reach, centre_dir),
+                        lambda p: largest_balls(kern, *p[:3], radii, params.tol), balls_piece,
+                        dict(part=mesh, device=device, radii=radii, tol=params.tol), say, "tools")
     fits = best >= 0
     if params.whole_contours:
         contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tol, kern)
@@ -759,17 +743,10 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     body, _ = pack_cylinders(balls, params.tol, max(params.clearance, rapid_stock.allowance))
     slack = math.radians(params.tilt_step) + 1e-9
     centres = con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir
-    if cluster is not None:  # groups of contours searched on the workers: the same axes
-        choice = _axes_on(cluster, mesh, device, centres, con.feed, side, point_tool, cand, cand_tilt, slack, radii,
-                          body, con.offsets, say)
-    else:  # groups of contours (each searched on its own: the same axes), the share done told
-        def axes_of(a, b):
-            p0, p1 = con.offsets[a], con.offsets[b]
-            return kern.axis_search(centres[p0:p1], con.feed[p0:p1], side[p0:p1], point_tool[p0:p1], cand, cand_tilt,
-                                    slack, radii, body, con.offsets[a:b + 1] - p0)
-
-        choice = np.concatenate([np.zeros(0, np.int64),
-                                 *in_pieces(axes_of, ranges(len(con.offsets) - 1, PIECES), say, "axes", _points_of(con))])
+    choice = _by_contours(cluster, con.offsets, (centres, con.feed, side, point_tool),
+                          lambda p: kern.axis_search(*p[:4], cand, cand_tilt, slack, radii, body, p[4]), axis_piece,
+                          dict(part=mesh, device=device, cand=cand, cand_tilt=cand_tilt, slack=slack, radii=radii,
+                               body=body), say, "axes")
     fallback = 0
     if not params.whole_contours:  # no free axis for the run's ball: a smaller one, with a thinner shank
         point_tool, choice, fallback = _smaller_balls(point_tool, choice, con, centre_dir, side, radii, params, kern,

@@ -223,9 +223,9 @@ def measure(machined, start_model, design, design_model, floor, tolerance, step,
         def rows(m):
             return line_rows(m.start[a], m.iv[a], int(n[(a + 2) % 3]), i0, i1)
 
-        parts.append(measure_lines(lo, n, step, a, i0, rows(machined), rows(start_model), rows(design_model), kern,
-                                   tolerance, samples))
-        meter.done(len(rows(machined)[1]) + len(rows(design_model)[1]))
+        cut, design_rows = rows(machined), rows(design_model)
+        parts.append(measure_lines(lo, n, step, a, i0, cut, rows(start_model), design_rows, kern, tolerance, samples))
+        meter.done(len(cut[1]) + len(design_rows[1]))
     away, depth = (np.concatenate([p[k] for p in parts]) for k in ("away_points", "away_depth"))
     nearest = np.min([nearest_end(lo, n, step, a, 0, blocks[a], away, depth) for a in range(3)],
                      axis=0) if len(away) else None

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import memory
-from ..cluster import PIECES_PER_WORKER, check_workers, ranges, share, submit, wait, worker_cached, workers
+from ..cluster import PIECES_PER_WORKER, check_workers, share, submit, wait, worker_cached, workers
+from ..progress import ranges
 from ..geometry import shapes
 from ..kernels.backend import MeshKernels
 from ..kernels.bvh import build_bvh

@@ -325,7 +325,8 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     t_levels = time.perf_counter()
     loops = []
     if cluster is not None:  # groups of levels on the workers: the same loops
-        from ..cluster import PIECES_PER_WORKER, ranges, run_pieces, workers
+        from ..cluster import PIECES_PER_WORKER, run_pieces, workers
+        from ..progress import ranges
 
         shared = dict(part=mesh, device=device, tool=tool, floor=float(bounds[0, 2]) - 1.0, grow=params.allowance,
                       body_grow=body_grow(stock, params), xs=xs, ys=ys, tol=params.tol, spacing=spacing)

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..progress import PIECES, in_pieces, ranges
+from ..progress import PIECES, Meter, ranges
 from .. import memory
 from ..kernels.backend import MeshKernels, solid_kernels
 from ..tolerances import GOUGE_TOL
@@ -263,11 +263,17 @@ def verify_toolpath(kern, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: flo
     if progress is None:
         return merge_reports(tp, [verify_moves(kern, tp, tools, tol, step, stock)], tol, step, stock.summary(), worst)
 
-    def piece(a, b):
-        return verify_moves(kern, tp.points(max(0, a - 1), b), tools, tol, step, stock, max(0, a - 1))
-
-    parts = in_pieces(piece, ranges(len(tp), PIECES), progress, "certified check of every move")
+    meter, parts = Meter(progress, "certified check of every move", len(tp)), []
+    for first, piece in path_pieces(tp, PIECES):
+        parts.append(verify_moves(kern, piece, tools, tol, step, stock, first))
+        meter.done(len(piece))
     return merge_reports(tp, parts, tol, step, stock.summary(), worst)
+
+
+def path_pieces(tp: Toolpath, count: int) -> list[tuple[int, Toolpath]]:
+    """``count`` pieces ``(first, piece)`` of ``tp`` for :func:`verify_moves`: each from the point
+    before its range of moves (``first``), so that every move is in exactly one piece."""
+    return [(max(0, a - 1), tp.points(max(0, a - 1), b)) for a, b in ranges(len(tp), count)]
 
 
 def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: StockCheck, first: int = 0) -> dict:

@@ -437,7 +437,7 @@ def _with_room(start, iv):
 
 def _cut_on(client, stock: Stock, moves: Moves, boxes, hit, progress, device) -> None:
     """:func:`cut` of ``stock`` (replaced in place) by blocks of tile rows on ``client``'s workers."""
-    from ..cluster import PIECES_PER_WORKER, check_workers, ranges, run_pieces, workers
+    from ..cluster import PIECES_PER_WORKER, check_workers, run_pieces, workers
 
     pieces, peak = [], 0.0
     for a in range(3):

@@ -309,7 +309,8 @@ def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", min
 
 def _dexelize_on(client, mesh, source, lo, n, step, index, progress, device) -> DexelModel:
     """:func:`dexelize` with blocks of lines cast on the workers of ``client``."""
-    from ..cluster import PIECES_PER_WORKER, check_workers, ranges, run_pieces, workers
+    from ..cluster import PIECES_PER_WORKER, check_workers, run_pieces, workers
+    from ..progress import ranges
 
     if index != "bvh":
         raise InputError("--workers and --scheduler cast lines through the BVH index only (leave --index out)")
