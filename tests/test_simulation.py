@@ -90,6 +90,45 @@ def test_swept_interval_matches_dense_sampling(tool, turn):
             assert (gap <= SWEEP_TOL + np.linalg.norm(pb - pa) / 4000 + 1e-6).all()
 
 
+@pytest.mark.parametrize("k", [0, 1, 2])
+def test_aligned_sweep_matches_the_bisection_and_the_poses(k):
+    """A flat or bull-nose tool whose axis lies along a line-frame axis (3-axis against every dexel
+    direction) is cut in closed form per pose: the same interval as the general bisection on the
+    distance to the core, and every end is reached by a pose (the ends of dense poses bracket
+    it); lines placed exactly on the tool's edges and moves along the axes included."""
+    rng = np.random.default_rng(5 + k)
+    checked = 0
+    for i in range(240):
+        sgn = 1.0 if i % 2 else -1.0
+        x = np.zeros(3)
+        x[k] = sgn
+        R, r, H = (3.0, 0.0, 6.0) if i % 3 == 0 else (5.0, 1.0, 6.0) if i % 3 == 1 else (4.0, 2.0, 0.0)
+        c = np.round(rng.uniform(-2, 2, 3), 1)
+        D = np.round(rng.normal(size=3) * rng.choice([0.0, 0.5, 3.0]), 1)
+        if i % 4 == 0:
+            D[rng.integers(0, 3)] = 0.0
+        u0, v0 = (c[0] + R, c[1]) if i % 7 == 0 else (c[0], c[1] - R + r) if i % 7 == 1 else rng.uniform(-7, 7, 2)
+        lo, hi = swp.aligned_sweep(u0, v0, *c, *D, k, sgn, H, R - r, r)
+        blo, bhi = swp.rounded_sweep(u0, v0, *c, *D, *x, H, R - r, r)
+        if lo > hi or blo > bhi:  # both miss, or one grazes (an interval shorter than 1e-6 mm)
+            assert (lo > hi or hi - lo < 1e-6) and (blo > bhi or bhi - blo < 1e-6)
+            continue
+        # the bisection accepts points 1e-9 mm off the tool: where the line grazes a curved edge
+        # its interval is up to sqrt(2 R 1e-9) longer
+        assert blo - 1e-7 <= lo <= blo + 2e-4 and bhi - 2e-4 <= hi <= bhi + 1e-7
+        s0, s1 = swp.aligned_poses(u0, v0, *c, *D, k, sgn, H, R - r, r)
+        ss = np.linspace(s0, s1, 501)
+        assert lo <= min(swp.aligned_at(s, u0, v0, *c, *D, k, sgn, H, R - r, r, False) for s in ss) + 1e-12
+        assert hi >= -min(swp.aligned_at(s, u0, v0, *c, *D, k, sgn, H, R - r, r, True) for s in ss) - 1e-12
+        # both ends lie on the tool at some pose (the reference distance, over 4001 poses)
+        tips = c - r * x + np.linspace(0, 1, 4001)[:, None] * D
+        for e in (lo, hi):
+            gap = tool_gap(np.array([[u0, v0, e]]) - tips, np.zeros(3), x, R, r, H + 2 * r)
+            assert gap.min() <= 1e-9 + np.linalg.norm(D) / 4000
+        checked += 1
+    assert checked > 60
+
+
 def slot_removed(tool, depth, step=0.1):
     d = dexelize(box((0, 0, 0), (40, 20, 10)), step)
     tip = np.array([[-10, 10, 10 - depth], [50, 10, 10 - depth]], float)

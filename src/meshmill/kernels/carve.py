@@ -22,6 +22,7 @@ def build(jit, inline=None):
     called (on the CPU a call passing arrays costs reference counting)."""
     swp = sweep.build(jit)
     capsule = swp.capsule
+    pgram_ball = swp.pgram_ball
     flute_range = swp.flute_range
     tool_move = swp.tool_move
     flute_plane = swp.flute_plane
@@ -131,6 +132,15 @@ def build(jit, inline=None):
             if material_outside(iv, base, n, max(flo, wlo), min(fhi, whi), lo, hi):
                 lo, hi = tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
         else:
+            if xa[m, 0] == xb[m, 0] and xa[m, 1] == xb[m, 1] and xa[m, 2] == xb[m, 2]:
+                # nothing to cut unless material lies in the sweep of the ball of radius R about
+                # the axis segment (it holds the whole tool's)
+                H = max(0.0, flutes[m] - 2.0 * cm)
+                lo, hi = pgram_ball(u0, v0, chord[m, 0], chord[m, 1], chord[m, 2], chord[m, 3] - chord[m, 0],
+                                    chord[m, 4] - chord[m, 1], chord[m, 5] - chord[m, 2], H * xa[m, 0],
+                                    H * xa[m, 1], H * xa[m, 2], radius[m])
+                if lo >= hi or not material_outside(iv, base, n, max(lo, wlo), min(hi, whi), 1.0, 0.0):
+                    return 0.0
             lo, hi = tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
         if lo >= hi:
             return 0.0

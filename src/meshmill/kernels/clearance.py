@@ -759,10 +759,11 @@ def build(jit):
             if d2 >= r2:
                 continue
             radial = r - math.sqrt(d2)
-            # axial depth: how far the bottom of the cylinder must rise to clear (bisection)
+            # axial depth: how far the bottom of the cylinder must rise to clear (bisection), when
+            # less than the radial depth (raised by that much, the cylinder must clear)
             lo = t0
-            hi = t1
-            if cylinder_dist(px, py, pz, ux, uy, uz, hi - 1e-9, t1, r2, r2, node_lo, node_hi, node_child, node_range,
+            hi = min(t1 - 1e-9, t0 + radial)
+            if cylinder_dist(px, py, pz, ux, uy, uz, hi, t1, r2, r2, node_lo, node_hi, node_child, node_range,
                              tris, stack) < r2:
                 segs[i, k] = radial
                 continue

@@ -190,9 +190,10 @@ def build(jit):
         return radial * radial + gap * gap
 
     @jit
-    def core_dist2(pu, pv, pw, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho):
+    def core_dist2(pu, pv, pw, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, enough):
         """Squared distance from p to ``Disk(rho) + Parallelogram(c; D, H x)``, x the unit axis,
-        the disk perpendicular to x."""
+        the disk perpendicular to x; or any value <= ``enough`` once one is found (the callers
+        only ask whether p lies within a distance)."""
         qu = pu - cu
         qv = pv - cv
         qw = pw - cw
@@ -222,25 +223,30 @@ def build(jit):
             radial = max(0.0, math.sqrt(du * du + dv * dv + dw * dw) - rho)
             gap = max(0.0, max(-qa, qa - H))
             return radial * radial + gap * gap
-        # general: convex in s, golden-section search on [0, 1], then the ends
+        # general: convex in s; the ends, then a golden-section search on [0, 1]
+        best = min(offset_dist2(0.0, su, sv, sw, eu, ev, ew, qa, Da, H, rho),
+                   offset_dist2(1.0, su, sv, sw, eu, ev, ew, qa, Da, H, rho))
         a = 0.0
         b = 1.0
-        best = INF
-        for _ in range(60):
-            s1 = b - GOLDEN * (b - a)
-            s2 = a + GOLDEN * (b - a)
-            f1 = offset_dist2(s1, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
-            f2 = offset_dist2(s2, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
+        s1 = b - GOLDEN
+        s2 = GOLDEN
+        f1 = offset_dist2(s1, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
+        f2 = offset_dist2(s2, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
+        while b - a > 1e-12 and best > enough:
             best = min(best, min(f1, f2))
             if f1 <= f2:
                 b = s2
+                s2 = s1
+                f2 = f1
+                s1 = b - GOLDEN * (b - a)
+                f1 = offset_dist2(s1, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
             else:
                 a = s1
-            if b - a < 1e-12:
-                break
-        best = min(best, offset_dist2(0.0, su, sv, sw, eu, ev, ew, qa, Da, H, rho))
-        best = min(best, offset_dist2(1.0, su, sv, sw, eu, ev, ew, qa, Da, H, rho))
-        return best
+                s1 = s2
+                f1 = f2
+                s2 = a + GOLDEN * (b - a)
+                f2 = offset_dist2(s2, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
+        return min(best, min(f1, f2))
 
     @jit
     def level_edge(w_out, w_in, u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2):
@@ -248,7 +254,7 @@ def build(jit):
         ``core_dist2 <= r2``; returns the inside end, within ``BISECT_TOL`` of the boundary."""
         while abs(w_in - w_out) > BISECT_TOL:
             m = 0.5 * (w_out + w_in)
-            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho) <= r2:
+            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2) <= r2:
                 w_in = m
             else:
                 w_out = m
@@ -270,17 +276,17 @@ def build(jit):
             b = ohi
             inside = INF
             m = 0.5 * (a + b)
-            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho) <= r2:
+            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2) <= r2:
                 inside = m
             else:
                 for _ in range(80):
                     w1 = b - GOLDEN * (b - a)
                     w2 = a + GOLDEN * (b - a)
-                    f1 = core_dist2(u0, v0, w1, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho)
+                    f1 = core_dist2(u0, v0, w1, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2)
                     if f1 <= r2:
                         inside = w1
                         break
-                    f2 = core_dist2(u0, v0, w2, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho)
+                    f2 = core_dist2(u0, v0, w2, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2)
                     if f2 <= r2:
                         inside = w2
                         break
@@ -299,6 +305,140 @@ def build(jit):
         return lo, level_edge(ohi, ihi, u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2)
 
     @jit
+    def aligned_at(s, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper):
+        """:func:`aligned_sweep`'s function of the pose s (the line meets the tool there): the
+        lower end of the line's interval with the tool at s (``upper``: minus the upper end)."""
+        bu = u0 - cu - s * Du
+        bv = v0 - cv - s * Dv
+        w = cw + s * Dw
+        if k == 2:  # axis along the line: radial distance d, core from w to w + sgn H
+            t = max(0.0, math.sqrt(bu * bu + bv * bv) - rho)
+            g = math.sqrt(max(0.0, r * r - t * t))
+            if upper:
+                return -(w + max(0.0, sgn * H) + g)
+            return w + min(0.0, sgn * H) - g
+        # axis across the line, along u (k = 0) or v (k = 1): axial a, offset b
+        a = sgn * (bu if k == 0 else bv)
+        b = bv if k == 0 else bu
+        gap = max(0.0, max(-a, a - H))
+        reach = rho + math.sqrt(max(0.0, r * r - gap * gap))
+        h = math.sqrt(max(0.0, reach * reach - b * b))
+        return -(w + h) if upper else w - h
+
+    @jit
+    def slab_range(p, dp, lo, hi, s0, s1):
+        """``[s0, s1]`` clipped to where ``lo <= p + s dp <= hi``."""
+        if dp == 0.0:
+            if p < lo or p > hi:
+                return 1.0, 0.0
+            return s0, s1
+        t0 = (lo - p) / dp
+        t1 = (hi - p) / dp
+        return max(s0, min(t0, t1)), min(s1, max(t0, t1))
+
+    @jit
+    def disk_range(pa, pb, da, db, R):
+        """Where ``|(pa, pb) + s (da, db)| <= R`` over s in [0, 1] (empty: first > second)."""
+        A = da * da + db * db
+        B = pa * da + pb * db
+        C = pa * pa + pb * pb - R * R
+        if A <= 1e-300:
+            return (0.0, 1.0) if C <= 0.0 else (1.0, 0.0)
+        disc = B * B - A * C
+        if disc < 0.0:
+            return 1.0, 0.0
+        q = math.sqrt(disc)
+        return max(0.0, (-B - q) / A), min(1.0, (-B + q) / A)
+
+    @jit
+    def aligned_poses(u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r):
+        """The poses s in [0, 1] at which the line meets the tool of :func:`aligned_sweep`: an
+        interval (the set is convex), ``(1, 0)`` when none."""
+        bu = u0 - cu
+        bv = v0 - cv
+        if k == 2:
+            return disk_range(bu, bv, -Du, -Dv, rho + r)
+        # the section of the tool by the plane of the line and the axis: the rectangle
+        # [0, H] x [-rho, rho] (axial, offset) grown by r; the union of two rectangles and four disks
+        a0 = sgn * (bu if k == 0 else bv)
+        da = -sgn * (Du if k == 0 else Dv)
+        b0 = bv if k == 0 else bu
+        db = -(Dv if k == 0 else Du)
+        lo, hi = slab_range(a0, da, -r, H + r, 0.0, 1.0)
+        lo, hi = slab_range(b0, db, -rho, rho, lo, hi)
+        l2, h2 = slab_range(a0, da, 0.0, H, 0.0, 1.0)
+        l2, h2 = slab_range(b0, db, -rho - r, rho + r, l2, h2)
+        if l2 <= h2:
+            if lo <= hi:
+                lo, hi = min(lo, l2), max(hi, h2)
+            else:
+                lo, hi = l2, h2
+        if r > 0.0:
+            for corner in range(4):
+                ca = 0.0 if corner < 2 else H
+                cb = rho if corner % 2 == 0 else -rho
+                l2, h2 = disk_range(a0 - ca, b0 - cb, da, db, r)
+                if l2 <= h2:
+                    if lo <= hi:
+                        lo, hi = min(lo, l2), max(hi, h2)
+                    else:
+                        lo, hi = l2, h2
+        return lo, hi
+
+    @jit
+    def aligned_extreme(s0, s1, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper):
+        """Lowest start (``upper`` False) or minus the highest end of the line in the tool over
+        the poses ``s0 <= s <= s1`` (those meeting the line) of :func:`aligned_sweep`: each is
+        convex in s (the set of (s, w) with the line point w in the tool at pose s is convex), so
+        a golden-section search to 1e-12 in s, with both ends evaluated."""
+        best = min(aligned_at(s0, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper),
+                   aligned_at(s1, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper))
+        a = s0
+        b = s1
+        s1 = b - GOLDEN * (b - a)
+        s2 = a + GOLDEN * (b - a)
+        f1 = aligned_at(s1, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper)
+        f2 = aligned_at(s2, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper)
+        while b - a > 1e-12:
+            best = min(best, min(f1, f2))
+            if f1 <= f2:
+                b = s2
+                s2 = s1
+                f2 = f1
+                s1 = b - GOLDEN * (b - a)
+                f1 = aligned_at(s1, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper)
+            else:
+                a = s1
+                s1 = s2
+                f1 = f2
+                s2 = a + GOLDEN * (b - a)
+                f2 = aligned_at(s2, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper)
+        return min(best, min(f1, f2))
+
+    @jit
+    def aligned_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r):
+        """Line against ``Disk(rho) + Parallelogram(c; D, H x) + Ball(r)`` when the axis x is
+        ``sgn`` times coordinate axis k of the line frame (k = 2: along the line; a 3-axis tool
+        against every dexel direction): the line meets the tool at each pose in closed form, and
+        the sweep's interval is the union over the poses (see :func:`aligned_extreme`)."""
+        s0, s1 = aligned_poses(u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r)
+        if s0 > s1:
+            return INF, -INF
+        return (aligned_extreme(s0, s1, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, False),
+                -aligned_extreme(s0, s1, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, True))
+
+    @jit
+    def fixed_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r):
+        """Line against ``Disk(rho) + Parallelogram(c; D, H x) + Ball(r)`` (rho > 0): in closed
+        form per pose when x lies along a coordinate axis of the line frame, else by bisection."""
+        if xu == 0.0 and xv == 0.0:
+            return aligned_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, 2, 1.0 if xw > 0.0 else -1.0, H, rho, r)
+        if xw == 0.0 and (xu == 0.0 or xv == 0.0):
+            k = 0 if xv == 0.0 else 1
+            return aligned_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, k, 1.0 if xu + xv > 0.0 else -1.0, H, rho, r)
+        return rounded_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r)
+
+    @jit
     def pose(u0, v0, tu, tv, tw, xu, xv, xw, R, r, F):
         """Line against the cutter standing at tip t with unit axis x."""
         H = max(0.0, F - 2.0 * r)
@@ -307,7 +447,7 @@ def build(jit):
         cw = tw + r * xw
         if R - r <= 1e-12:
             return capsule(u0, v0, cu, cv, cw, cu + H * xu, cv + H * xv, cw + H * xw, r)
-        return rounded_sweep(u0, v0, cu, cv, cw, 0.0, 0.0, 0.0, xu, xv, xw, H, R - r, r)
+        return fixed_sweep(u0, v0, cu, cv, cw, 0.0, 0.0, 0.0, xu, xv, xw, H, R - r, r)
 
     @jit
     def pose_at(u0, v0, pa, pb, xa, xb, t, R, r, F):
@@ -406,7 +546,7 @@ def build(jit):
         if xa[0] == xb[0] and xa[1] == xb[1] and xa[2] == xb[2]:
             if rho <= 1e-12:
                 return pgram_ball(u0, v0, cu, cv, cw, Du, Dv, Dw, H * xa[0], H * xa[1], H * xa[2], r)
-            return rounded_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xa[0], xa[1], xa[2], H, rho, r)
+            return fixed_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xa[0], xa[1], xa[2], H, rho, r)
         if rho > 1e-12:  # other cutters: the extreme ends over the poses
             lo = turning_search(u0, v0, pa, pb, xa, xb, R, r, F, False)
             if lo >= INF:
@@ -435,5 +575,7 @@ def build(jit):
         return lo, hi
 
     return SimpleNamespace(sphere=sphere, capsule=capsule, pgram_ball=pgram_ball, core_dist2=core_dist2,
-                           rounded_sweep=rounded_sweep, pose=pose,
+                           rounded_sweep=rounded_sweep, aligned_sweep=aligned_sweep, aligned_poses=aligned_poses,
+                           aligned_at=aligned_at, fixed_sweep=fixed_sweep,
+                           pose=pose,
                            flute_plane=flute_plane, flute_range=flute_range, tool_move=tool_move)
