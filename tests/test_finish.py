@@ -507,3 +507,47 @@ def test_a_crease_too_sharp_for_any_ball_to_touch_is_not_cut(tools):
     radius = np.array([b.radius for b in d["balls"]])[d["point_tool"][cut]]
     assert np.abs(d["kern"].mesh_distances(d["ce"][cut]) - radius).max() <= 0.01 + 1e-9
     assert s["verify"]["ok"]
+
+
+def test_axis_search_with_witnesses_finds_the_first_clear_candidate():
+    """The search skips candidates whose body holds a point of the part found inside an earlier
+    candidate's (or an earlier point's): on points along the walls and floor of a pocket, in
+    chunks that share their witnesses, it returns exactly the first candidate whose body clears
+    the part when each is searched on its own."""
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.geometry.shapes import box
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.kernels.cpu import dev
+    from meshmill.ops.finish import tilt_candidates
+    from meshmill.tools.table import Tool, pack_cylinders
+
+    walls = [box([-20, -20, 0], [20, 20, 5]), box([-20, -20, 5], [-12, 20, 30]), box([12, -20, 5], [20, 20, 30]),
+             box([-12, -20, 5], [12, -12, 30]), box([-12, 12, 5], [12, 20, 18])]
+    m = mesh_from_arrays(np.vstack([p.vertices for p in walls]),
+                         np.vstack([p.faces + 8 * i for i, p in enumerate(walls)]), "pocket")
+    kern = solid_kernels(m, "cpu")
+    ball = Tool(name="B2", type="ball", diameter=2.0, corner_radius=1.0, flute_length=6.0, gauge_length=35.0,
+                shank_diameter=6.0, holder_diameter=32.0, holder_length=40.0, number=1)
+    body, _ = pack_cylinders([ball], 0.01, 0.5)
+    cand, tilt = tilt_candidates(60.0, 5.0)
+    rng = np.random.default_rng(3)
+    k = 160
+    # ball centres 1 mm off a wall (x = -12 or y = 12) or on the floor, at z on the grid and off it
+    x = np.where(rng.random(k) < 0.5, -11.0, rng.uniform(-11, 11, k))
+    y = np.where(x == -11.0, rng.uniform(-11, 11, k), 11.0)
+    z = np.where(rng.random(k) < 0.3, 6.0, np.round(rng.uniform(6, 29, k), 0))
+    ce = np.column_stack([x, y, z])
+    feed = np.tile([0.0, 1.0, 0.0], (k, 1))
+    side = np.cross(feed, [0.0, 0.0, 1.0])
+    tool = np.zeros(k, np.int64)
+    found = kern.axis_search(ce, feed, side, tool, cand, tilt, 0.0, np.array([1.0]), body, np.array([0, 1]))
+    arrays = kern.mesh
+    for i in range(k):
+        first = -1
+        for c in range(len(cand)):
+            u = dev.tilted_axis(*feed[i], *side[i], *cand[c])
+            if dev.body_clear(*(ce[i] - np.array(u)), *u, *body, 0, *arrays, np.empty(128, np.int32)):
+                first = c
+                break
+        assert found[i] == first
+    assert (found > 0).sum() > 20 and (found < 0).sum() > 5 and (found == 0).sum() > 5

@@ -194,3 +194,44 @@ def test_shank_and_holder_of_feed_moves_stay_out_of_the_stock(tools):
     assert r["colliding_moves"] == 2 and r["gouging_moves"] == 0 and "holder (in the stock)" in r["worst"][0]
     low = box([-30, -30, 0], [20, 40, 16])  # below the shank (12 mm over the tip): only the cutter in it
     assert verify_toolpath(m, tp, tools, stock=StockCheck(kern=solid_kernels(low)))["ok"]
+
+
+@pytest.mark.parametrize("pieces", [False, True])
+def test_a_changed_path_reverified_reports_as_a_whole_check(tools, pieces):
+    """Repair rounds check only the moves a path's new version does not share with the last
+    (the same two points, axes, tool and kind): the report equals a check of the whole new path,
+    problems, counts and figures, whatever was kept, moved, added or removed."""
+    from meshmill.pathing.reverify import Reverify
+    from meshmill.pathing.verify import StockCheck, check_parts, verify_toolpath
+    from meshmill.kernels.backend import solid_kernels
+
+    kern = solid_kernels(box([0, 0, 0], [20, 20, 10]), "cpu")
+    stock = StockCheck(allowance=0.5, clearance=0.5)
+    rng = np.random.default_rng(2)
+    n = 60
+    pts = np.column_stack([np.linspace(-5, 25, n), np.full(n, 10.0), np.full(n, 10.0)])
+    pts[rng.choice(n, 6, replace=False), 2] -= rng.uniform(0.05, 0.5, 6)  # dips into the top
+    rapid = np.zeros(n, bool)
+    rapid[[0, 30]] = True
+    tp = _path(pts, rapid=rapid, tool=1)
+    progress = (lambda *a: None) if pieces else None
+    check = Reverify(lambda path, only: check_parts(kern, path, tools, 0.01, 0.5, stock, only, progress), 0.01, 0.5,
+                     stock.summary())
+    first = check(tp)
+    assert first == verify_toolpath(kern, tp, tools, 0.01, 0.5, stock=stock) and not first["ok"]
+    assert check.checked == n
+    # repair: lift the dips, drop two points, add a rapid up and back, tilt one point
+    fixed = pts.copy()
+    fixed[:, 2] = np.maximum(fixed[:, 2], 10.0)
+    keep = np.ones(n, bool)
+    keep[[12, 40]] = False
+    new = np.vstack([fixed[keep][:20], [[fixed[keep][19, 0], 10.0, 30.0]], fixed[keep][20:]])
+    axes = np.tile(UP, (len(new), 1))
+    axes[45] = [0.0, np.sin(0.1), np.cos(0.1)]
+    new_rapid = np.r_[rapid[keep][:20], True, rapid[keep][20:]]
+    tp2 = _path(new, axes=axes, rapid=new_rapid, tool=1)
+    again = check(tp2)
+    assert again == verify_toolpath(kern, tp2, tools, 0.01, 0.5, stock=stock)
+    assert 0 < check.checked < len(tp2) // 2
+    # unchanged: nothing checked, the same report
+    assert check(tp2) == again and check.checked == 0

@@ -15,7 +15,7 @@ from . import clearance, cutters
 from .clearance import WORK_SIZE
 from .cpu_dexel import cast_lines, cut_tiles, move_constants, rays_blocked  # noqa: F401  (one module offers every kernel)
 from .cutters import NO_BODY
-from .geom import INF, STACK_SIZE, build
+from .geom import INF, STACK_SIZE, WITNESSES, build
 
 dev = build(numba.njit(fastmath=False, cache=True))
 cut = cutters.build(numba.njit(fastmath=False, cache=True))
@@ -70,10 +70,13 @@ def largest_ball(cc, normals, radii, tol, bvh):
 def _axis_search(ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
                  node_lo, node_hi, node_child, node_range, tris):
     out = np.empty(ce.shape[0], np.int32)
-    for i in prange(ce.shape[0]):
+    for c in prange((ce.shape[0] + CHUNK - 1) // CHUNK):  # neighbouring points share their witnesses
         stack = np.empty(STACK_SIZE, np.int32)
-        out[i] = _first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
-                                      node_lo, node_hi, node_child, node_range, tris, stack)
+        seen = np.empty(3 * WITNESSES)
+        kept = 0
+        for i in range(c * CHUNK, min(ce.shape[0], (c + 1) * CHUNK)):
+            out[i], kept = _first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                                             node_lo, node_hi, node_child, node_range, tris, stack, seen, kept)
     return out
 
 

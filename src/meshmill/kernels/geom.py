@@ -22,6 +22,9 @@ from types import SimpleNamespace
 
 STACK_SIZE = 128
 INF = 1.0e300
+WITNESSES = 16  # points of the part found inside a blocked tool body, kept by the axis search
+WITNESS_GRID = 8  # a blocking triangle's points looked at for a witness: barycentric steps of 1/8
+WITNESS_MARGIN = 1e-9  # mm: how deep a witness must lie in a candidate's body to block it
 
 
 def build(jit):
@@ -340,14 +343,11 @@ def build(jit):
         return qx * qx + qy * qy + qz * qz <= reach * reach
 
     @jit
-    def mesh_cylinder_dist2(ax, ay, az, ux, uy, uz, t0, t1, cap2, stop2,
-                            node_lo, node_hi, node_child, node_range, tris, stack):
-        """Smallest squared distance from the axis a + s·u to the mesh within t0 <= s <= t1.
-
-        A flat-ended cylinder of radius r on that range overlaps the mesh iff this is < r².
-        Capped at cap2; returns early below stop2 (stop2 = 0: exact minimum).
-        """
+    def mesh_cylinder_search(ax, ay, az, ux, uy, uz, t0, t1, cap2, stop2,
+                             node_lo, node_hi, node_child, node_range, tris, stack):
+        """:func:`mesh_cylinder_dist2` and the triangle that gave it (-1: none under cap2)."""
         best = cap2
+        hit = -1
         p0x = ax + t0 * ux
         p0y = ay + t0 * uy
         p0z = az + t0 * uz
@@ -369,29 +369,70 @@ def build(jit):
                     d = triangle_axis_dist2(tris, k, ax, ay, az, ux, uy, uz, t0, t1)
                     if d < best:
                         best = d
+                        hit = k
                         if best < stop2:
-                            return best
+                            return best, hit
             else:
                 stack[sp] = node_child[n, 1]
                 stack[sp + 1] = left
                 sp += 2
-        return best
+        return best, hit
+
+    @jit
+    def mesh_cylinder_dist2(ax, ay, az, ux, uy, uz, t0, t1, cap2, stop2,
+                            node_lo, node_hi, node_child, node_range, tris, stack):
+        """Smallest squared distance from the axis a + s·u to the mesh within t0 <= s <= t1.
+
+        A flat-ended cylinder of radius r on that range overlaps the mesh iff this is < r².
+        Capped at cap2; returns early below stop2 (stop2 = 0: exact minimum).
+        """
+        return mesh_cylinder_search(ax, ay, az, ux, uy, uz, t0, t1, cap2, stop2,
+                                    node_lo, node_hi, node_child, node_range, tris, stack)[0]
 
     @jit
     def body_clear(tx, ty, tz, ux, uy, uz, seg_t0, seg_t1, seg_r, tool,
                    node_lo, node_hi, node_child, node_range, tris, stack):
         """True when no cylinder of tool body ``tool`` (rows of seg_*; radius <= 0 ends the list)
         placed with its tip at t and unit axis u overlaps the mesh."""
-        for k in range(seg_r.shape[1]):
-            r = seg_r[tool, k]
-            if r <= 0.0:
-                break
-            r2 = r * r
-            d = mesh_cylinder_dist2(tx, ty, tz, ux, uy, uz, seg_t0[tool, k], seg_t1[tool, k], r2, r2,
-                                    node_lo, node_hi, node_child, node_range, tris, stack)
+        return body_blocker(tx, ty, tz, ux, uy, uz, seg_t0, seg_t1, seg_r, tool,
+                            node_lo, node_hi, node_child, node_range, tris, stack) < 0
+
+    @jit
+    def body_blocker(tx, ty, tz, ux, uy, uz, seg_t0, seg_t1, seg_r, tool,
+                     node_lo, node_hi, node_child, node_range, tris, stack):
+        """A triangle overlapping a cylinder of tool body ``tool`` placed with its tip at t and unit
+        axis u, -1 when none does (:func:`body_clear`). The outer cylinders (holder) are tried
+        first: they meet the part most often."""
+        n = 0
+        while n < seg_r.shape[1] and seg_r[tool, n] > 0.0:
+            n += 1
+        for j in range(n):
+            k = n - 1 - j
+            r2 = seg_r[tool, k] * seg_r[tool, k]
+            d, hit = mesh_cylinder_search(tx, ty, tz, ux, uy, uz, seg_t0[tool, k], seg_t1[tool, k], r2, r2,
+                                          node_lo, node_hi, node_child, node_range, tris, stack)
             if d < r2:
-                return False
-        return True
+                return hit
+        return -1
+
+    @jit
+    def body_depth(px, py, pz, tx, ty, tz, ux, uy, uz, seg_t0, seg_t1, seg_r, tool):
+        """How deep point p lies in tool body ``tool`` placed with its tip at t and unit axis u:
+        the largest margin (mm) to the side and the ends of a cylinder holding it, <= 0 if none."""
+        qx = px - tx
+        qy = py - ty
+        qz = pz - tz
+        a = qx * ux + qy * uy + qz * uz
+        rx = qx - a * ux
+        ry = qy - a * uy
+        rz = qz - a * uz
+        rad = math.sqrt(rx * rx + ry * ry + rz * rz)
+        best = 0.0
+        for k in range(seg_r.shape[1]):
+            if seg_r[tool, k] <= 0.0:
+                break
+            best = max(best, min(seg_r[tool, k] - rad, min(a - seg_t0[tool, k], seg_t1[tool, k] - a)))
+        return best
 
     @jit
     def tilted_axis(fx, fy, fz, sx, sy, sz, alpha, beta):
@@ -417,15 +458,61 @@ def build(jit):
 
     @jit
     def first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
-                         node_lo, node_hi, node_child, node_range, tris, stack):
-        """The first candidate (in order of preference) clear at point i; -1 if none or no tool."""
-        if tool[i] < 0:
-            return -1
+                         node_lo, node_hi, node_child, node_range, tris, stack, seen, kept):
+        """The first candidate (in order of preference) clear at point i (-1 if none or no tool),
+        and the witnesses kept.
+
+        Each candidate found blocked leaves a witness: the deepest of its blocking triangle's
+        corners and centroid (a point of the part inside the body). A candidate whose body holds
+        one of the last ``WITNESSES`` witnesses is blocked without a search; a witness is a point
+        of the part, so it serves the next points as well. ``seen``: a float64 work array of
+        ``3 * WITNESSES`` holding ``kept`` witnesses (the last ``WITNESSES`` of them)."""
+        t = tool[i]
+        if t < 0:
+            return -1, kept
+        r = radius[t]
         for c in range(cand.shape[0]):
-            if axis_clear(i, c, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
-                          node_lo, node_hi, node_child, node_range, tris, stack):
-                return c
-        return -1
+            ux, uy, uz = tilted_axis(f[i, 0], f[i, 1], f[i, 2], s[i, 0], s[i, 1], s[i, 2], cand[c, 0], cand[c, 1])
+            tx = ce[i, 0] - r * ux
+            ty = ce[i, 1] - r * uy
+            tz = ce[i, 2] - r * uz
+            held = False
+            for w in range(min(kept, WITNESSES)):
+                if body_depth(seen[3 * w], seen[3 * w + 1], seen[3 * w + 2], tx, ty, tz, ux, uy, uz,
+                              seg_t0, seg_t1, seg_r, t) > WITNESS_MARGIN:
+                    held = True
+                    break
+            if held:
+                continue
+            hit = body_blocker(tx, ty, tz, ux, uy, uz, seg_t0, seg_t1, seg_r, t,
+                               node_lo, node_hi, node_child, node_range, tris, stack)
+            if hit < 0:
+                return c, kept
+            # the deepest inside the body of the triangle's points at barycentric coordinates in
+            # steps of 1 / WITNESS_GRID
+            best = 0.0
+            for v in range((WITNESS_GRID + 1) * (WITNESS_GRID + 2) // 2):
+                ia = 0
+                rest = v
+                while rest > WITNESS_GRID - ia:
+                    rest -= WITNESS_GRID + 1 - ia
+                    ia += 1
+                wa = ia / WITNESS_GRID
+                wb = rest / WITNESS_GRID
+                wc = 1.0 - wa - wb
+                px = wa * tris[hit, 0] + wb * tris[hit, 3] + wc * tris[hit, 6]
+                py = wa * tris[hit, 1] + wb * tris[hit, 4] + wc * tris[hit, 7]
+                pz = wa * tris[hit, 2] + wb * tris[hit, 5] + wc * tris[hit, 8]
+                depth = body_depth(px, py, pz, tx, ty, tz, ux, uy, uz, seg_t0, seg_t1, seg_r, t)
+                if depth > best:
+                    best = depth
+                    w = kept % WITNESSES
+                    seen[3 * w] = px
+                    seen[3 * w + 1] = py
+                    seen[3 * w + 2] = pz
+            if best > 0.0:
+                kept += 1
+        return -1, kept
 
     @jit
     def keep_previous_axes(i0, i1, choice, cand_tilt, slack, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
@@ -456,4 +543,5 @@ def build(jit):
         largest_clear_ball=largest_clear_ball,
         mesh_cylinder_dist2=mesh_cylinder_dist2,
         body_clear=body_clear,
+        body_depth=body_depth,
     )

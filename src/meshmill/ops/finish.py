@@ -40,8 +40,8 @@ from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
 from .finish_levels import added_contours
 from .finish_shallow import shallow_facets, shallow_fill
-from ..pathing.verify import (DEFAULT_STEP, StockCheck, merge_reports, path_pieces, rapid_reach, verify_piece,
-                              verify_toolpath)
+from ..pathing.reverify import Reverify
+from ..pathing.verify import DEFAULT_STEP, StockCheck, check_parts, path_pieces, rapid_reach, verify_piece
 
 REPAIR_ROUNDS = 7
 # Ways into and out of a pass, tried in this order: (lead along the outward side, vertical retract
@@ -636,7 +636,7 @@ def balls_piece(shared: dict, piece) -> np.ndarray:
 
 
 class _ClusterCheck:
-    """:func:`~meshmill.pathing.verify.verify_toolpath` of finish's paths in ranges of moves on a
+    """:func:`~meshmill.pathing.verify.check_parts` of finish's paths in ranges of moves on a
     cluster's workers: the part (and stock) scattered and their kernels built once for every round
     of repairs; the reports are the one process's."""
 
@@ -649,13 +649,13 @@ class _ClusterCheck:
                                          clearance=check.clearance, tools=list(tools), tol=tol, step=step,
                                          device=device))
 
-    def __call__(self, tp):
+    def __call__(self, tp, only):
         from ..cluster import PIECES_PER_WORKER, submit, wait, workers
 
-        pieces = path_pieces(tp, PIECES_PER_WORKER * workers(self.client))
+        pieces = path_pieces(tp, PIECES_PER_WORKER * workers(self.client), only)
         futures = [submit(self.client, verify_piece, self.handle, p) for p in pieces]
         wait(futures, self.say, "verify")
-        return merge_reports(tp, self.client.gather(futures), self.tol, self.step, self.check.summary(), 10)
+        return self.client.gather(futures)
 
 
 def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", stock=None, machine=None,
@@ -839,10 +839,12 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     t = time.perf_counter()
     step = min(DEFAULT_STEP, params.sample)
     if cluster is not None:  # ranges of moves on the workers: the same reports
-        check = _ClusterCheck(cluster, mesh, stock, rapid_stock, tools, params.tol, step, device, say)
+        parts = _ClusterCheck(cluster, mesh, stock, rapid_stock, tools, params.tol, step, device, say)
     else:
-        def check(path):
-            return verify_toolpath(kern, path, tools, params.tol, step, stock=rapid_stock, progress=say)
+        def parts(path, only):
+            return check_parts(kern, path, tools, params.tol, step, rapid_stock, only, progress=say)
+    # each round of repairs checks only the moves it changed
+    check = Reverify(parts, params.tol, step, rapid_stock.summary())
     dropped = 0
     for rnd in range(REPAIR_ROUNDS + 1):
         tp, owner, role = builder.build(passes)

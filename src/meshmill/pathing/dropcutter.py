@@ -9,7 +9,8 @@ from ..progress import PIECES, in_pieces, ranges
 from ..errors import InputError
 from ..kernels.backend import bind, cutter_rise, solid_kernels
 from ..toolpath.linking import link_passes
-from .verify import StockCheck, verify_toolpath
+from .reverify import Reverify
+from .verify import StockCheck, check_parts
 
 SAFE_ABOVE = 5.0  # mm above the part's top for rapid moves of 3-axis paths
 TOUCH = 1e-6  # mm: a touch point's drop height is within this of its level ...
@@ -158,13 +159,16 @@ def verified_path(passes, tool_index, tools, kern, safe_z, tol, step, stock: Sto
     round's check done."""
     stock = stock or StockCheck()
     clear = StockClearance(tools[tool_index], kern, float(kern.bvh.node_lo[0, 2]) - 1.0, stock)
+    # each round of repairs checks only the moves it changed
+    check = Reverify(lambda path, only: check_parts(kern, path, tools, tol, step, stock, only, progress), tol, step,
+                     stock.summary())
     left_out = 0
     for rnd in range(REPAIR_ROUNDS + 1):
         ends = np.array([[p[0, 0], p[0, 1], p[-1, 0], p[-1, 1]] for p in passes]).reshape(-1, 4)
         z_in = clear(ends[:, :2]) if len(passes) else None
         z_out = clear(ends[:, 2:]) if len(passes) else None
         tp = link_passes(passes, tool_index, safe_z, z_in, z_out)
-        report = verify_toolpath(kern, tp, tools, tol, step, stock=stock, progress=progress)
+        report = check(tp)
         bad = report.pop("problem_moves")
         if report["ok"] or rnd == REPAIR_ROUNDS:
             break

@@ -140,8 +140,9 @@ def move_poses(tp: Toolpath, move, frac):
     """Tips and unit axes ``(s, 3)`` at ``frac (s,)`` along ``move (s,)`` (from point move-1)."""
     prev = np.maximum(move - 1, 0)
     f = frac[:, None]
-    tip = tp.tip[prev] + f * (tp.tip[move] - tp.tip[prev])
-    axis = tp.axis[prev] + f * (tp.axis[move] - tp.axis[prev])
+    # (1 - f) a + f b: the move's point itself at f = 1, whatever the point before
+    tip = (1.0 - f) * tp.tip[prev] + f * tp.tip[move]
+    axis = (1.0 - f) * tp.axis[prev] + f * tp.axis[move]
     norm = np.linalg.norm(axis, axis=1, keepdims=True)
     axis = np.where(norm > 1e-9, axis / np.maximum(norm, 1e-300), tp.axis[move])
     return tip, axis
@@ -260,46 +261,68 @@ def verify_toolpath(kern, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: flo
     stock = stock or StockCheck()
     if not isinstance(kern, MeshKernels):
         kern = solid_kernels(kern, device)
+    return merge_reports(tp, check_parts(kern, tp, tools, tol, step, stock, progress=progress), tol, step,
+                         stock.summary(), worst)
+
+
+def check_parts(kern, tp: Toolpath, tools, tol: float, step: float, stock: StockCheck, only=None,
+                progress=None) -> list[dict]:
+    """What :func:`verify_moves` finds on ``tp`` (its moves where ``only (k,) bool`` is set, else
+    all), in :data:`~meshmill.progress.PIECES` ranges when ``progress`` is given (the share done
+    and the time left told after each); :func:`merge_reports` makes the report."""
     if progress is None:
-        return merge_reports(tp, [verify_moves(kern, tp, tools, tol, step, stock)], tol, step, stock.summary(), worst)
-
+        return [verify_moves(kern, tp, tools, tol, step, stock, only=only)]
     meter, parts = Meter(progress, "certified check of every move", len(tp)), []
-    for first, piece in path_pieces(tp, PIECES):
-        parts.append(verify_moves(kern, piece, tools, tol, step, stock, first))
+    for first, piece, piece_only in path_pieces(tp, PIECES, only):
+        parts.append(verify_moves(kern, piece, tools, tol, step, stock, first, piece_only))
         meter.done(len(piece))
-    return merge_reports(tp, parts, tol, step, stock.summary(), worst)
+    return parts
 
 
-def path_pieces(tp: Toolpath, count: int) -> list[tuple[int, Toolpath]]:
-    """``count`` pieces ``(first, piece)`` of ``tp`` for :func:`verify_moves`: each from the point
-    before its range of moves (``first``), so that every move is in exactly one piece."""
-    return [(max(0, a - 1), tp.points(max(0, a - 1), b)) for a, b in ranges(len(tp), count)]
+def path_pieces(tp: Toolpath, count: int, only=None) -> list[tuple]:
+    """``count`` pieces ``(first, piece, only)`` of ``tp`` for :func:`verify_moves`: each from the
+    point before its range of moves (``first``), so that every move is in exactly one piece;
+    ``only``: the moves of the whole path to check (None: all), sliced to the piece's."""
+    return [(max(0, a - 1), tp.points(max(0, a - 1), b), None if only is None else only[max(0, a - 1):b])
+            for a, b in ranges(len(tp), count)]
 
 
-def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: StockCheck, first: int = 0) -> dict:
+def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: StockCheck, first: int = 0,
+                 only=None) -> dict:
     """What :func:`verify_toolpath` finds on the moves into points ``first + 1 ..`` of ``tp``, whose
     point 0 is the point ``first`` of a whole path (its pose is checked with the move into it, in
-    the piece before): counts, the deepest feed poses, and the problems with their moves numbered
-    as the whole path's. Pieces of a path verified apart (:func:`merge_reports`) give the whole
-    path's report."""
+    the piece before), or on those where ``only (len(tp),) bool`` is set: counts, the deepest feed
+    poses, and the problems with their moves numbered as the whole path's; ``figures``: the same
+    per move checked (``move`` numbered as the whole path's, ``poses``, ``refined``, ``certified``,
+    ``max_gouge``, ``max_collision``). Pieces of a path verified apart (:func:`merge_reports`) give
+    the whole path's report. A move's figures depend on its two points alone."""
     tip, axis, tool, move, frac, rapid = sample_moves(tp, tools, step)
-    if len(tip) == 0:
+    checked = np.ones(len(tp), bool) if only is None else np.asarray(only, bool).copy()
+    if first > 0:
+        checked[0] = False
+    if only is not None and len(tip):
+        # the poses of the moves checked, and the last pose of a move not checked before one that is
+        before = np.zeros(len(tp), bool)
+        before[:-1] = checked[1:] & ~checked[:-1]
+        sel = checked[move] | (before[move] & (frac == 1.0))
+        tip, axis, tool, move, frac, rapid = (a[sel] for a in (tip, axis, tool, move, frac, rapid))
+    if not checked.any() or len(tip) == 0:
         return {"poses": 0, "certified": 0, "refined": 0, "max_gouge": 0.0, "max_collision": 0.0, "problems": [],
-                "unresolved": []}
+                "unresolved": [], "figures": _figures(first, np.zeros(0, np.int64), *[np.zeros(0)] * 5)}
     meas = _Measure(kern, tools, tol, stock)
     end, body, ring, segs, in_stock = meas.depths(tip, axis, tool, rapid)
     poses = [(tip, tool, move, rapid, end, body, ring, segs, in_stock)]
     bad_move = np.zeros(len(tp), bool)
     bad_move[move[(end > tol) | (body > tol)]] = True
     # the intervals between neighbouring poses of each move (the first pose of a move starts at the
-    # previous move's last pose), unless the move already failed
+    # previous move's last pose), unless the move already failed or is not checked
     ia = np.arange(len(tip) - 1)
-    keep = ~bad_move[move[ia + 1]]
+    keep = ~bad_move[move[ia + 1]] & checked[move[ia + 1]]
     ta, xa, fa = tip[ia][keep], axis[ia][keep], np.zeros(keep.sum())
     fa[:] = np.where(move[ia][keep] == move[ia + 1][keep], frac[ia][keep], 0.0)
     tb, xb, fb = tip[ia + 1][keep], axis[ia + 1][keep], frac[ia + 1][keep]
     im, it, ir = move[ia + 1][keep], tool[ia + 1][keep], rapid[ia + 1][keep]
-    certified = refined = 0
+    certified = np.zeros(len(tp), np.int64)
     unresolved = []  # (move, tip, bound) of intervals too short to halve that stay unproven
     for _ in range(MAX_ROUNDS):
         if len(im) == 0:
@@ -307,7 +330,7 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
         alive = ~bad_move[im]
         ta, xa, fa, tb, xb, fb, im, it, ir = (a[alive] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
         ok = meas.clear(ta, xa, tb, xb, it, ir)
-        certified += int(ok.sum())
+        certified += np.bincount(im[ok], minlength=len(tp))
         todo = ~ok
         ta, xa, fa, tb, xb, fb, im, it, ir = (a[todo] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
         if len(im) == 0:
@@ -323,7 +346,6 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
         fm = 0.5 * (fa + fb)
         tm, xm = move_poses(tp, im, fm)
         e2, b2, r2, s2, k2 = meas.depths(tm, xm, it, ir)
-        refined += len(im)
         poses.append((tm, it, im, ir, e2, b2, r2, s2, k2))
         bad_move[im[(e2 > tol) | (b2 > tol)]] = True
         ta, xa, fa, tb, xb, fb, im, it, ir = (np.concatenate([a, b]) for a, b in
@@ -332,16 +354,33 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     else:
         for k in range(len(im)):
             unresolved.append((int(im[k]), ta[k], float(np.linalg.norm(tb[k] - ta[k]))))
+    refined = np.bincount(np.concatenate([p[2] for p in poses[1:]] + [np.zeros(0, np.int64)]), minlength=len(tp))
     tip, tool, move, rapid, end, body, ring, segs, in_stock = (np.concatenate(a) for a in zip(*poses))
-    own = move > 0 if first > 0 else np.ones(len(move), bool)  # point 0's pose is the piece before's
+    own = checked[move]  # point 0's pose is the piece before's; the start of a checked move, its own move's
     part = _found(tp, tools, tip[own], tool[own], move[own], rapid[own], end[own], body[own], ring[own], segs[own],
-                  in_stock[own], meas, [u for u in unresolved if u[0] > 0 or first == 0])
-    part.update(certified=certified, refined=refined)
+                  in_stock[own], meas, [u for u in unresolved if checked[u[0]]])
+    mv = np.nonzero(checked)[0]
+    feed = own & ~rapid
+    gouge = np.zeros(len(tp))
+    np.maximum.at(gouge, move[feed], end[feed])
+    collision = np.zeros(len(tp))
+    np.maximum.at(collision, move[feed], body[feed])
+    part.update(certified=int(certified.sum()), refined=int(refined.sum()),
+                figures=_figures(first, mv, np.bincount(move[own], minlength=len(tp))[mv], refined[mv], certified[mv],
+                                 gouge[mv], collision[mv]))
     if first:
         for p in part["problems"]:
             p.move += first
         part["unresolved"] = [m + first for m in part["unresolved"]]
     return part
+
+
+def _figures(first, moves, poses, refined, certified, max_gouge, max_collision) -> dict:
+    """:func:`verify_moves`'s ``figures`` of the ``moves (n,)`` of a piece starting at point
+    ``first`` of the whole path."""
+    return {"move": moves + first, "poses": poses.astype(np.int64), "refined": refined.astype(np.int64),
+            "certified": certified.astype(np.int64), "max_gouge": max_gouge.astype(float),
+            "max_collision": max_collision.astype(float)}
 
 
 def _found(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth, seg_depth, stock_depth, meas,
@@ -400,19 +439,19 @@ def _found(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth,
 
 
 def verify_piece(shared: dict, piece) -> dict:
-    """:func:`verify_moves` of one piece ``(first, toolpath)`` of a path on a worker of a cluster
+    """:func:`verify_moves` of one piece ``(first, toolpath, only)`` of a path on a worker of a cluster
     (:func:`meshmill.cluster.run_pieces`); ``shared``: the part, its ``floor``, the ``stock`` mesh
     (or None), ``allowance`` and ``clearance`` (rapids keep it from both; default 0), the ``tools``,
     ``tol``, ``step``, ``device``. The kernels are built once per worker."""
     from ..cluster import worker_cached
 
-    first, tp = piece
+    first, tp, only = piece
     kern = worker_cached(shared, "part", lambda: solid_kernels(shared["part"], shared["device"], shared["floor"]))
     stock_kern = None
     if shared["stock"] is not None:
         stock_kern = worker_cached(shared, "stock", lambda: solid_kernels(shared["stock"], shared["device"]))
     check = StockCheck(allowance=shared["allowance"], kern=stock_kern, clearance=shared.get("clearance", 0.0))
-    return verify_moves(kern, tp, shared["tools"], shared["tol"], shared["step"], check, first)
+    return verify_moves(kern, tp, shared["tools"], shared["tol"], shared["step"], check, first, only)
 
 
 KINDS = ("gouge", "collision", "rapid")
