@@ -116,3 +116,25 @@ def test_points_inside_a_closed_solid_a_void_and_under_a_sheet():
     pts = np.array([[5, 5, 0.5], [5, 5, 1.5], [5, 5, -0.5], [5, 5, -10.5], [11, 5, 0.5], [5, 5, 1.0]], float)
     assert sheet.solid().floor == -10.0
     assert k.points_inside(pts).tolist() == [True, False, True, False, False, False]
+
+
+@pytest.mark.parametrize("limit, clear", [(0.012, True), (0.008, False)])
+def test_a_fixed_axis_step_up_past_an_edge_is_decided_in_pieces(limit, clear):
+    """A flat cylinder whose side touches a block's wall at the start and whose bottom reaches the
+    block's top at the end, moving up and away by 0.02 mm: every pose enters by at most 0.01 mm
+    (the smaller of the side's and the bottom's depth), which the prism of the whole move (its
+    bottom 0.02 mm low all along) cannot show; cut in pieces along the axis it is proven within
+    0.012, and never within 0.008 (dense poses, measured exactly, are the reference)."""
+    kern = solid_kernels(box([-20, -10, -10], [1, 10, 0]))
+    t0 = np.array([[0.0]])
+    segs = (t0, np.array([[10.0]]), np.array([[1.0]]))
+    rings = (np.zeros(1), np.zeros(1), np.zeros(1), np.ones(1, np.int64))
+    ta, tb = np.array([[2.0, 0.0, -0.02]]), np.array([[1.98, 0.0, 0.0]])
+    up = np.array([[0.0, 0.0, 1.0]])
+    one = np.zeros(1, np.int64)
+    ok = kern.intervals_clear(ta, up, tb, up, one, np.zeros(1), np.full(1, limit), rings, segs, t0)
+    assert ok[0] == clear
+    s = np.linspace(0.0, 1.0, 2001)[:, None]
+    _, seg = kern.pose_penetration(ta + s * (tb - ta), np.repeat(up, len(s), 0), np.zeros(len(s), np.int64),
+                                   np.zeros(len(s)), rings, segs, t0)
+    assert seg.max() == pytest.approx(0.01, abs=1e-6)

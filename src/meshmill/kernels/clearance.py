@@ -49,6 +49,9 @@ _TRI_A = 2 * ARC_STACK  # offsets in the work array
 _TRI_B = _TRI_A + 9
 _POLY = _TRI_B + 9  # up to 5 clipped points (h, x, y), twice
 _POLY_B = _POLY + 15
+_SUB = _POLY_B + 15  # the tips of a piece of a fixed-axis interval (6)
+SPLIT_SHARE = 0.25  # a fixed-axis interval is cut so that each piece moves along the axis by at most
+MAX_SPLIT = 16  # this share of the limit (at most this many pieces; see cylinder_clear)
 
 
 def build(jit):
@@ -627,6 +630,41 @@ def build(jit):
     @jit
     def cylinder_clear(ta, ua, tb, ub, t0, t1, rad, base, grow, limit,
                        node_lo, node_hi, node_child, node_range, tris, stack, w):
+        """Whether the flat cylinder [t0, t1] of radius rad (grown by ``grow``) keeps within
+        ``limit`` between poses a and b (:func:`cylinder_pass`). Where that fails on a move with a
+        fixed axis, the move is cut into pieces that move along the axis by at most
+        ``SPLIT_SHARE`` of the limit (up to ``MAX_SPLIT``), each tested: a piece's prism holds its
+        sweep with the bottom lowered and the top raised by that much only, where the whole
+        move's takes all of it."""
+        if cylinder_pass(ta, ua, tb, ub, t0, t1, rad, base, grow, limit,
+                         node_lo, node_hi, node_child, node_range, tris, stack, w):
+            return True
+        if ua[0] != ub[0] or ua[1] != ub[1] or ua[2] != ub[2] or limit <= 0.0:
+            return False
+        dx = tb[0] - ta[0]
+        dy = tb[1] - ta[1]
+        dz = tb[2] - ta[2]
+        along = dx * ua[0] + dy * ua[1] + dz * ua[2]
+        across = dx * dx + dy * dy + dz * dz - along * along
+        pieces = 1  # (a move along the axis sweeps a longer cylinder: its prism is exact)
+        if across > 1e-18 * (dx * dx + dy * dy + dz * dz):
+            pieces = min(MAX_SPLIT, max(1, int(math.ceil(abs(along) / (SPLIT_SHARE * limit)))))
+        if pieces == 1:
+            return False
+        for j in range(pieces):
+            f0 = j / pieces
+            f1 = (j + 1) / pieces
+            for k in range(3):
+                w[_SUB + k] = (1.0 - f0) * ta[k] + f0 * tb[k]
+                w[_SUB + 3 + k] = (1.0 - f1) * ta[k] + f1 * tb[k]
+            if not cylinder_pass(w[_SUB:_SUB + 3], ua, w[_SUB + 3:_SUB + 6], ub, t0, t1, rad, base, grow, limit,
+                                 node_lo, node_hi, node_child, node_range, tris, stack, w):
+                return False
+        return True
+
+    @jit
+    def cylinder_pass(ta, ua, tb, ub, t0, t1, rad, base, grow, limit,
+                      node_lo, node_hi, node_child, node_range, tris, stack, w):
         """Whether the flat cylinder [t0, t1] of radius rad (grown by ``grow``) keeps within
         ``limit`` between poses a and b: radially (its radius shrunk by limit stays out) or else
         axially (its part from ``base + limit`` up stays out), at every pose. Bands of the cylinder
