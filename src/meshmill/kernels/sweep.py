@@ -36,6 +36,17 @@ def build(jit):
     """Compile the device functions with ``jit`` and return them in a namespace."""
 
     @jit
+    def golden_step(a, b, s1, s2, f1, f2):
+        """One step of a golden-section search for a minimum in ``[a, b]`` (``s1 < s2`` inside,
+        their values ``f1, f2``): the new bracket and inner points, the value kept, and whether
+        the new point to evaluate is ``s1`` (else ``s2``)."""
+        if f1 <= f2:
+            b = s2
+            return a, b, b - GOLDEN * (b - a), s1, f1, f1, True
+        a = s1
+        return a, b, s2, a + GOLDEN * (b - a), f2, f2, False
+
+    @jit
     def sphere(u0, v0, cu, cv, cw, R):
         """Line against the ball of radius R at c."""
         q = R * R - (u0 - cu) ** 2 - (v0 - cv) ** 2
@@ -234,17 +245,10 @@ def build(jit):
         f2 = offset_dist2(s2, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
         while b - a > 1e-12 and best > enough:
             best = min(best, min(f1, f2))
-            if f1 <= f2:
-                b = s2
-                s2 = s1
-                f2 = f1
-                s1 = b - GOLDEN * (b - a)
+            a, b, s1, s2, f1, f2, left = golden_step(a, b, s1, s2, f1, f2)
+            if left:
                 f1 = offset_dist2(s1, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
             else:
-                a = s1
-                s1 = s2
-                f1 = f2
-                s2 = a + GOLDEN * (b - a)
                 f2 = offset_dist2(s2, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
         return min(best, min(f1, f2))
 
@@ -401,17 +405,10 @@ def build(jit):
         f2 = aligned_at(s2, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper)
         while b - a > 1e-12:
             best = min(best, min(f1, f2))
-            if f1 <= f2:
-                b = s2
-                s2 = s1
-                f2 = f1
-                s1 = b - GOLDEN * (b - a)
+            a, b, s1, s2, f1, f2, left = golden_step(a, b, s1, s2, f1, f2)
+            if left:
                 f1 = aligned_at(s1, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper)
             else:
-                a = s1
-                s1 = s2
-                f1 = f2
-                s2 = a + GOLDEN * (b - a)
                 f2 = aligned_at(s2, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper)
         return min(best, min(f1, f2))
 
