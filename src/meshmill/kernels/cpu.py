@@ -15,7 +15,7 @@ from . import clearance, cutters
 from .clearance import WORK_SIZE
 from .cpu_dexel import cast_lines, cut_tiles, move_constants, rays_blocked  # noqa: F401  (one module offers every kernel)
 from .cutters import NO_BODY
-from .geom import INF, STACK_SIZE, WITNESSES, build
+from .geom import INF, SEEN_SIZE, STACK_SIZE, build
 
 dev = build(numba.njit(fastmath=False, cache=True))
 cut = cutters.build(numba.njit(fastmath=False, cache=True))
@@ -72,7 +72,7 @@ def _axis_search(ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
     out = np.empty(ce.shape[0], np.int32)
     for c in prange((ce.shape[0] + CHUNK - 1) // CHUNK):  # neighbouring points share their witnesses
         stack = np.empty(STACK_SIZE, np.int32)
-        seen = np.empty(3 * WITNESSES)
+        seen = np.empty(SEEN_SIZE)
         kept = 0
         for i in range(c * CHUNK, min(ce.shape[0], (c + 1) * CHUNK)):
             out[i], kept = _first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,

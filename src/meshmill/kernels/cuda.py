@@ -19,7 +19,7 @@ from numba import cuda, float64, int32, int64
 from . import carve, clearance, cutters, raycast
 from .clearance import WORK_SIZE
 from .cutters import NO_BODY
-from .geom import STACK_SIZE, WITNESSES, build
+from .geom import SEEN_SIZE, STACK_SIZE, build
 from .raycast import MAX_HITS
 
 numba.config.CUDA_LOW_OCCUPANCY_WARNINGS = 0  # small launches (a contour a thread, a few tiles) are expected
@@ -109,7 +109,7 @@ def _axis_search(ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r, node_lo, n
     i = cuda.grid(1)
     if i < ce.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
-        seen = cuda.local.array(3 * WITNESSES, float64)
+        seen = cuda.local.array(SEEN_SIZE, float64)
         out[i] = _first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
                                    node_lo, node_hi, node_child, node_range, tris, stack, seen, 0)[0]
 

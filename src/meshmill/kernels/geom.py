@@ -23,6 +23,7 @@ from types import SimpleNamespace
 STACK_SIZE = 128
 INF = 1.0e300
 WITNESSES = 16  # points of the part found inside a blocked tool body, kept by the axis search
+SEEN_SIZE = 3 * WITNESSES  # float64 work array of the axis search (a CUDA local array: a constant)
 WITNESS_GRID = 8  # a blocking triangle's points looked at for a witness: barycentric steps of 1/8
 WITNESS_MARGIN = 1e-9  # mm: how deep a witness must lie in a candidate's body to block it
 
@@ -466,7 +467,7 @@ def build(jit):
         corners and centroid (a point of the part inside the body). A candidate whose body holds
         one of the last ``WITNESSES`` witnesses is blocked without a search; a witness is a point
         of the part, so it serves the next points as well. ``seen``: a float64 work array of
-        ``3 * WITNESSES`` holding ``kept`` witnesses (the last ``WITNESSES`` of them)."""
+        ``SEEN_SIZE`` holding ``kept`` witnesses (the last ``WITNESSES`` of them)."""
         t = tool[i]
         if t < 0:
             return -1, kept
