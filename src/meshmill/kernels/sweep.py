@@ -14,9 +14,13 @@ cuts more than the real tool. Swept along a move with a fixed axis it becomes
 
 - ball (rho = 0): the parallelogram thickened by r is a slab-clipped parallelepiped plus four
   capsules on the edges; all closed form (:func:`pgram_ball`);
-- flat and bull-nose: the distance from a line point to ``Disk + Parallelogram`` is convex along
-  the line; its level set ``<= r`` is bracketed by the ball sweep of radius rho + r and found by
-  bisection to ``BISECT_TOL`` (:func:`rounded_sweep`).
+- flat and bull-nose with the axis along a coordinate axis of the line frame (a 3-axis tool
+  against every dexel direction): the line meets the tool at each pose in closed form, and the
+  ends of the sweep's interval are a convex (lower) and a concave (upper) function of the pose,
+  searched by golden section over the poses that meet the line (:func:`aligned_sweep`);
+- other flat and bull-nose moves: the distance from a line point to ``Disk + Parallelogram`` is
+  convex along the line; its level set ``<= r`` is bracketed by the ball sweep of radius rho + r
+  and found by bisection to ``BISECT_TOL`` (:func:`rounded_sweep`).
 
 When the axis turns during a move (5-axis), see :func:`tool_move`: the callers split such moves
 into pieces short enough for the stated sweep tolerance.
