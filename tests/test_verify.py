@@ -235,3 +235,39 @@ def test_a_changed_path_reverified_reports_as_a_whole_check(tools, pieces):
     assert 0 < check.checked < len(tp2) // 2
     # unchanged: nothing checked, the same report
     assert check(tp2) == again and check.checked == 0
+
+
+def test_the_first_point_is_proven_and_never_taken_for_a_move_of_length_zero():
+    """A needle's tip 0.05 mm inside a bull-nose's rounded corner, between the spheres its pose
+    measure samples: the first point of a path is proven like every interval (not certified
+    there), and a later move of length zero at the same place, whose interval is checked, is
+    never given the first point's figures by a re-verification."""
+    import math
+
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.pathing.reverify import Reverify
+    from meshmill.pathing.verify import StockCheck, check_parts
+    from meshmill.tools.table import Tool
+
+    bull = Tool(name="R5", type="bull", diameter=10.0, corner_radius=1.0, flute_length=10.0, gauge_length=30.0,
+                shank_diameter=10.0)
+    a = math.radians(5)  # midway between two of the measure's spheres
+    centre = np.array([4 * math.cos(a), 4 * math.sin(a), 1.0])
+    d = np.array([math.cos(a) * math.cos(math.pi / 4), math.sin(a) * math.cos(math.pi / 4), -math.sin(math.pi / 4)])
+    apex = centre + 0.95 * d
+    e1 = np.cross(d, [0, 0, 1.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(d, e1)
+    base = apex + 6 * d
+    v = np.array([apex, base + 0.05 * e1, base + 0.05 * (-0.5 * e1 + 0.866 * e2), base + 0.05 * (-0.5 * e1 - 0.866 * e2)])
+    needle = mesh_from_arrays(v, np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]]), "needle", flip=True)
+    kern = solid_kernels(needle, "cpu", floor=float(v[:, 2].min()) - 50)
+    stock = StockCheck()
+    check = Reverify(lambda path, only: check_parts(kern, path, [bull], 0.01, 0.5, stock, only), 0.01, 0.5,
+                     stock.summary())
+    for points in ([[0, 0, 0]], [[0, 0, 0], [-3, 0, 0]], [[0, 0, 0], [0, 0, 0]]):
+        tp = _path(points, tool=0)
+        whole = verify_toolpath(kern, tp, [bull], 0.01, 0.5, stock=stock)
+        assert not whole["ok"] and "not certified" in whole["worst"][0]
+        assert check(tp) == whole

@@ -18,11 +18,12 @@ _FIGURES = ("poses", "refined", "certified", "max_gouge", "max_collision")
 
 
 def move_keys(tp: Toolpath) -> np.ndarray:
-    """``(k, 14)`` float64: what decides each move's check (the point before and the move's point,
-    tips and axes, its tool and whether it is rapid; move 0 from its own point)."""
+    """``(k, 15)`` float64: what decides each move's check (the point before and the move's point,
+    tips and axes, its tool, whether it is rapid, and whether it is the path's first: move 0 is
+    checked from its own point, unlike a later move of length zero)."""
     prev = np.maximum(np.arange(len(tp)) - 1, 0)
     return np.column_stack([tp.tip[prev], tp.axis[prev], tp.tip, tp.axis, tp.tool.astype(float),
-                            tp.rapid.astype(float)])
+                            tp.rapid.astype(float), (np.arange(len(tp)) == 0).astype(float)])
 
 
 def _hashes(keys: np.ndarray) -> np.ndarray:

@@ -315,13 +315,19 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     bad_move = np.zeros(len(tp), bool)
     bad_move[move[(end > tol) | (body > tol)]] = True
     # the intervals between neighbouring poses of each move (the first pose of a move starts at the
-    # previous move's last pose), unless the move already failed or is not checked
+    # previous move's last pose), unless the move already failed or is not checked; the path's
+    # first point, a move of length zero, is proven at its pose as one too (its measure samples a
+    # rounded end's circle, the proof covers it)
     ia = np.arange(len(tip) - 1)
-    keep = ~bad_move[move[ia + 1]] & checked[move[ia + 1]]
+    if move[0] == 0 and checked[0]:
+        ia = np.r_[-1, ia]
+    ib = np.maximum(ia + 1, 0)
+    ia = np.maximum(ia, 0)
+    keep = ~bad_move[move[ib]] & checked[move[ib]]
     ta, xa, fa = tip[ia][keep], axis[ia][keep], np.zeros(keep.sum())
-    fa[:] = np.where(move[ia][keep] == move[ia + 1][keep], frac[ia][keep], 0.0)
-    tb, xb, fb = tip[ia + 1][keep], axis[ia + 1][keep], frac[ia + 1][keep]
-    im, it, ir = move[ia + 1][keep], tool[ia + 1][keep], rapid[ia + 1][keep]
+    fa[:] = np.where(move[ia][keep] == move[ib][keep], frac[ia][keep], 0.0)
+    tb, xb, fb = tip[ib][keep], axis[ib][keep], frac[ib][keep]
+    im, it, ir = move[ib][keep], tool[ib][keep], rapid[ib][keep]
     certified = np.zeros(len(tp), np.int64)
     unresolved = []  # (move, tip, bound) of intervals too short to halve that stay unproven
     for _ in range(MAX_ROUNDS):
