@@ -46,17 +46,18 @@ class Reverify:
 
     def __init__(self, check, tol: float, step: float, stock: dict, worst: int = 10):
         self.check, self.tol, self.step, self.stock, self.worst = check, tol, step, stock, worst
-        self.keys = None
+        self.keys = self.hashes = None
         self.checked = 0
 
     def _known(self, keys):
-        """For each move of ``keys``, the index of the same move in the last version (-1: new)."""
+        """For each move of ``keys``, the index of the same move in the last version (-1: new);
+        this version's hashes are kept for the next."""
         found = np.full(len(keys), -1, np.int64)
+        new_h = _hashes(keys)
+        old_h, self.hashes = self.hashes, new_h
         if self.keys is None or not len(self.keys) or not len(keys):
             return found
-        old_h = _hashes(self.keys)
         order = np.argsort(old_h, kind="stable")
-        new_h = _hashes(keys)
         at = np.minimum(np.searchsorted(old_h[order], new_h), len(order) - 1)
         cand = order[at]
         same = (old_h[cand] == new_h) & (self.keys[cand] == keys).all(axis=1)

@@ -318,11 +318,10 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     # previous move's last pose), unless the move already failed or is not checked; the path's
     # first point, a move of length zero, is proven at its pose as one too (its measure samples a
     # rounded end's circle, the proof covers it)
-    ia = np.arange(len(tip) - 1)
+    ib = np.arange(1, len(tip))
     if move[0] == 0 and checked[0]:
-        ia = np.r_[-1, ia]
-    ib = np.maximum(ia + 1, 0)
-    ia = np.maximum(ia, 0)
+        ib = np.r_[0, ib]
+    ia = np.maximum(ib - 1, 0)
     keep = ~bad_move[move[ib]] & checked[move[ib]]
     ta, xa, fa = tip[ia][keep], axis[ia][keep], np.zeros(keep.sum())
     fa[:] = np.where(move[ia][keep] == move[ib][keep], frac[ia][keep], 0.0)
