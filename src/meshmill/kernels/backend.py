@@ -3,12 +3,24 @@ GPU, else the CPU), and :class:`MeshKernels`, the kernels of one backend bound t
 The CUDA module is imported only when chosen."""
 from __future__ import annotations
 
+import os
+import sys
+
 from ..errors import InputError
 
 DEVICES = ("cpu", "cuda", "auto")
 
 
+def _no_driver() -> bool:
+    """True on a Linux machine without an NVIDIA device node (nor WSL's GPU node): no GPU can be
+    there, so ``auto`` need not import numba's CUDA module (a fifth of a second) to learn it."""
+    return sys.platform.startswith("linux") and not any(
+        os.path.exists(p) for p in ("/dev/nvidiactl", "/dev/nvidia0", "/dev/dxg"))
+
+
 def cuda_available() -> bool:
+    if not _simulated() and _no_driver():
+        return False
     try:
         from numba import cuda
 

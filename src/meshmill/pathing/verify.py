@@ -5,18 +5,21 @@ A move goes from one point to the next with the tip linear and the axis interpol
 normalised, as a controller would. Each move is first looked at in poses at most ``step`` apart,
 each measured exactly (distances to the triangles, and whether a part lies in the material,
 :mod:`meshmill.kernels.clearance`). Then every interval between two neighbouring poses is
-*certified*: a test that cannot miss (the end swept as a capsule or chord patches, the cylinders
-as stadium prisms, with the slack the turning axis adds) shows that no pose in between enters the
-material by more than the tolerance, or the interval is halved and its midpoint measured, until
-the test passes, a pose is found too deep, or the interval is shorter than ``MIN_INTERVAL`` (then
-the move is reported with the bound). So "OK" means that no point of the modelled tool enters the
-part deeper than the tolerance anywhere along any feed move, and that no rapid move touches the
-stock at all, whatever ``step`` was.
+*certified*: a test that cannot miss (the end swept as a capsule or chord patches, the cylinders as
+stadium prisms, with the slack the turning axis adds) shows that no pose in between enters the
+material by more than the tolerance, or the interval is halved and its midpoint measured, until the
+test passes, a pose is found too deep, or the interval is shorter than ``MIN_INTERVAL`` (then the
+move is reported with the bound). A move whose axis does not turn is certified whole, from the move
+before's last pose to its own last, in one test (its poses between are still measured, for the
+depths reported); only when that fails is it halved. So "OK" means that no point of the modelled
+tool enters the part deeper than the tolerance anywhere along any feed move, and that no rapid move
+touches the stock at all, whatever ``step`` was.
 
 A feed move **gouges** when the cutting part (end and flutes) enters the part by more than ``tol``;
 it **collides** when the shank or holder does, or enters the stock (the part grown by the
 stock's allowance, and a stock mesh when one is given: they must never rub on material the
-operation expects to find). A **rapid** move must keep every part of the tool
+operation expects to find; with an allowance the shank and holder are measured against the grown
+part alone, which holds the part). A **rapid** move must keep every part of the tool
 out of the stock: the part grown by the stock's allowance (material the path expects to find on
 the design) plus the clearance a rapid keeps, and, when one is given, out of a stock mesh by the
 clearance. For an open surface the material is the solid below it (:mod:`meshmill.geometry.solid`).
@@ -188,6 +191,22 @@ class _Measure:
         # what the shank and holder of feed moves stay out of: (kernels, grown by) per solid
         self.body_stocks = [] if not stock.feed_body else (
             [(kern, float(stock.allowance))] * (stock.allowance > 0) + [(stock.kern, 0.0)] * (stock.kern is not None))
+        # tools T..2T-1: the cutting parts alone (a prefix of each tool's cylinders). Where the
+        # shank and holder of a feed move keep out of the design grown by the allowance, they keep
+        # out of the design (a part grown holds the part), so feed moves meet the design with these
+        self.count = len(tools)
+        self.cut_only = bool(stock.feed_body and stock.allowance > 0)
+        if self.cut_only:
+            t0, t1, r = self.segs
+            self.segs = (np.concatenate([t0, t0]), np.concatenate([t1, t1]),
+                         np.concatenate([r, np.where(self.cutting, r, 0.0)]))
+            self.base = np.concatenate([self.base, self.base])
+            self.rings = tuple(np.concatenate([a, a]) for a in self.rings)
+
+    def _design_tool(self, tool, rapid):
+        """The tool numbers poses meet the design with: feed poses without shank and holder where
+        :attr:`body_stocks` holds the design grown by the allowance."""
+        return np.where(rapid, tool, tool + self.count) if self.cut_only else tool
 
     def _grow(self, rapid, on_stock):
         c = self.stock.clearance
@@ -206,8 +225,8 @@ class _Measure:
         """``(end (s,), body (s,), ring (s,), segs (s, K), stock (s,))``: how deep each pose enters;
         rapid poses are measured against the stock (grown) and reported as depth into it; the
         shank and holder of feed poses also against the stock (``stock``: that depth alone)."""
-        ring, segs = self.kern.pose_penetration(tip, axis, tool, self._grow(rapid, False), self.rings, self.segs,
-                                                self.base)
+        ring, segs = self.kern.pose_penetration(tip, axis, self._design_tool(tool, rapid), self._grow(rapid, False),
+                                                self.rings, self.segs, self.base)
         if self.stock.kern is not None and rapid.any():
             r2, s2 = self.stock.kern.pose_penetration(tip[rapid], axis[rapid], tool[rapid],
                                                       self._grow(rapid[rapid], True), self.rings, self.segs,
@@ -233,8 +252,8 @@ class _Measure:
         """``(k,) bool``: intervals certified within the tolerance (rapids: out of the stock; the
         shank and holder of feed moves: out of the stock too)."""
         lim = np.full(len(ta), self.tol)
-        ok = self.kern.intervals_clear(ta, xa, tb, xb, tool, self._grow(rapid, False), lim, self.rings, self.segs,
-                                       self.base)
+        ok = self.kern.intervals_clear(ta, xa, tb, xb, self._design_tool(tool, rapid), self._grow(rapid, False), lim,
+                                       self.rings, self.segs, self.base)
         if self.stock.kern is not None and (ok & rapid).any():
             sel = np.nonzero(ok & rapid)[0]
             ok[sel] = self.stock.kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel],
@@ -318,10 +337,17 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     # previous move's last pose), unless the move already failed or is not checked; the path's
     # first point, a move of length zero, is proven at its pose as one too (its measure samples a
     # rounded end's circle, the proof covers it)
+    # A move whose axis stays put is proven whole, from the last pose of the move before to its
+    # own last (its proof is exact at any length; its poses between are measured all the same)
     ib = np.arange(1, len(tip))
     if move[0] == 0 and checked[0]:
         ib = np.r_[0, ib]
-    ia = np.maximum(ib - 1, 0)
+    starts = np.r_[0, np.nonzero(move[1:] != move[:-1])[0] + 1]
+    run_start = np.repeat(starts, np.diff(np.r_[starts, len(move)]))  # each pose's move's first pose
+    fixed = _fixed_axis(tp)
+    ib = ib[~fixed[move[ib]] | (frac[ib] == 1.0)]
+    whole = fixed[move[ib]]
+    ia = np.maximum(np.where(whole, run_start[ib] - 1, ib - 1), 0)
     keep = ~bad_move[move[ib]] & checked[move[ib]]
     ta, xa, fa = tip[ia][keep], axis[ia][keep], np.zeros(keep.sum())
     fa[:] = np.where(move[ia][keep] == move[ib][keep], frac[ia][keep], 0.0)
@@ -378,6 +404,13 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
             p.move += first
         part["unresolved"] = [m + first for m in part["unresolved"]]
     return part
+
+
+def _fixed_axis(tp: Toolpath) -> np.ndarray:
+    """``(k,) bool``: the moves whose axis is the point before's exactly (move 0: True)."""
+    fixed = np.ones(len(tp), bool)
+    fixed[1:] = (tp.axis[1:] == tp.axis[:-1]).all(axis=1)
+    return fixed
 
 
 def _figures(first, moves, poses, refined, certified, max_gouge, max_collision) -> dict:

@@ -53,17 +53,16 @@ def write_apt(path, toolpath: Toolpath, tools, partno="meshmill") -> None:
     """Write ``toolpath`` (tool indices into ``tools``) as an APT CL file."""
     lines = [f"PARTNO/{partno}", "UNITS/MM", "MULTAX/ON"]
     current = -1
-    for i in range(len(toolpath)):
-        t = int(toolpath.tool[i])
+    goto = "GOTO/%.6f, %.6f, %.6f, %.9f, %.9f, %.9f"
+    rows = np.hstack([toolpath.tip, toolpath.axis]).tolist()  # python floats: formatted fast
+    for t, rapid, row in zip(toolpath.tool.tolist(), toolpath.rapid.tolist(), rows):
         if t != current:
             lines.append(tools[t].apt_cutter())
             lines.append(f"LOADTL/{tools[t].number}")
             current = t
-        if toolpath.rapid[i]:
+        if rapid:
             lines.append("RAPID")
-        x, y, z = toolpath.tip[i]
-        a, b, c = toolpath.axis[i]
-        lines.append(f"GOTO/{x:.6f}, {y:.6f}, {z:.6f}, {a:.9f}, {b:.9f}, {c:.9f}")
+        lines.append(goto % tuple(row))
     lines.append("FINI")
     with open(path, "w") as fh:
         fh.write("\n".join(lines) + "\n")
