@@ -342,8 +342,7 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     ib = np.arange(1, len(tip))
     if move[0] == 0 and checked[0]:
         ib = np.r_[0, ib]
-    starts = np.r_[0, np.nonzero(move[1:] != move[:-1])[0] + 1]
-    run_start = np.repeat(starts, np.diff(np.r_[starts, len(move)]))  # each pose's move's first pose
+    run_start = np.searchsorted(move, move)  # each pose's move's first pose (poses go in move order)
     fixed = _fixed_axis(tp)
     ib = ib[~fixed[move[ib]] | (frac[ib] == 1.0)]
     whole = fixed[move[ib]]
