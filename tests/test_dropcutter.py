@@ -192,3 +192,30 @@ def test_refinement_drops_only_the_new_segments_midpoints():
         z = np.insert(z, idx[off] + 1, zm[off])
     assert np.array_equal(tips, np.column_stack([ref_xy, z])) and len(tips) > len(xy) + 10
     assert sum(counted) < every
+
+
+@pytest.mark.parametrize("kind", CUTTERS)
+def test_the_drop_meets_the_top_faces_as_it_meets_the_whole_solid(kind):
+    """Solid kernels drop onto the faces deciding inside (the mesh's, the caps'), not onto the
+    curtains and floor under a sheet: the heights of the whole check mesh, to rounding, on a bumpy
+    open sheet whose vertices lie on the grid the points are dropped at, and along its edges."""
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.kernels.backend import solid_kernels
+
+    n = 12
+    gx, gy = np.meshgrid(np.arange(n + 1, dtype=float), np.arange(n + 1, dtype=float), indexing="ij")
+    gz = 2.0 * np.sin(gx / 2.0) * np.cos(gy / 3.0) + np.where((gx + gy) % 5 == 0, 1.5, 0.0)  # spikes
+    v = np.column_stack([gx.ravel(), gy.ravel(), gz.ravel()])
+    k = np.arange(n * (n + 1)).reshape(n, n + 1)[:, :n].ravel()
+    f = np.vstack([np.column_stack([k, k + n + 1, k + n + 2]), np.column_stack([k, k + n + 2, k + 1])])
+    kern = solid_kernels(mesh_from_arrays(v, f, "sheet"))
+    assert len(kern.top[4]) == len(f) < len(kern.bvh.tris)  # the curtains and floor left out
+    xs = np.arange(-40, 4 * n + 41) / 4.0  # grid lines, the edges and beyond them
+    xy = np.vstack([np.column_stack([xs, np.full(len(xs), y)]) for y in (-2.0, 0.0, 3.0, 6.25, n, n + 1.5)])
+    xy = np.vstack([xy, xy[:, ::-1]])
+    R, r = CUTTERS[kind]
+    floor = kern.inside[-1]
+    body = (np.array([4.5]), np.array([3.0]))
+    ours, _ = kern.drop_cutter(xy, R, r, floor, body)
+    whole, _ = cpu.drop_cutter(xy, R, r, floor, kern.mesh, body)
+    assert np.abs(ours - whole).max() < 1e-9 and (ours > floor).any()

@@ -273,18 +273,28 @@ def build(jit):
         ux = dx / length
         uy = dy / length
         uz = dz / length
+        mx = ax + 0.5 * dx
+        my = ay + 0.5 * dy
+        mz = az + 0.5 * dz
         best = cap2
         stack[0] = 0
         sp = 1
         while sp > 0:
             sp -= 1
             n = stack[sp]
-            if not box_may_touch_capsule(node_lo, node_hi, n, ax, ay, az, bx, by, bz, math.sqrt(best)):
+            reach = math.sqrt(best)
+            if not box_may_touch_capsule(node_lo, node_hi, n, ax, ay, az, bx, by, bz, reach):
                 continue
             left = node_child[n, 0]
             if left < 0:
                 first = node_range[n, 0]
                 for t in range(first, first + node_range[n, 1]):
+                    # a cheap bound first: no point of the segment is nearer the triangle than its
+                    # middle less half its length
+                    far = reach * (1.0 + 1e-12) + 0.5 * length + 1e-12
+                    if point_tri(mx, my, mz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
+                                 tris[t, 6], tris[t, 7], tris[t, 8]) > far * far:
+                        continue
                     d = axis_dist(tris, t, ax, ay, az, ux, uy, uz, 0.0, length)
                     d = min(d, point_tri(ax, ay, az, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4],
                                          tris[t, 5], tris[t, 6], tris[t, 7], tris[t, 8]))
@@ -292,6 +302,7 @@ def build(jit):
                                          tris[t, 5], tris[t, 6], tris[t, 7], tris[t, 8]))
                     if d < best:
                         best = d
+                        reach = math.sqrt(best)
                         if best < stop2:
                             return best
             else:
@@ -425,6 +436,14 @@ def build(jit):
             sp -= 1
             n = stack[sp]
             if box_box_dist2(node_lo, node_hi, n, lox, loy, loz, hix, hiy, hiz) >= best:
+                continue
+            # a box whose extent along the axis misses the slab holds no triangle the prism meets
+            hc = (0.5 * (node_lo[n, 0] + node_hi[n, 0]) - ax) * ux + (0.5 * (node_lo[n, 1] + node_hi[n, 1]) - ay) * uy \
+                + (0.5 * (node_lo[n, 2] + node_hi[n, 2]) - az) * uz
+            he = 0.5 * ((node_hi[n, 0] - node_lo[n, 0]) * abs(ux) + (node_hi[n, 1] - node_lo[n, 1]) * abs(uy)
+                        + (node_hi[n, 2] - node_lo[n, 2]) * abs(uz))
+            slack = 1e-12 * (abs(hc) + he + abs(s0) + abs(s1)) + 1e-12  # rounding: a vertex on a face stays in
+            if hc + he < s0 - slack or hc - he > s1 + slack:
                 continue
             left = node_child[n, 0]
             if left < 0:
