@@ -138,3 +138,21 @@ def test_a_fixed_axis_step_up_past_an_edge_is_decided_in_pieces(limit, clear):
     _, seg = kern.pose_penetration(ta + s * (tb - ta), np.repeat(up, len(s), 0), np.zeros(len(s), np.int64),
                                    np.zeros(len(s)), rings, segs, t0)
     assert seg.max() == pytest.approx(0.01, abs=1e-6)
+
+
+@pytest.mark.parametrize("drop, limit, clear", [(0.0, 0.0, False), (0.0, 0.01, True), (1e-9, 0.0, True)])
+def test_a_shank_bottom_exactly_on_a_face_is_seen(drop, limit, clear):
+    """A shank wider than the ball passes over a block's edge with its flat bottom exactly at the
+    block's top (its vertices and face on the slab's plane, where the prism's boxes are pruned):
+    touching it is 0 deep, so not clear within a limit of 0, clear within 0.01; a nanometre higher
+    it is clear at any limit."""
+    kern = solid_kernels(box([2.5, -10, -10], [20, 10, 10]))
+    ball = tool_from_entry(dict(name="B4", type="ball", diameter=4, flute_length=10, gauge_length=30,
+                                shank_diameter=6), 1, "t")
+    (t0, t1, r), cutting = pack_cylinders([ball])
+    rings = pack_rings([ball])
+    up = np.array([[0.0, 0.0, 1.0]])
+    ta, tb = np.array([[0.0, -5.0, drop]]), np.array([[0.0, 5.0, drop]])
+    ok = kern.intervals_clear(ta, up, tb, up, np.zeros(1, np.int64), np.zeros(1), np.full(1, limit), rings,
+                              (t0, t1, r), t0)
+    assert ok[0] == clear
