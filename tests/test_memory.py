@@ -35,10 +35,9 @@ def test_commands_refuse_runs_their_memory_cannot_hold(tmp_path, tools_file, cap
     part = tmp_path / "block.stl"
     trimesh.Trimesh(b.vertices, b.faces, process=False).export(part)
     cl = tmp_path / "p.cl"
-    # 100 m with a turning axis (one whose axis stays put is proven whole): a billion poses 0.1 µm apart
-    tip = np.array([[0, 0, 200.0], [100_000, 0, 200]])
-    axis = np.array([[0, 0, 1.0], [0, np.sin(0.1), np.cos(0.1)]])
-    write_apt(cl, Toolpath(tip, axis, np.array([True, False]), np.zeros(2, int)), load_tools(tools_file))
+    tip = np.array([[0, 0, 200.0], [100_000, 0, 200]])  # 100 m: a billion poses 0.1 µm apart
+    write_apt(cl, Toolpath(tip, np.tile([0, 0, 1.0], (2, 1)), np.array([True, False]), np.zeros(2, int)),
+              load_tools(tools_file))
     fill = dict(part=part, cl=cl, tools=tools_file, out=tmp_path / "o")
     assert main([a.format(**fill) for a in argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()

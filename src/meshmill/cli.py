@@ -653,9 +653,8 @@ def build_parser():
                    help="G-code's machine (TOML file or shipped name): 5-axis words are read through its kinematics")
     v.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge tolerance, mm ({GOUGE_TOL})")
     v.add_argument("--step", type=float, default=0.5,
-                   help="distance between the poses first measured along a move whose axis turns, mm (every "
-                        "interval between them is then certified or halved: the result does not depend on it, its "
-                        "speed does; a move whose axis stays put is certified whole) (0.5)")
+                   help="distance between the poses first measured along a move, mm (every interval between them is "
+                        "then certified or halved: the result does not depend on it, its speed does) (0.5)")
     _add_stock(v, "--allowance", default=0.0)
     v.add_argument("--worst", type=int, default=10, help="how many worst cases to print (10)")
     v.add_argument("--out", default=None, help="write the report as JSON to this file")

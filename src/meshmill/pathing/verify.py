@@ -2,19 +2,17 @@
 its poses.
 
 A move goes from one point to the next with the tip linear and the axis interpolated linearly and
-normalised, as a controller would. A move whose axis turns is first looked at in poses at most
-``step`` apart, a move whose axis stays put at its end alone (the tests below are exact for it at
-any length), each pose measured exactly (distances to the triangles, and whether a part lies in
-the material, :mod:`meshmill.kernels.clearance`). Then every interval between two neighbouring
-poses is *certified*: a test that cannot miss (the end swept as a capsule or chord patches, the
-cylinders as stadium prisms, with the slack the turning axis adds) shows that no pose in between
-enters the material by more than the tolerance, or the interval is halved and its midpoint
-measured, until the test passes, a pose is found too deep, or the interval is shorter than
-``MIN_INTERVAL`` (then the move is reported with the bound). So a move whose axis does not turn is
-certified whole, from the move before's last pose to its own, in one test, and halved only where
-that fails; the depths reported are those of the poses measured: the path's points and the
-midpoints the halving took. So "OK" means that no point of the modelled tool enters the part
-deeper than the tolerance anywhere along any feed move, and that no rapid move
+normalised, as a controller would. Each move is first looked at in poses at most ``step`` apart,
+each measured exactly (distances to the triangles, and whether a part lies in the material,
+:mod:`meshmill.kernels.clearance`). Then every interval between two neighbouring poses is
+*certified*: a test that cannot miss (the end swept as a capsule or chord patches, the cylinders as
+stadium prisms, with the slack the turning axis adds) shows that no pose in between enters the
+material by more than the tolerance, or the interval is halved and its midpoint measured, until the
+test passes, a pose is found too deep, or the interval is shorter than ``MIN_INTERVAL`` (then the
+move is reported with the bound). A move whose axis does not turn is certified whole, from the move
+before's last pose to its own last, in one test (its poses between are still measured, for the
+depths reported); only when that fails is it halved. So "OK" means that no point of the modelled
+tool enters the part deeper than the tolerance anywhere along any feed move, and that no rapid move
 touches the stock at all, whatever ``step`` was.
 
 A feed move **gouges** when the cutting part (end and flutes) enters the part by more than ``tol``;
@@ -116,9 +114,7 @@ def rapid_reach(kern, tools, tol: float, stock: StockCheck, points, dirs, axes, 
 
 def sample_moves(tp: Toolpath, tools, step: float):
     """Poses along the path: ``tip, axis (s, 3)``, ``tool, move (s,)``, ``frac (s,)`` (the pose's
-    place along its move, 0 at the point before, 1 at the move's point), ``rapid (s,) bool``; at
-    most ``step`` mm apart (the tip, or the farthest point of the tool as the axis turns) on a move
-    whose axis turns, one at the end of a move whose axis stays put."""
+    place along its move, 0 at the point before, 1 at the move's point), ``rapid (s,) bool``."""
     k = len(tp)
     if k == 0:
         e3, e = np.empty((0, 3)), np.empty(0, np.int64)
@@ -130,13 +126,15 @@ def sample_moves(tp: Toolpath, tools, step: float):
         dtip[1:] = np.linalg.norm(np.diff(tp.tip, axis=0), axis=1)
         cosang = np.clip(np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1]), -1.0, 1.0)
         dang[1:] = np.arccos(cosang) * reach[1:]
-    n = np.where(_fixed_axis(tp), 1, np.maximum(1, np.ceil(np.maximum(dtip, dang) / step)))
+    n = np.maximum(1, np.ceil(np.maximum(dtip, dang) / step))
     memory.check(POSE_BYTES * float(n.sum()), f"{n.sum():,.0f} poses {step:g} mm apart", "use a larger --step")
     n = n.astype(np.int64)
+    n[0] = 1
     move = np.repeat(np.arange(k), n)
     first = np.cumsum(n) - n
     j = np.arange(n.sum()) - np.repeat(first, n) + 1
     frac = j / np.repeat(n, n)
+    frac[move == 0] = 1.0
     tip, axis = move_poses(tp, move, frac)
     return tip, axis, tp.tool[move], move, frac, tp.rapid[move]
 
@@ -335,15 +333,20 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     poses = [(tip, tool, move, rapid, end, body, ring, segs, in_stock)]
     bad_move = np.zeros(len(tp), bool)
     bad_move[move[(end > tol) | (body > tol)]] = True
-    # the intervals between neighbouring poses (the first pose of a move starts at the previous
-    # move's last pose; a move whose axis stays put has its end pose alone: it is proven whole),
-    # unless the move already failed or is not checked; the path's first point, a move of length
-    # zero, is proven at its pose as one too (its measure samples a rounded end's circle, the proof
-    # covers it)
+    # the intervals between neighbouring poses of each move (the first pose of a move starts at the
+    # previous move's last pose), unless the move already failed or is not checked; the path's
+    # first point, a move of length zero, is proven at its pose as one too (its measure samples a
+    # rounded end's circle, the proof covers it)
+    # A move whose axis stays put is proven whole, from the last pose of the move before to its
+    # own last (its proof is exact at any length; its poses between are measured all the same)
     ib = np.arange(1, len(tip))
     if move[0] == 0 and checked[0]:
         ib = np.r_[0, ib]
-    ia = np.maximum(ib - 1, 0)
+    run_start = np.searchsorted(move, move)  # each pose's move's first pose (poses go in move order)
+    fixed = _fixed_axis(tp)
+    ib = ib[~fixed[move[ib]] | (frac[ib] == 1.0)]
+    whole = fixed[move[ib]]
+    ia = np.maximum(np.where(whole, run_start[ib] - 1, ib - 1), 0)
     keep = ~bad_move[move[ib]] & checked[move[ib]]
     ta, xa, fa = tip[ia][keep], axis[ia][keep], np.zeros(keep.sum())
     fa[:] = np.where(move[ia][keep] == move[ib][keep], frac[ia][keep], 0.0)
