@@ -171,3 +171,18 @@ def test_stray_fragments_and_non_manifold_edges_are_said_and_handled():
     small = mesh_from_arrays(np.vstack([chip.vertices, chip.vertices + 0.1]), np.vstack([chip.faces, chip.faces + 8]),
                              "chips")
     assert len(small.faces) == 24
+
+
+def test_welding_indexes_points_as_unique_rows_do():
+    """The vertex weld's index equals np.unique over rows (the lexicographic order of the distinct
+    points), with repeats, grid values, and -0.0 beside 0.0."""
+    from meshmill.geometry.mesh import weld_index
+
+    rng = np.random.default_rng(5)
+    pts = np.round(rng.integers(-3, 4, (2000, 3)) * 0.5, 6)
+    pts[::7] = -0.0 * pts[::7]
+    pts[::11, 1] = -0.0
+    inverse, count = weld_index(pts)
+    uniq, ref = np.unique(pts, axis=0, return_inverse=True)
+    assert count == len(uniq) and np.array_equal(inverse, ref.reshape(-1))
+    assert np.array_equal(uniq[inverse], pts)

@@ -104,6 +104,18 @@ def edge_face_counts(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return counts
 
 
+def weld_index(points: np.ndarray):
+    """The index of each of ``points (n, 3)`` among the distinct ones in lexicographic order
+    (x, then y, then z), ``(n,) int64``, and how many there are: ``np.unique(points, axis=0,
+    return_inverse=True)``'s, by one lexsort (sorting rows as records is 10x slower)."""
+    order = np.lexsort((points[:, 2], points[:, 1], points[:, 0]))
+    ps = points[order]
+    new = np.r_[True, (ps[1:] != ps[:-1]).any(axis=1)]
+    inverse = np.empty(len(points), np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    return inverse, int(new.sum())
+
+
 def closed_mesh(vertices, faces, name="mesh") -> Mesh:
     """A :class:`Mesh` of arrays known to bound closed solids, wound outward, with shared vertices
     and no degenerate triangles (what our marching cubes writes): taken as they are, unchecked
@@ -134,10 +146,8 @@ def mesh_from_arrays(vertices, faces, name="mesh", flip=False, setup: Setup | No
     if setup is not None:
         v, placement, notes = setup.place(v, name)
     # weld identical vertices so that neighbouring faces share edges
-    key = np.round(v, WELD_DIGITS)
-    uniq, inverse = np.unique(key, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    first = np.full(len(uniq), -1, np.int64)
+    inverse, count = weld_index(np.round(v, WELD_DIGITS))
+    first = np.full(count, -1, np.int64)
     first[inverse[::-1]] = np.arange(len(v))[::-1]
     v = v[first]
     f = inverse[f]

@@ -58,8 +58,11 @@ def boundary_edges(faces: np.ndarray, piece: np.ndarray):
     F = faces.astype(np.int64)
     directed = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     face_piece = np.repeat(piece, 3)
-    und = np.column_stack([face_piece, directed.min(axis=1), directed.max(axis=1)])
-    _, inv, counts = np.unique(und, axis=0, return_inverse=True, return_counts=True)
+    lo, hi = directed.min(axis=1), directed.max(axis=1)
+    # (piece, edge) as one integer key (np.unique over rows sorts 10x slower)
+    _, edge = np.unique(lo * (int(hi.max()) + 1) + hi, return_inverse=True)
+    _, inv, counts = np.unique(face_piece.astype(np.int64) * (int(edge.max()) + 1) + edge.reshape(-1),
+                               return_inverse=True, return_counts=True)
     single = counts[inv.reshape(-1)] == 1
     return directed[single], face_piece[single]
 
