@@ -291,7 +291,7 @@ def build(jit):
                 for t in range(first, first + node_range[n, 1]):
                     # a cheap bound first: no point of the segment is nearer the triangle than its
                     # middle less half its length
-                    far = reach * (1.0 + 1e-12) + 0.5 * length + 1e-12
+                    far = reach * (1.0 + 1e-12) + 0.5 * length + 1e-12 * (1.0 + abs(mx) + abs(my) + abs(mz))
                     if point_tri(mx, my, mz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
                                  tris[t, 6], tris[t, 7], tris[t, 8]) > far * far:
                         continue
@@ -442,7 +442,9 @@ def build(jit):
                 + (0.5 * (node_lo[n, 2] + node_hi[n, 2]) - az) * uz
             he = 0.5 * ((node_hi[n, 0] - node_lo[n, 0]) * abs(ux) + (node_hi[n, 1] - node_lo[n, 1]) * abs(uy)
                         + (node_hi[n, 2] - node_lo[n, 2]) * abs(uz))
-            slack = 1e-12 * (abs(hc) + he + abs(s0) + abs(s1)) + 1e-12  # rounding: a vertex on a face stays in
+            # rounding (of coordinates as large as the box's or the axis point's): a vertex on a face stays in
+            slack = 1e-12 * (abs(node_hi[n, 0]) + abs(node_hi[n, 1]) + abs(node_hi[n, 2]) + abs(ax) + abs(ay)
+                             + abs(az) + he + abs(s0) + abs(s1)) + 1e-12
             if hc + he < s0 - slack or hc - he > s1 + slack:
                 continue
             left = node_child[n, 0]
