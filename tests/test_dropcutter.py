@@ -198,7 +198,8 @@ def test_refinement_drops_only_the_new_segments_midpoints():
 def test_the_drop_meets_the_top_faces_as_it_meets_the_whole_solid(kind):
     """Solid kernels drop onto the faces deciding inside (the mesh's, the caps'), not onto the
     curtains and floor under a sheet: the heights of the whole check mesh, to rounding, on a bumpy
-    open sheet whose vertices lie on the grid the points are dropped at, and along its edges."""
+    open sheet whose vertices lie on the grid the points are dropped at, and along its edges (unless
+    the floor is above part of the sheet)."""
     from meshmill.geometry.mesh import mesh_from_arrays
     from meshmill.kernels.backend import solid_kernels
 
@@ -219,3 +220,8 @@ def test_the_drop_meets_the_top_faces_as_it_meets_the_whole_solid(kind):
     ours, _ = kern.drop_cutter(xy, R, r, floor, body)
     whole, _ = cpu.drop_cutter(xy, R, r, floor, kern.mesh, body)
     assert np.abs(ours - whole).max() < 1e-9 and (ours > floor).any()
+    # a floor above part of the sheet stands above it there: then the drop meets the whole solid
+    high = solid_kernels(mesh_from_arrays(v, f, "sheet"), floor=0.0)
+    assert high.top is high.mesh
+    z, _ = high.drop_cutter(xy, R, r, -5.0, body)
+    assert np.array_equal(z, cpu.drop_cutter(xy, R, r, -5.0, high.mesh, body)[0])

@@ -165,4 +165,7 @@ def solid_kernels(mesh, device: str = "cpu", floor=None) -> MeshKernels:
     from .bvh import build_bvh
 
     solid = mesh.solid(floor)
-    return MeshKernels(build_bvh(solid.vertices, solid.faces), device, inside=solid.inside)
+    kern = MeshKernels(build_bvh(solid.vertices, solid.faces), device, inside=solid.inside)
+    if solid.floor > float(mesh.vertices[:, 2].min()):  # a floor above part of a sheet: its floor
+        kern.top = kern.mesh  # faces may stand above the sheet there, so drops meet them all
+    return kern
