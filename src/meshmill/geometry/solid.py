@@ -51,6 +51,13 @@ class Solid:
         """``(node_lo, node_hi, node_child, node_range, tris, kind, floor)`` for the kernels."""
         return (*self.inside_bvh.arrays, self.inside_kind, self.floor)
 
+    @property
+    def floor_below_sheets(self) -> bool:
+        """Whether the floor lies at or below every vertex (of the sheets, the caps, the pieces):
+        then the curtains and floor lie below the sheets' faces and edges, and a tool lowered
+        from above meets the faces deciding inside first (:attr:`inside`'s BVH)."""
+        return self.floor <= float(self.vertices[:, 2].min())
+
 
 def boundary_edges(faces: np.ndarray, piece: np.ndarray):
     """Edges used by one face of their piece: ``(k, 2)`` vertex pairs in the direction that face

@@ -69,7 +69,7 @@ class MeshKernels:
     the GPU once, here, and stay there for every call. Arguments and results are host numpy
     arrays, as documented in :mod:`meshmill.kernels.cpu`."""
 
-    def __init__(self, bvh, device: str = "cpu", inside=None):
+    def __init__(self, bvh, device: str = "cpu", inside=None, drop_on_inside: bool = False):
         if device not in ("cpu", "cuda"):
             raise ValueError(f"device must be 'cpu' or 'cuda' (resolve '{device}' first)")
         self.bvh, self.device = bvh, device
@@ -78,10 +78,10 @@ class MeshKernels:
         self.inside = None
         if inside is not None:
             self.inside = self.impl.inside_to_device(inside) if device == "cuda" else inside
-        # what a tool lowered from above meets first: the faces deciding inside (the mesh's and the
-        # caps of its holes), without the curtains and floor under its sheets, which lie below
-        # the sheets' faces and edges (a third as many triangles on a terrain; the same heights)
-        self.top = self.inside[:5] if self.inside is not None else self.mesh
+        # what drops meet: with ``drop_on_inside`` (:attr:`~meshmill.geometry.solid.Solid.floor_below_sheets`)
+        # the faces deciding inside (the mesh's and the caps of its holes), without the curtains and
+        # floor under its sheets (a third as many triangles on a terrain; the same heights)
+        self.top = self.inside[:5] if drop_on_inside and self.inside is not None else self.mesh
 
     def mesh_distances(self, points, cap=1e150):
         return self.impl.mesh_distances(points, self.mesh, cap)
@@ -165,7 +165,5 @@ def solid_kernels(mesh, device: str = "cpu", floor=None) -> MeshKernels:
     from .bvh import build_bvh
 
     solid = mesh.solid(floor)
-    kern = MeshKernels(build_bvh(solid.vertices, solid.faces), device, inside=solid.inside)
-    if solid.floor > float(mesh.vertices[:, 2].min()):  # a floor above part of a sheet: its floor
-        kern.top = kern.mesh  # faces may stand above the sheet there, so drops meet them all
-    return kern
+    return MeshKernels(build_bvh(solid.vertices, solid.faces), device, inside=solid.inside,
+                       drop_on_inside=solid.floor_below_sheets)

@@ -273,27 +273,29 @@ def build(jit):
         ux = dx / length
         uy = dy / length
         uz = dz / length
+        # a cheap bound first: no point of the segment is nearer a triangle than its middle less
+        # half its length (and the rounding of coordinates this large), so a triangle whose distance
+        # to the middle is past ``reach`` plus that cannot lower ``best``
         mx = ax + 0.5 * dx
         my = ay + 0.5 * dy
         mz = az + 0.5 * dz
+        pad = 0.5 * length + 1e-12 * (1.0 + abs(mx) + abs(my) + abs(mz))
         best = cap2
+        reach = math.sqrt(best)
+        far2 = (reach * (1.0 + 1e-12) + pad) ** 2
         stack[0] = 0
         sp = 1
         while sp > 0:
             sp -= 1
             n = stack[sp]
-            reach = math.sqrt(best)
             if not box_may_touch_capsule(node_lo, node_hi, n, ax, ay, az, bx, by, bz, reach):
                 continue
             left = node_child[n, 0]
             if left < 0:
                 first = node_range[n, 0]
                 for t in range(first, first + node_range[n, 1]):
-                    # a cheap bound first: no point of the segment is nearer the triangle than its
-                    # middle less half its length
-                    far = reach * (1.0 + 1e-12) + 0.5 * length + 1e-12 * (1.0 + abs(mx) + abs(my) + abs(mz))
                     if point_tri(mx, my, mz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
-                                 tris[t, 6], tris[t, 7], tris[t, 8]) > far * far:
+                                 tris[t, 6], tris[t, 7], tris[t, 8]) > far2:
                         continue
                     d = axis_dist(tris, t, ax, ay, az, ux, uy, uz, 0.0, length)
                     d = min(d, point_tri(ax, ay, az, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4],
@@ -303,6 +305,7 @@ def build(jit):
                     if d < best:
                         best = d
                         reach = math.sqrt(best)
+                        far2 = (reach * (1.0 + 1e-12) + pad) ** 2
                         if best < stop2:
                             return best
             else:
