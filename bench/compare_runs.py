@@ -4,7 +4,8 @@
 
 Tool paths, programs, meshes and tool tables must be byte-identical; JSON files equal once the
 wall-time fields are removed (``seconds``, ``*_seconds``, ``bytes`` of the report); .npz files
-array by array; the HTML report equal once its wall-time figures are removed. Prints one line a
+array by array; the HTML report equal once its wall-time figures are removed (and its summary
+tables compared as sets of rows, as the JSON files are compared as dicts). Prints one line a
 file and exits 1 when any differs.
 """
 from __future__ import annotations
@@ -34,8 +35,17 @@ def _html(path):
     text = open(path, encoding="utf-8").read()
     text = re.sub(r'"?(seconds|[a-z_]*_seconds)"?(\s*[:=]\s*|</td><td>)("[^"]*"|[-0-9.e+]+|\{[^{}]*\})', r"\1=T", text)
     text = re.sub(r"seconds\.[a-z_]+</td><td>[-0-9.e+]+", "seconds=T", text)
-    text = re.sub(r'\[\{"orientation":"h","text":\[[^\]]*\],"textposition":"auto","x":\[[^\]]*\]', "STAGES", text)
+    text = re.sub(r'\[\{"orientation":"h","text":\[[^\]]*\],"textposition":"auto","x":\[[^\]]*\](,"y":\[[^\]]*\])?',
+                  "STAGES", text)
+    # the stage chart (its bars named after the summary's seconds) grows with its number of stages
+    text = re.sub(r'<div style="height:\d+px; width:100%;">((?:(?!</script>).)*?STAGES)', r"<div>\1", text, flags=re.S)
     text = re.sub(r"seconds per stage \(total [-0-9.e+]+ s\)", "seconds per stage", text)
+    text = re.sub(r'("text":"seconds per stage"\},"height":)\d+', r"\1T", text)
+    text = text.replace("<tr><td>seconds=T</td></tr>", "")
+    # a summary's table in the order of its keys: compared as the JSON files are, whatever the order
+    text = re.sub(r"<table class='kv'>.*?</table>",
+                  lambda m: "<table>" + "".join(sorted(re.findall(r"<tr>.*?</tr>", m.group(0)))) + "</table>", text,
+                  flags=re.S)
     return re.sub(r"\d+\.\d+ MB", "MB", text)
 
 

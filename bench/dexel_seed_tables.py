@@ -38,6 +38,7 @@ from standin_parts import blade, double_wave, handle
 from meshmill.geometry.mesh import mesh_from_arrays
 from meshmill.ops.raster import RasterParams, raster
 from meshmill.ops.simulate import simulate
+from meshmill.simulation.stock import Stock
 from meshmill.simulation.cut import cut, stock_from_model, toolpath_moves
 from meshmill.simulation.deviation import deviations, surface_parameters
 from meshmill.simulation.dexel import dexelize
@@ -177,7 +178,7 @@ def topo_rows(step=0.1, allowance=1.5):
     rows = []
     for R, s in ((4, 6), (4, 4), (4, 2), (6, 4), (8, 4)):
         tp, tools = raster_path(m, float(R), float(s))
-        dev, summary, machined, *_ = simulate(m, tp, tools, step, allowance=allowance, tolerance=0.3)
+        dev, summary, machined, *_ = simulate(m, tp, tools, step, stock=Stock.offset(allowance), tolerance=0.3)
         design = dexelize(m, step, bounds=m.bounds + np.array([[-allowance], [allowance]]))
         pts, e, _, _ = deviations(machined, design, m)
         lo, hi = m.bounds

@@ -59,6 +59,7 @@ from meshmill.geometry.mesh import mesh_from_arrays  # noqa: E402
 from meshmill.geometry.shapes import sphere, vase  # noqa: E402
 from meshmill.kernels.backend import MeshKernels, cuda_available  # noqa: E402
 from meshmill.ops.finish import FinishParams, finish  # noqa: E402
+from meshmill.simulation.stock import Stock  # noqa: E402
 from meshmill.ops.simulate import simulate  # noqa: E402
 from meshmill.simulation.dexel import dexelize  # noqa: E402
 from meshmill.toolpath.model import Toolpath  # noqa: E402
@@ -215,7 +216,7 @@ def head(tp, k):
 
 
 def sim_row(design, tp, tools, step, device):
-    _, s, *_ = simulate(design, tp, tools, step, allowance=1.0, device=device)
+    _, s, *_ = simulate(design, tp, tools, step, stock=Stock.offset(1.0), device=device)
     return {"moves": s["moves"], "pieces": s["pieces_cut"], "dexels": int(sum(s["lattice"]["dexels"].values())),
             "removed_mm3": round(float(s["volumes_mm3"]["removed"]), 3),
             "gouged_mm3": round(float(s["volumes_mm3"]["gouged"]), 6),

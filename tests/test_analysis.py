@@ -88,5 +88,5 @@ def test_analyze_command(tmp_path, capsys):
         assert z["accessible_triangles"].sum() == s["accessible_triangles"]
     capsys.readouterr()
     assert main(["analyze", str(tmp_path / "m.stl"), "--direction", "0,0,0", "--out", str(tmp_path / "b")]) == 2
-    assert "non-zero" in capsys.readouterr().err
+    assert "--direction must not be zero" in capsys.readouterr().err
     assert main(["analyze", str(tmp_path / "m.stl"), "--direction", "1,2", "--out", str(tmp_path / "b")]) == 2

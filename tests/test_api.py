@@ -66,7 +66,7 @@ def test_checks_and_programs_write_what_the_commands_write(tmp_path, part, tools
           "verify.json")
     _both(tmp_path, ["simulate", "--design", str(part), "--toolpath", cl, "--tools", t, "--step", "2", "--allowance",
                      "0.5", "--quiet"],
-          lambda out: meshmill.simulate(mesh, tp, tools, step=2, allowance=0.5).save(out), "sim")
+          lambda out: meshmill.simulate(mesh, tp, tools, step=2, stock=meshmill.Stock.offset(0.5)).save(out), "sim")
     _both(tmp_path, ["post", cl, "--machine", "table-table-ac", "--tools", t, "--clearance", "60"],
           lambda out: meshmill.post(tp, "table-table-ac", tools, clearance=60).save(out), "program.nc")
     _both(tmp_path, ["time", cl, "--machine", "table-table-ac", "--tools", t],
@@ -81,7 +81,7 @@ def test_checks_and_programs_write_what_the_commands_write(tmp_path, part, tools
 
 @pytest.mark.slow
 def test_choose_writes_what_the_command_writes(tmp_path):
-    options = dict(tool_pair="10,2", scallop=0.05, zones="2", grid=16, sample=2.0, mesh_step=2.0)
+    options = dict(tool_pair="10,2", scallop=0.05, zones=2, grid=16, sample=2.0, mesh_step=2.0)
     argv = ["choose", "rubio", "--quiet"]
     for k, v in options.items():
         argv += [f"--{k.replace('_', '-')}", str(v)]

@@ -128,4 +128,4 @@ def test_verify_with_an_allowance_and_a_stock(tmp_path, part, tools_file, capsys
     blank = trimesh.creation.box(bounds=[[-40, -40, -5], [40, 40, top + 10]])
     blank.export(tmp_path / "blank.stl")
     assert main(base + ["--stock", str(tmp_path / "blank.stl")]) == 1
-    assert one_line_error(capsys, base + ["--allowance", "-1"]).endswith("got -1.0")
+    assert one_line_error(capsys, base + ["--allowance", "-1"]).endswith("--allowance must be a number of mm >= 0, got -1")

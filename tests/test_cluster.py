@@ -104,7 +104,7 @@ def test_dexel_lines_cast_on_a_cluster_are_the_same_model(client):
 def test_simulate_on_a_cluster_gives_the_same_results(client, stock):
     part = shapes.post_with_fillet(segments=48)
     tp = zigzag_with_problems(part)  # gouges: design ends cut away, bounded by machined ends of other blocks
-    kw = {"box": {}, "allowance": {"allowance": 0.5},
+    kw = {"box": {}, "allowance": {"stock": api.Stock.offset(0.5)},
           "mesh": {"stock": shapes.box(*(part.bounds + np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 2.0]])))}}[stock]
     one = api.simulate(part, tp, TOOLS, step=0.8, device="cpu", **kw)
     many = api.simulate(part, tp, TOOLS, step=0.8, device="cpu", cluster=client, **kw)
@@ -220,7 +220,7 @@ def test_a_simulation_too_large_for_its_workers_is_refused_before_it_starts():
     part = shapes.post_with_fillet(segments=48)
     tp = api.raster(part, TOOLS, tool="B6", stepover=3.0, device="cpu").toolpath
     with pytest.raises(InputError, match=r"simulating .* dexel lines in blocks on each worker need about .*: use more"):
-        simulate_on(Small(2), part, tp, TOOLS, 0.25, device="cpu")
+        simulate_on(Small(2), part, tp, TOOLS, 0.25, api.Stock.box(), device="cpu")
 
 
 def test_casting_too_large_for_a_worker_is_refused_before_it_starts():

@@ -8,7 +8,7 @@ import pytest
 from meshmill.errors import InputError
 
 REPORT = "the HTML report needs plotly: pip install 'meshmill[report]'"
-OPTIMISE = "--optimise needs PyNomadBBO: pip install 'meshmill[optimise]'"
+OPTIMISE = "optimise needs PyNomadBBO: pip install 'meshmill[optimise]'"
 
 
 @pytest.fixture
@@ -52,7 +52,7 @@ def test_choose_command_without_nomad(no_nomad, tmp_path, capsys):
     argv = ["choose", "rubio", "--tool-pair", "10,2", "--scallop", "0.01", "--zones", "1", "--grid", "10",
             "--mesh-step", "2", "--sample", "2", "--optimise", "2", "--quiet", "--out", str(tmp_path / "c")]
     assert main(argv) == 2
-    assert capsys.readouterr().err.strip() == f"meshmill: error: {OPTIMISE}"
+    assert capsys.readouterr().err.strip() == f"meshmill: error: --{OPTIMISE}"
 
 
 def test_extras_are_imported_only_when_needed():

@@ -7,6 +7,7 @@ import pytest
 from meshmill.errors import InputError
 from meshmill.geometry.shapes import overhang_column, post_with_fillet, revolve, sphere
 from meshmill.ops.finish import FinishParams, finish, tilt_candidates
+from meshmill.simulation.stock import Stock
 
 
 def test_sphere_every_tool_fits(tools):
@@ -112,15 +113,16 @@ def test_candidates_start_vertical_and_stay_within_max_tilt():
 
 
 @pytest.mark.parametrize("kw, message", [
-    (dict(step_down=0), "step-down"),
-    (dict(step_down=1, max_tilt=95), "max-tilt"),
-    (dict(step_down=1, order="zigzag"), "order"),
+    (dict(step_down=0), "^step_down must be a number of mm >= 0.0001, got 0$"),
+    (dict(step_down=1, max_tilt=95), "^max_tilt must be a number of deg from 0 to below 90, got 95$"),
+    (dict(step_down=1, order="zigzag"), "^order must be one of contour, tool, got 'zigzag'$"),
     (dict(step_down=100), "larger than the part"),
-    (dict(step_down=1, safe_z=5), "safe-z"),
+    (dict(step_down=1, safe_z=5), "^safe_z 5 is too low"),
 ])
 def test_bad_parameters(tools, kw, message):
-    with pytest.raises(InputError, match=message):
-        finish(sphere(10.0, 8, 16), tools, FinishParams(**kw))
+    with pytest.raises(InputError, match=message) as e:
+        finish(sphere(10.0, 8, 16), tools, FinishParams.checked(dict(part=None, tools=tools, **kw)))
+    assert e.value.params[0] == (next(iter(kw)) if len(kw) == 1 else list(kw)[-1])
 
 
 def test_no_ball_tool(tools):
@@ -192,7 +194,7 @@ def test_an_open_sheet_is_finished_without_dipping_under_its_edge(tools):
                     48)
     centre, R = _ball_centres(tp, tools)
     assert (winding_number(centre, block.vertices, block.faces) < 0.5).all()
-    dev, summary, *_ = simulate(block, tp, tools, 0.5, allowance=0.5)
+    dev, summary, *_ = simulate(block, tp, tools, 0.5, stock=Stock.offset(0.5))
     assert dev["gouge_max"] < 0.05 and summary["rapid_moves_cutting"] == 0 and summary["colliding_moves"] == 0
 
 
@@ -204,7 +206,7 @@ def test_rapids_keep_clear_of_the_stock_the_finish_starts_from(tools):
     tp, s, d = finish(m, tools, FinishParams(step_down=2.0))
     assert s["verify"]["ok"] and s["stock"] == {"allowance": 0.5, "mesh": False, "clearance": 0.5, "shank_and_holder": True}
     # independent: the dexel simulation from the stock the finish assumes (0.5 mm on the part)
-    dev, summary, *_ = simulate(m, tp, tools, 0.25, allowance=0.5)
+    dev, summary, *_ = simulate(m, tp, tools, 0.25, stock=Stock.offset(0.5))
     assert summary["rapid_moves_cutting"] == 0 and summary["colliding_moves"] == 0
     # and every rapid keeps the ball's centre the radius, the allowance and the clearance off the part
     rapid = np.nonzero(tp.rapid)[0]
@@ -305,7 +307,7 @@ def test_scallop_is_met_on_the_surface_the_balls_reach_by_simulation(tools):
     tp, s, d = finish(m, tools, FinishParams(step_down=2.0, scallop=h, sample=1.0))
     radii = np.array([b.radius for b in d["balls"]])
     assert s["verify"]["ok"]
-    dev, summary, _, _, ends = simulate(m, tp, tools, 0.25, allowance=0.5)
+    dev, summary, _, _, ends = simulate(m, tp, tools, 0.25, stock=Stock.offset(0.5))
     p, w, face = sample_surface(m, 0.25)
     e = ends["e"][cKDTree(ends["points"]).query(p)[1]]
     # reached: not the underside, and the nearest CC point or raster contact fits a ball (the

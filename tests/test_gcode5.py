@@ -228,8 +228,8 @@ def test_final_retract_in_machine_coordinates(tmp_path, tools, end, name):
 
 
 @pytest.mark.parametrize("name, body, message", [
-    (None, "G0 X0 Y0 Z0 A90\n", "p.nc:2: unsupported word A90: .*--machine"),
-    (None, "G0 X0 Y0 Z0\nG1 C10\n", "p.nc:3: unsupported word C10: .*--machine"),
+    (None, "G0 X0 Y0 Z0 A90\n", "p.nc:2: unsupported word A90: .*give the machine \\(machine,"),
+    (None, "G0 X0 Y0 Z0\nG1 C10\n", "p.nc:3: unsupported word C10: .*give the machine \\(machine,"),
     ("generic-3axis", "G0 X0 Y0 Z0 B5\n", "p.nc:2: unsupported word B5: .*3-axis machine"),
     ("table-table-ac", "G0 X0 Y0 Z0 A0 C0\nG1 B10\n", "p.nc:3: unsupported word B10: .*no B axis .*A, C"),
     ("head-table-bc", "G0 X0 Y0 Z0 A10 C0\n", "p.nc:2: unsupported word A10: .*no A axis .*B, C"),

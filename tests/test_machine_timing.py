@@ -355,7 +355,7 @@ def test_time_command(tmp_path, tools, tools_file, capsys):
     captured = capsys.readouterr()
     assert rc == 0 and not captured.err
     fast = json.loads(captured.out)
-    assert fast["total"]["cutting_s"] > summary["total"]["cutting_s"] and "--feed" in fast["notes"][0]
+    assert fast["total"]["cutting_s"] > summary["total"]["cutting_s"] and "2500 mm/min on every feed move" in fast["notes"][0]
 
 
 def test_time_command_reads_gcode_feeds(tmp_path, tools_file, capsys):

@@ -53,12 +53,12 @@ def test_degenerate_triangles_are_dropped_and_counted():
 
 def test_inside_out_closed_mesh_is_refused_and_flip_turns_it():
     b = box([0, 0, 0], [1, 1, 1])
-    with pytest.raises(InputError, match="inside out.*--flip"):
+    with pytest.raises(InputError, match="inside out.*flip turns it over"):
         mesh_from_arrays(b.vertices, b.faces[:, ::-1])
     m = mesh_from_arrays(b.vertices, b.faces[:, ::-1], flip=True)
     assert m.flipped and m.turned_faces == 0
     assert np.allclose(m.face_normals, b.face_normals)
-    assert any("--flip" in w for w in m.warnings)
+    assert any("flip: every face turned over" in w for w in m.warnings)
 
 
 def test_open_mesh_warns():
@@ -138,7 +138,7 @@ def test_open_surface_facing_down_is_named_and_flip_turns_it():
     down = np.array([[0, 2, 1], [0, 3, 2]])
     m = mesh_from_arrays(v, down, "sheet")
     assert not m.flipped and m.summary()["pieces"]["sheets"] == 1
-    assert any("away from the spindle" in w and "--flip" in w for w in m.warnings)
+    assert any("away from the spindle" in w and "give flip" in w for w in m.warnings)
     up = mesh_from_arrays(v, down, "sheet", flip=True)
     assert up.face_normals[:, 2].min() > 0 and not any("away from" in w for w in up.warnings)
 

@@ -6,6 +6,7 @@ import pytest
 import trimesh
 
 from meshmill.cli import main
+from meshmill.errors import InputError
 from meshmill.kernels.bvh import build_bvh
 from meshmill.geometry.mesh import mesh_from_arrays
 from meshmill.geometry.shapes import box, sphere
@@ -84,8 +85,8 @@ def test_bull_nose_and_bad_values():
     assert s["verify"]["ok"] and s["valid_plunges"] > 0
     with pytest.raises(Exception, match="wider than the tool"):
         plunge3(m, [BULL], "R8", PlungeParams(radial_step=5.0, engagement=9.0, allowance=0.5))
-    with pytest.raises(Exception, match="--radial-step"):
-        plunge3(m, [BULL], "R8", PlungeParams(radial_step=0.0, engagement=6.0, allowance=0.5))
+    with pytest.raises(InputError, match="^radial_step must be a number of mm >= 0.001, got 0$"):
+        PlungeParams.checked(dict(part=m, tools=[BULL], tool="R8", radial_step=0.0, engagement=6.0, allowance=0.5))
 
 
 def test_contours_and_perimeter_points():

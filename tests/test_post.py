@@ -448,7 +448,7 @@ def test_post_command(tmp_path, tools, capsys):
     captured = capsys.readouterr()
     report = json.loads(captured.out)
     assert rc == 0 and not captured.err and (tmp_path / "nc" / "p.nc").exists()
-    assert report["feeds"].startswith("1 of ") and "--feed 900 mm/min" in report["feeds"]
+    assert report["feeds"].startswith("1 of ") and "feed 900 mm/min" in report["feeds"]
     assert report["linearisation"]["tolerance_mm"] == 0.01 and report["machine"].startswith("5-axis trunnion")
     assert set(report["axis_ranges"]) == {"X", "Y", "Z", "A", "C"} and report["rewinds"] == 0
 

@@ -13,6 +13,7 @@ from meshmill.cli import main
 from meshmill.geometry.shapes import box
 from meshmill.kernels.cpu_dexel import swp
 from meshmill.ops.simulate import simulate
+from meshmill.simulation.stock import Stock
 from meshmill.simulation.cut import SWEEP_TOL, cut, stock_from_model, toolpath_moves, turn_pieces
 from meshmill.simulation.dexel import dexelize
 from meshmill.simulation.exactsum import expansion, total
@@ -204,7 +205,7 @@ def test_a_dip_into_the_design_is_reported_where_it_is():
     design = box((0, 0, 0), (40, 20, 10))
     step = 0.1
     tp, (x0, y0) = _dip(design, step, 0.2)
-    dev, *_ = simulate(design, tp, [BALL], step, allowance=0.5)
+    dev, *_ = simulate(design, tp, [BALL], step, stock=Stock.offset(0.5))
     assert dev["gouge_max"] == pytest.approx(0.2, abs=2e-3)
     np.testing.assert_allclose(dev["gouge_at"], [x0, y0, 9.8], atol=step)
     assert dev["excess_max"] == pytest.approx(0.5, abs=1e-6)  # the allowance left elsewhere
@@ -453,11 +454,11 @@ def test_an_open_surface_is_simulated_as_the_solid_below_it(tools):
     assert not sheet.closed
     tp, s = raster(sheet, tools, "B6", RasterParams(stepover=1.0, sample=0.5))
     assert s["verify"]["ok"]
-    dev, sim, *_ = simulate(sheet, tp, tools, 0.5, allowance=0.5)
+    dev, sim, *_ = simulate(sheet, tp, tools, 0.5, stock=Stock.offset(0.5))
     assert dev["gouge_max"] <= 0.0101 and sim["colliding_moves"] == 0 and sim["rapid_moves_cutting"] == 0
     # the material is there: the same path 0.2 mm lower gouges it by that much
     low = Toolpath(tp.tip - np.where(tp.rapid, 0.0, 0.2)[:, None] * [0, 0, 1], tp.axis, tp.rapid, tp.tool)
-    dev, *_ = simulate(sheet, low, tools, 0.5, allowance=0.5)
+    dev, *_ = simulate(sheet, low, tools, 0.5, stock=Stock.offset(0.5))
     assert dev["gouge_max"] == pytest.approx(0.2, abs=0.012)
 
 

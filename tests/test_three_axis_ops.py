@@ -4,13 +4,14 @@ import math
 import numpy as np
 import pytest
 
-from meshmill.errors import InputError
+from meshmill.errors import InputError, NothingToCut
 from meshmill.kernels.bvh import build_bvh
 from meshmill.geometry.mesh import load_mesh
 from meshmill.geometry.shapes import box, revolve, sphere
 from meshmill.pathing.dropcutter import ToolDrop
 from meshmill.ops.raster import RasterParams, raster, stepover_for_scallop
 from meshmill.ops.waterline import WaterlineParams, waterline
+from meshmill.simulation.stock import Stock
 from meshmill.tools.table import tool_from_entry
 
 PARTS = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared" / "parts"
@@ -56,7 +57,7 @@ def test_bad_raster_parameters(cutters):
     with pytest.raises(InputError, match="no tool named"):
         raster(m, cutters, "X", RasterParams(stepover=1))
     with pytest.raises(InputError, match="exactly one"):
-        raster(m, cutters, "B6", RasterParams(stepover=1, scallop=0.1))
+        RasterParams.checked(dict(part=m, tools=cutters, tool="B6", stepover=1, scallop=0.1))
 
 
 def _touching(drop, passes, tol=1e-6, wall=1e-4):
@@ -166,7 +167,7 @@ def test_raster_keeps_the_holder_out_of_the_allowance(cutters):
     lo, hi = np.array([25.0, 15.0]), np.array([35.0, 25.0])
     near = {}
     for allowance in (0.0, 0.5):
-        tp, s = raster(m, cutters, "R6", RasterParams(stepover=2.0, sample=0.25, stock_allowance=allowance))
+        tp, s = raster(m, cutters, "R6", RasterParams(stepover=2.0, sample=0.25, stock=Stock.offset(allowance)))
         assert s["verify"]["ok"]
         low = tp.tip[~tp.rapid & (tp.tip[:, 2] < 70 - 40 - 1e-6)]
         near[allowance] = _box_distance_xy(low[:, :2], lo, hi).min()
@@ -186,8 +187,8 @@ def test_rest_raster_cuts_only_where_the_stock_has_material(cutters):
     design = box((0, 0, 0), (40, 40, 10))
     stock = box((10, 10, 0), (20, 20, 13))
     tools = [cutters[1]]
-    full, _ = raster(design, tools, "B6", RasterParams(stepover=1.0, sample=0.5), stock=stock)
-    rest, summary = raster(design, tools, "B6", RasterParams(stepover=1.0, sample=0.5, rest=0.05), stock=stock)
+    full, _ = raster(design, tools, "B6", RasterParams(stepover=1.0, sample=0.5, stock=stock))
+    rest, summary = raster(design, tools, "B6", RasterParams(stepover=1.0, sample=0.5, rest=0.05, stock=stock))
     assert summary["verify"]["ok"] and summary["rest"]["runs"] > 5
     feed = rest.tip[~rest.rapid]
     reach = 3.0 + 3.0 + 0.5 + 1e-9  # the cutter's radius, the margin, a sample
@@ -197,8 +198,10 @@ def test_rest_raster_cuts_only_where_the_stock_has_material(cutters):
     _, s_rest, *_ = simulate(design, rest, tools, 0.5, stock=stock)
     assert s_rest["volumes_mm3"]["removed"] == pytest.approx(s_full["volumes_mm3"]["removed"], rel=1e-9, abs=1e-6)
     assert s_rest["cutting_mm"]["air_share"] < s_full["cutting_mm"]["air_share"]
-    with pytest.raises(InputError, match="--rest needs --stock"):
+    with pytest.raises(InputError, match="rest needs a stock"):
         raster(design, tools, "B6", RasterParams(stepover=1.0, rest=0.05))
+    with pytest.raises(NothingToCut, match="no piece of the passes removes more than rest 5 mm"):
+        raster(design, tools, "B6", RasterParams(stepover=1.0, sample=0.5, rest=5.0, stock=stock))
 
 
 def test_rest_waterline_cuts_only_the_loops_in_the_stock(cutters):
@@ -210,8 +213,8 @@ def test_rest_waterline_cuts_only_the_loops_in_the_stock(cutters):
     stock = box((-5, -5, 0), (45, 2, 10))
     tools = [cutters[1]]
     params = dict(step_down=2.5, sample=0.5)
-    full, _, _ = waterline(design, tools, "B6", WaterlineParams(**params), stock=stock)
-    rest, summary, loops = waterline(design, tools, "B6", WaterlineParams(**params, rest=0.05), stock=stock)
+    full, _, _ = waterline(design, tools, "B6", WaterlineParams(**params, stock=stock))
+    rest, summary, loops = waterline(design, tools, "B6", WaterlineParams(**params, rest=0.05, stock=stock))
     assert summary["verify"]["ok"] and summary["rest"]["runs"] == summary["rest"]["loops_before"] >= 3  # one run a loop
     feed = rest.tip[~rest.rapid]
     assert len(feed) and (feed[:, 1] <= 2 + 3.0 + 3.0 + 0.5).all()  # the stock, its reach, the margin, a sample

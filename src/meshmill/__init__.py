@@ -1,13 +1,15 @@
 """meshmill: exact, fast, verified multi-axis milling tool paths from triangle meshes.
 
 The operations are functions of :mod:`meshmill.api`, reachable from here (``meshmill.finish``,
-``meshmill.load_part``, ...); they are imported on first use, so ``import meshmill`` is quick.
+``meshmill.load_part``, ``meshmill.Stock``, ...); they are imported on first use, so ``import
+meshmill`` is quick.
 """
 __version__ = "0.1.0"
 
 API = ("load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline", "plunge",
-       "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report")
-__all__ = [*API, "Job", "InputError", "__version__"]
+       "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
+       "Stock", "Fixture", "Toolpath")
+__all__ = [*API, "Job", "InputError", "NothingToCut", "__version__"]
 
 
 def __getattr__(name):
@@ -19,10 +21,10 @@ def __getattr__(name):
         from .job import Job
 
         return Job
-    if name == "InputError":
-        from .errors import InputError
+    if name in ("InputError", "NothingToCut"):
+        from . import errors
 
-        return InputError
+        return getattr(errors, name)
     raise AttributeError(f"module 'meshmill' has no attribute '{name}'")
 
 

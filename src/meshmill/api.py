@@ -1,6 +1,7 @@
 """meshmill as a library: every command as a function, with the command's options as keyword
-arguments (same names with ``_`` for ``-``, same defaults) and a small result object whose
-``save`` writes exactly the files the command writes.
+arguments (same names with ``_`` for ``-``, same defaults: both come from :mod:`meshmill.params`)
+and a small result object (:mod:`meshmill.results`) whose ``save`` writes exactly the files the
+command writes.
 
 ```python
 import meshmill
@@ -11,671 +12,529 @@ res.toolpath, res.summary   # the Toolpath and the dict summary.json holds
 res.save("out/")            # contours.npz, toolpath.cl, part.stl, summary.json
 ```
 
-Bad input raises :class:`~meshmill.errors.InputError` naming the parameter (``step_down must be
-at least 0.0001 mm``; the command line names its flags instead). ``device`` is ``"cpu"``,
-``"cuda"`` or ``"auto"`` (a usable GPU when there is one); ``progress`` is called with the name of
-each stage. Units: mm, degrees for angles, mm/min for feeds.
+Every function checks its arguments the same way: an unknown keyword, a missing one, a value of
+the wrong type (a number given as text, a boolean as text) or out of range raises
+:class:`~meshmill.errors.InputError` naming the parameter (``step_down must be a number of mm >=
+0.0001, got -1``; the command line names its flags instead). A part, a tool table, a machine, a
+tool path or a stock may be given as a file name. ``device`` is ``"cpu"``, ``"cuda"`` or
+``"auto"`` (a usable GPU when there is one); ``progress`` is called with the name of each stage.
+Units: mm, degrees for angles, mm/min for feeds.
 """
 from __future__ import annotations
 
 import functools
 import inspect
-import math
 import os
-import re
 import time
-from dataclasses import dataclass, field
 
-from .errors import InputError
-from .runfolder import FOLDER_OUTPUTS, write_json, write_part
-from .tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
+from .errors import InputError, NothingToCut
+from .options import Params
+from .params import (OUTPUTS, AnalyzeParams, ChooseParams, ClearFixturesParams, DexelParams, FinishParams,
+                     LoadPartParams, LoadToolpathParams, PlungeParams, PostParams, RasterParams, ReportParams,
+                     SimulateParams, TimeParams, VerifyParams, WaterlineParams)
+from .results import (AnalysisResult, ChooseResult, DexelResult, FixturesResult, PathResult, PostResult,
+                      SimulateResult, TimeResult, VerifyResult)
 
-_FLAG = re.compile(r"--([a-z][a-z0-9]*(?:-[a-z0-9]+)*)")
-
-
-def _named_errors(func):
-    """Errors of ``func`` name its parameters (``step_down``) where the lower layers wrote the
-    command's flag (``--step-down``); ``InputError.params`` lists the names so replaced and
-    ``flags_message`` keeps the flags' wording for the command line."""
-    names = set(inspect.signature(func).parameters)
-
-    @functools.wraps(func)
-    def call(*args, **kwargs):
-        try:
-            return func(*args, **kwargs)
-        except InputError as exc:
-            found = []
-
-            def name(m):
-                key = m.group(1).replace("-", "_")
-                if key not in names:
-                    return m.group(0)
-                found.append(key)
-                return key
-
-            text = _FLAG.sub(name, str(exc))
-            if not found:
-                raise
-            err = InputError(text)
-            err.params = tuple(dict.fromkeys(found))
-            err.flags_message = str(exc)  # as the command line says it
-            raise err from None
-
-    return call
+__all__ = ["load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline", "plunge",
+           "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
+           "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
+           "VerifyResult", "DexelResult", "SimulateResult", "AnalysisResult", "ChooseResult", "PostResult",
+           "TimeResult", "FixturesResult", "InputError", "NothingToCut"]
+TYPES = {"Stock": "simulation.stock", "Fixture": "ops.fixtures", "Toolpath": "toolpath.model"}
 
 
-def _finite(v):
-    return isinstance(v, (int, float)) and math.isfinite(v)
+def __getattr__(name):
+    if name in TYPES:  # imported on first use: they bring numpy
+        import importlib
+
+        return getattr(importlib.import_module(f"{__package__}.{TYPES[name]}"), name)
+    raise AttributeError(f"module 'meshmill.api' has no attribute '{name}'")
 
 
-# ---------------------------------------------------------------- loading
+# ---------------------------------------------------------------- checking arguments
 
 
-@_named_errors
-def load_part(path, *, units="mm", up="+Z", origin="file", scale=1.0, flip=False):
-    """The part mesh of ``path`` (STL, OBJ, PLY; STEP and IGES with ``meshmill[step]``) set up
-    into the work frame (mm, +Z to the spindle): ``units`` of the file (mm, cm, m, in), ``up`` the
-    part's axis to the spindle (+X, -Y, ..., "RX,RY,RZ" degrees or nine numbers), ``scale`` the
-    model's scale, ``origin`` the work zero (bottom-centre, top-centre, corner, file, or "X,Y,Z");
-    ``flip`` turns every face over. Returns a :class:`~meshmill.geometry.mesh.Mesh` (its
-    ``warnings`` say what was repaired or looks wrong)."""
-    from .geometry.mesh import load_mesh
-    from .geometry.placement import Setup
+def operation(spec: type[Params], *positional: str):
+    """The API function of ``body(p)``: its signature is ``spec``'s options (``positional`` first,
+    the rest by keyword only, with their defaults), its docstring lists them, and a call checks
+    every argument (:meth:`~meshmill.options.Params.checked`), turns objects given as file names
+    into what they name (:data:`CONVERT`) and hands ``body`` the params."""
+    opts = spec.options()
 
-    setup = Setup(units=units, up=up, origin=origin, scale=scale)
-    setup.check()
-    return load_mesh(path, flip=flip, setup=setup)
+    def wrap(body):
+        name = body.__name__
+        sig = inspect.Signature(
+            [inspect.Parameter(n, inspect.Parameter.POSITIONAL_OR_KEYWORD) for n in positional]
+            + [inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY,
+                                 default=inspect.Parameter.empty if o.required else o.default)
+               for n, o in opts.items() if n not in positional],
+            return_annotation=inspect.signature(body).return_annotation)
+        lines = [f"    {n}: {o.help}" + (f" ({o.unit})" if o.unit else "") for n, o in opts.items()]
+
+        @functools.wraps(body)
+        def call(*args, **kwargs):
+            if len(args) > len(positional):
+                raise InputError(f"{name} takes {len(positional)} positional argument"
+                                 f"{'s' * (len(positional) != 1)} ({', '.join(positional)}); give the others by name")
+            values = dict(zip(positional, args))
+            twice = sorted(set(values) & set(kwargs))
+            if twice:
+                raise InputError(f"{name} got {', '.join(twice)} twice", tuple(twice))
+            values.update(kwargs)
+            p = spec.checked(values, name)
+            return body(convert(p))
+
+        call.__signature__ = sig
+        call.__doc__ = f"{body.__doc__}\n\n    Parameters:\n" + "\n".join(lines)
+        call.spec = spec
+        return call
+
+    return wrap
 
 
-def _load_stock(stock):
-    """The closed stock :class:`Mesh` of ``stock`` (a mesh, a file already in the work frame, or
-    None)."""
-    if stock is None:
-        return None
-    if isinstance(stock, (str, os.PathLike)):
+def convert(p: Params) -> Params:
+    """``p`` with its objects (parts, tools, machines, tool paths, stocks...) as they are used:
+    file names read, values of the wrong type refused (:class:`InputError` naming them)."""
+    opts = p.options()
+    values = {n: getattr(p, n) for n in opts}
+    for role in ROLES:
+        for n, o in opts.items():
+            if o.role == role:
+                values[n] = CONVERT[role](o, values[n], values)
+    values.pop("machine reads", None)
+    return p.replace(**values)
+
+
+def _is_mesh(v) -> bool:
+    return hasattr(v, "vertices") and hasattr(v, "faces") and hasattr(v, "closed")
+
+
+def _is_file(v) -> bool:
+    return isinstance(v, os.PathLike) or isinstance(v, str) and bool(v.strip())
+
+
+def _as_path(o, v, values):
+    if not _is_file(v):
+        raise o.refuse(v, "a file name")
+    return os.fspath(v)
+
+
+def _as_part(o, v, values):
+    if _is_mesh(v):
+        return v
+    if _is_file(v):
+        return load_part(v)
+    raise o.refuse(v, "a Mesh (meshmill.load_part) or a mesh file")
+
+
+def _as_origin(o, v, values):
+    if isinstance(v, str) and v.strip():
+        return v
+    from .options import Option
+
+    point = Option("numbers", "", unit="mm", name=o.name, what=o.what).check(v)
+    return ",".join(repr(x) for x in point)
+
+
+def _as_surface(o, v, values):
+    if _is_mesh(v) or _is_file(v):
+        return v
+    raise o.refuse(v, "a patch file or name (rubio, choi), a mesh file or a Mesh")
+
+
+def _as_tools(o, v, values):
+    from .tools.table import Tool
+
+    if v is None:
+        path = values.get("toolpath")
+        if o.default is None and _is_file(path):  # post, time: the tools.toml beside the tool path (choose's)
+            beside = os.path.join(os.path.dirname(os.path.abspath(os.fspath(path))), "tools.toml")
+            if not os.path.exists(beside):
+                raise InputError(f"no tools given and no tools.toml beside {os.fspath(path)}: give the tool table",
+                                 o.name)
+            return load_tools(beside)
+        if o.default is None and "toolpath" not in values:
+            return None
+        raise o.refuse(v, "a tool table: its TOML file, or the tools of meshmill.load_tools")
+    if _is_file(v):
+        return load_tools(v)
+    if isinstance(v, (list, tuple)) and v and all(isinstance(t, Tool) for t in v):
+        return v
+    raise o.refuse(v, "a tool table: its TOML file, or the tools of meshmill.load_tools")
+
+
+def _as_machine(o, v, values):
+    from .machine.model import Machine
+
+    values["machine reads"] = o.role == "machine"  # a timing machine reads G-code only, not a CL file
+    if v is None or isinstance(v, Machine):
+        return v
+    if _is_file(v):
+        return load_machine(v)
+    raise o.refuse(v, "a machine: a shipped name (table-table-ac, generic-3axis, ...), a machine file or a Machine")
+
+
+def _as_toolpath(o, v, values):
+    from .toolpath.model import Toolpath
+
+    if isinstance(v, Toolpath):
+        return v
+    if not _is_file(v):
+        raise o.refuse(v, "a Toolpath or a tool path file (APT CL or G-code)")
+    if values.get("tools") is None:
+        raise InputError("a tool path file is read with its tool table: give tools", ("tools", o.name))
+    from .machine.pathfile import TOOLPATH_APT, TOOLPATH_GCODE
+
+    ext = os.path.splitext(os.fspath(v))[1].lower()
+    if o.role == "cl" and ext not in TOOLPATH_APT:
+        raise InputError(f"{os.fspath(v)}: {o.name} must be an APT CL file ({', '.join(TOOLPATH_APT)}); G-code is "
+                         "posted already", o.name)
+    machine = values.get("machine") if values.get("machine reads", True) or ext in TOOLPATH_GCODE else None
+    return load_toolpath(v, values["tools"], tool=values.get("tool"), machine=machine)
+
+
+def _as_stock(o, v, values):
+    from .simulation.stock import Stock
+
+    if v is None or isinstance(v, Stock):
+        return v
+    if _is_mesh(v):
+        return Stock.mesh(v)
+    if isinstance(v, str) and v.strip().lower() == "box":
+        return Stock.box()
+    if isinstance(v, str) and v.strip().lower().startswith("offset:"):
+        from .options import Option
+
+        mm = Option("number", "", unit="mm", low=0.0, name=o.name).from_text(v.split(":", 1)[1].strip())
+        return Stock.offset(Option("number", "", unit="mm", low=0.0, name=o.name).check(mm))
+    if _is_file(v):
+        path = os.fspath(v)
+        if path.lower().endswith(".npz"):
+            return Stock.load(path, values.get("part") or values.get("design"))
         from .geometry.mesh import load_mesh
 
-        stock = load_mesh(stock)
-    if not stock.closed:
-        raise InputError(f"{stock.source or 'the stock'}: the stock mesh is open (not watertight)")
-    return stock
+        return Stock.mesh(load_mesh(path))
+    raise o.refuse(v, "a Stock (meshmill.Stock.box(), .offset(mm), .mesh(...)), a closed Mesh, a mesh file, a saved "
+                      "stock (.npz), 'box' or 'offset:MM'")
 
 
-@_named_errors
-def load_tools(path):
-    """The tool table of TOML file ``path``: a list of :class:`~meshmill.tools.table.Tool`
-    (numbered from 1) with the file's ``path``."""
-    from .tools.table import load_tools as read
-
-    return read(path)
-
-
-@_named_errors
-def load_machine(machine):
-    """A machine: a TOML file or a shipped name (generic-3axis, table-table-ac, head-table-bc, ...)."""
-    from .machine.config import load_machine as read
-
-    return read(machine)
+def _as_cluster(o, v, values):
+    if v is None or isinstance(v, str) and v.strip() or hasattr(v, "submit") and hasattr(v, "scatter"):
+        return v
+    if isinstance(v, int) and not isinstance(v, bool) and v >= 1:
+        return v
+    raise o.refuse(v, "a number of local workers (>= 1), a scheduler's address or a distributed.Client")
 
 
-@_named_errors
-def load_toolpath(path, tools, *, tool=None, machine=None):
-    """The :class:`~meshmill.toolpath.model.Toolpath` of an APT CL file or G-code (by extension),
-    its ``feed`` (mm/min per move, NaN where the file sets none), ``source`` and ``warnings``.
-    ``tool``: the tool of G-code without T words; ``machine`` (a Machine or a name): the one
-    whose kinematics read 5-axis G-code."""
-    from .machine.pathfile import read_toolpath
-
-    if isinstance(machine, (str, os.PathLike)):
-        machine = load_machine(machine)
-    return read_toolpath(path, tools, tool, machine)[0]
+def _as_progress(o, v, values):
+    if v is None or callable(v):
+        return v
+    raise o.refuse(v, "a function of one argument (the stage's text), or None")
 
 
-def _device(device):
+def _as_outputs(o, v, values):
+    names = [w.strip() for w in v.split(",") if w.strip()] or None if isinstance(v, str) else v
+    if isinstance(names, (list, tuple)) and all(isinstance(w, str) for w in names):
+        if list(names) == ["all"]:
+            return OUTPUTS
+        if set(names) <= {"summary", *OUTPUTS}:
+            return tuple(k for k in OUTPUTS if k in names)
+    raise o.refuse(v, f"a list of {', '.join(OUTPUTS)} (the command line's comma list may say summary or all)")
+
+
+def _as_folders(o, v, values):
+    items = [v] if _is_file(v) else v
+    if isinstance(items, (list, tuple)) and items and all(_is_file(f) for f in items):
+        return [os.fspath(f) for f in items]
+    raise o.refuse(v, "a run folder or a list of them")
+
+
+def _as_fixtures(o, v, values):
+    from .ops.fixtures import Fixture
+
+    items = v if isinstance(v, (list, tuple)) else [v]
+    out = []
+    for k, f in enumerate(items):
+        if isinstance(f, Fixture):
+            out.append(f)
+        elif _is_mesh(f) and f.closed:
+            out.append(Fixture(f"fixture {k + 1}", mesh=f))
+        elif isinstance(f, dict):
+            out.append(Fixture.from_dict(f, "", k + 1))
+        else:
+            raise o.refuse(v, "a list of Fixtures, closed Meshes or [[fixtures]] tables")
+    if not out:
+        raise o.refuse(v, "a list of Fixtures, closed Meshes or [[fixtures]] tables")
+    return out
+
+
+CONVERT = {"path": _as_path, "origin": _as_origin, "part": _as_part, "surface": _as_surface, "tools": _as_tools, "machine": _as_machine,
+           "timing_machine": _as_machine, "toolpath": _as_toolpath, "cl": _as_toolpath, "stock": _as_stock, "cluster": _as_cluster, "progress": _as_progress,
+           "outputs": _as_outputs, "folders": _as_folders, "fixtures": _as_fixtures}
+ROLES = tuple(CONVERT)  # the order objects are converted in: a tool path is read with its tools and machine
+
+
+def resolve_device(device) -> str:
+    """``"cpu"`` or ``"cuda"`` for ``device`` (cpu, cuda, auto: the GPU when a usable one is present)."""
     from .kernels.backend import resolve
 
     return resolve(device)
 
 
-def _part_entry(mesh):
+_device = resolve_device
+
+
+def connect(cluster):
+    """A context holding the ``distributed.Client`` of ``cluster`` (a number of local workers, a
+    scheduler's address, a Client; None: no cluster, the context holds None)."""
+    from .cluster import connect as open_client
+
+    return open_client(cluster)
+
+
+def part_entry(mesh) -> dict:
+    """What a summary says of a part: its file and :meth:`~meshmill.geometry.mesh.Mesh.summary`."""
     return {"file": mesh.source, **mesh.summary()}
 
 
-def _tools_file(tools):
+def tools_file(tools) -> str:
+    """The file a tool table was read from ("" for tools made in Python)."""
     path = getattr(tools, "path", "")
     return os.path.abspath(path) if path else ""
 
 
-def _loaded(summary, mesh):
-    """Add the part's loading time to the summary's ``seconds``."""
-    load_s = mesh.load_seconds
-    summary["seconds"]["load"] = round(load_s, 4)
-    summary["seconds"]["total"] = round(summary["seconds"]["total"] + load_s, 4)
-
-
-# ---------------------------------------------------------------- results
-
-
-class _Saved:
-    """Writes a result's files all or nothing (:class:`~meshmill.runfiles.RunFiles`)."""
-
-    def _save(self, paths, write):
-        from .runfiles import RunFiles
-
-        run = RunFiles(paths)
-        try:
-            write(run)
-            run.commit()
-        finally:
-            if not run.done:
-                run.abort()
-        return [p for p in run.paths if os.path.exists(p)]
-
-
-@dataclass
-class PathResult(_Saved):
-    """A tool path and its summary: finish, raster, waterline, plunge. ``arrays``: finish's
-    contours and surface status (contours.npz)."""
-
-    operation: str
-    toolpath: object
-    summary: dict
-    part: object
-    tools: list
-    arrays: dict = field(default_factory=dict)
-
-    @property
-    def ok(self) -> bool:
-        """The written path verified free of gouges and collisions."""
-        return bool(self.summary["verify"]["ok"])
-
-    def save(self, folder) -> list:
-        """Write the command's files into ``folder``; returns their paths."""
-        from .toolpath.cldata import write_apt
-
-        def write(run):
-            import numpy as np
-
-            if self.arrays:
-                np.savez_compressed(run.tmp(os.path.join(folder, "contours.npz")), **self.arrays)
-            partno = os.path.basename(self.part.source or "part")
-            write_apt(run.tmp(os.path.join(folder, "toolpath.cl")), self.toolpath, self.tools, partno=partno)
-            write_part(run.tmp(os.path.join(folder, "part.stl")), self.part)
-            write_json(run.tmp(os.path.join(folder, "summary.json")), self.summary)
-
-        return self._save([os.path.join(folder, n) for n in FOLDER_OUTPUTS[self.operation]], write)
+_part_entry, _tools_file = part_entry, tools_file
 
 
 def _path_result(operation, tp, summary, mesh, tools, device, arrays=None):
     summary["device"] = device
-    summary["tools_file"] = _tools_file(tools)
-    summary["part"] = _part_entry(mesh)
-    _loaded(summary, mesh)
+    summary["tools_file"] = tools_file(tools)
+    summary["part"] = part_entry(mesh)
+    summary["seconds"]["load"] = round(mesh.load_seconds, 4)
+    summary["seconds"]["total"] = round(summary["seconds"]["total"] + mesh.load_seconds, 4)
     return PathResult(operation, tp, summary, mesh, tools, arrays or {})
+
+
+# ---------------------------------------------------------------- loading
+
+
+@operation(LoadPartParams, "path")
+def load_part(p):
+    """The part mesh of ``path`` set up into the work frame (mm, +Z to the spindle). Returns a
+    :class:`~meshmill.geometry.mesh.Mesh` (its ``warnings`` say what was repaired or looks wrong)."""
+    from .geometry.mesh import load_mesh
+    from .geometry.placement import Setup
+
+    setup = Setup(units=p.units, up=p.up, origin=p.origin, scale=p.scale)
+    setup.check()
+    return load_mesh(p.path, flip=p.flip, setup=setup)
+
+
+def load_tools(path):
+    """The tool table of TOML file ``path``: a list of :class:`~meshmill.tools.table.Tool`
+    (numbered from 1) with the file's ``path``."""
+    from .tools.table import load_tools as read
+
+    if not _is_file(path):
+        raise InputError(f"tools must be a tool table's TOML file, got {path!r}", "tools")
+    return read(path)
+
+
+def load_machine(machine):
+    """A machine: a TOML file or a shipped name (generic-3axis, table-table-ac, head-table-bc, ...)."""
+    from .machine.config import load_machine as read
+
+    if not _is_file(machine):
+        raise InputError(f"machine must be a shipped name or a machine file, got {machine!r}", "machine")
+    return read(machine)
+
+
+@operation(LoadToolpathParams, "path", "tools")
+def load_toolpath(p):
+    """The :class:`~meshmill.toolpath.model.Toolpath` of an APT CL file or G-code (by extension),
+    its ``feed`` (mm/min per move, NaN where the file sets none), ``source`` and ``warnings``."""
+    from .machine.pathfile import read_toolpath
+
+    return read_toolpath(p.path, p.tools, p.tool, p.machine)[0]
 
 
 # ---------------------------------------------------------------- operations
 
 
-@_named_errors
-def finish(part, tools, *, step_down, sample=0.5, max_tilt=60.0, tilt_step=5.0, order="contour", safe_z=None,
-           tolerance=GOUGE_TOL, clearance=HOLDER_CLEARANCE, lead=2.0, machine=None, scallop=None, min_run=1.0,
-           whole_contours=False, stock=None, stock_allowance=STOCK_ALLOWANCE, device="auto", cluster=None,
-           progress=None) -> PathResult:
-    """5-axis Z-constant finishing with the ball-end tools of ``tools`` (seed 004 and beyond):
-    ``step_down`` mm between levels, ``machine`` the 5-axis machine the axes are for, ``scallop``
-    mm adds levels where the surface is shallow, ``stock`` the material rapids keep clear of (a
-    closed mesh or file; else ``stock_allowance`` on the part); ``cluster``: the axis search in
-    groups of contours there (the same path)."""
+@operation(FinishParams, "part", "tools")
+def finish(p) -> PathResult:
+    """5-axis Z-constant finishing with the ball-end tools of ``tools`` (seed 004 and beyond)."""
     import numpy as np
 
-    from .ops.finish import AREA_STATUS, FinishParams
+    from .cluster import connect
+    from .ops.finish import AREA_STATUS
     from .ops.finish import finish as run
 
-    params = FinishParams(step_down=step_down, sample=sample, max_tilt=max_tilt, tilt_step=tilt_step, order=order,
-                          safe_z=safe_z, tol=tolerance, clearance=clearance, lead=lead,
-                          stock_allowance=stock_allowance, min_run=min_run, whole_contours=whole_contours,
-                          scallop=scallop)
-    params.check()
-    stock = _load_stock(stock)
-    device = _device(device)
-    if isinstance(machine, (str, os.PathLike)):
-        machine = load_machine(machine)
-    from .cluster import connect
-
-    with connect(cluster) as client:
-        tp, summary, detail = run(part, tools, params, progress=progress, device=device, stock=stock,
-                                  machine=machine, cluster=client)
+    device = _device(p.device)
+    with connect(p.cluster) as client:
+        tp, summary, detail = run(p.part, p.tools, p, progress=p.progress, device=device, machine=p.machine,
+                                  cluster=client)
     con = detail["contours"]
     arrays = dict(points=con.points, offsets=con.offsets, z=con.z, closed=con.closed,
                   machinable=detail["contour_tool"] >= 0, surface_points=detail["surface_points"],
                   surface_status=detail["surface_status"], status_names=np.array(AREA_STATUS),
                   raster_from=detail["raster_from"], raster_reach=detail["raster_reach"])
-    return _path_result("finish", tp, summary, part, tools, device, arrays)
+    return _path_result("finish", tp, summary, p.part, p.tools, device, arrays)
 
 
-@_named_errors
-def raster(part, tools, *, tool, stepover=None, scallop=None, angle=0.0, sample=0.5, tolerance=GOUGE_TOL,
-           clearance=HOLDER_CLEARANCE, stock=None, stock_allowance=STOCK_ALLOWANCE, allowance=0.0, rest=None,
-           rest_stock=None, device="auto", cluster=None, progress=None) -> PathResult:
-    """3-axis zigzag finishing with the tool named ``tool``: ``stepover`` mm between passes, or
-    the one a ``scallop`` height gives; ``angle`` degrees from X; ``allowance`` mm of material
-    left on the part (semi-finishing); ``cluster``: the passes dropped in pieces there (the same
-    path); ``rest`` mm: with a ``stock`` (and ``rest_stock``, the surface the depths are measured
-    from where it is not the stock),
-    only the pieces of the passes that remove more than that depth of it (rest machining)."""
-    from .ops.raster import RasterParams
+@operation(RasterParams, "part", "tools")
+def raster(p) -> PathResult:
+    """3-axis zigzag finishing with the tool named ``tool``; with ``rest`` only the pieces of the
+    passes that remove more than that depth of the stock (rest machining)."""
+    from .cluster import connect
     from .ops.raster import raster as run
 
-    if (stepover is None) == (scallop is None):
-        raise InputError("give exactly one of --stepover and --scallop")
-    params = RasterParams(stepover=stepover, scallop=scallop, angle=angle, sample=sample, tol=tolerance,
-                          stock_allowance=stock_allowance, clearance=clearance, allowance=allowance, rest=rest)
-    params.check()
-    device = _device(device)
+    device = _device(p.device)
+    with connect(p.cluster) as client:
+        tp, summary = run(p.part, p.tools, p.tool, p, progress=p.progress, device=device, cluster=client)
+    return _path_result("raster", tp, summary, p.part, p.tools, device)
+
+
+@operation(WaterlineParams, "part", "tools")
+def waterline(p) -> PathResult:
+    """3-axis Z-level loops with the tool named ``tool``; with ``rest`` only the pieces of the
+    loops that remove more than that depth of the stock."""
     from .cluster import connect
-
-    with connect(cluster) as client:
-        tp, summary = run(part, tools, tool, params, progress=progress, device=device, stock=_load_stock(stock),
-                          rest_stock=_load_stock(rest_stock), cluster=client)
-    return _path_result("raster", tp, summary, part, tools, device)
-
-
-@_named_errors
-def waterline(part, tools, *, tool, step_down, sample=0.5, tolerance=GOUGE_TOL, clearance=HOLDER_CLEARANCE,
-              stock=None, stock_allowance=STOCK_ALLOWANCE, allowance=0.0, rest=None, rest_stock=None,
-              device="auto", cluster=None, progress=None) -> PathResult:
-    """3-axis Z-level loops with the tool named ``tool``, ``step_down`` mm apart, ``allowance`` mm
-    of material left on the part; ``cluster``: groups of levels found there (the same path);
-    ``rest`` mm:
-    with a ``stock``, only the pieces of the loops that remove more than that depth of it."""
-    from .ops.waterline import WaterlineParams
     from .ops.waterline import waterline as run
 
-    params = WaterlineParams(step_down=step_down, sample=sample, tol=tolerance, stock_allowance=stock_allowance,
-                             clearance=clearance, allowance=allowance, rest=rest)
-    params.check()
-    device = _device(device)
-    from .cluster import connect
-
-    with connect(cluster) as client:
-        tp, summary, _ = run(part, tools, tool, params, progress=progress, device=device, stock=_load_stock(stock),
-                             rest_stock=_load_stock(rest_stock), cluster=client)
-    return _path_result("waterline", tp, summary, part, tools, device)
+    device = _device(p.device)
+    with connect(p.cluster) as client:
+        tp, summary, _ = run(p.part, p.tools, p.tool, p, progress=p.progress, device=device, cluster=client)
+    return _path_result("waterline", tp, summary, p.part, p.tools, device)
 
 
-@_named_errors
-def plunge(part, tools, *, tool, allowance, axes=3, radial_step=5.0, engagement=5.0, theta_step=15.0,
-           delta_step=30.0, regions=0, clearance=5.0, stock=None, simulate=None, device="auto",
-           progress=None) -> PathResult:
-    """Plunge roughing (seed 001) from the part's box with the tool named ``tool``, leaving
-    ``allowance`` mm: ``axes`` 3 (nested contours) or 5 (hemisphere of directions); 3-axis from
-    the box of ``stock`` (a closed mesh or file holding the part) where given. ``simulate`` (a
-    dexel step, mm) also cuts the path from the box and reports the volumes."""
-    from .ops.plunge import PlungeParams, plunge3, plunge5
+@operation(PlungeParams, "part", "tools")
+def plunge(p) -> PathResult:
+    """Plunge roughing (seed 001) with the tool named ``tool``, leaving ``allowance`` mm."""
+    from .ops.plunge import plunge3, plunge5
+    from .ops.simulate import simulate as cut
 
-    if axes not in (3, 5):
-        raise InputError(f"--axes must be 3 or 5, got {axes}")
-    params = PlungeParams(radial_step=radial_step, engagement=engagement, allowance=allowance, clearance=clearance,
-                          theta_step=theta_step, delta_step=delta_step, regions=regions)
-    if simulate is not None and not (_finite(simulate) and simulate > 0):
-        raise InputError(f"--simulate must be a positive dexel step in mm, got {simulate}")
-    stock = _load_stock(stock)
-    if stock is not None and axes != 3:
-        raise InputError("--stock: 5-axis plunge roughing starts from the part's box (give --axes 3)")
-    device = _device(device)
-    params.device = device
-    if axes == 3:
-        tp, summary = plunge3(part, tools, tool, params, progress=progress,
-                              stock_box=None if stock is None else stock.bounds)
-    else:
-        tp, summary = plunge5(part, tools, tool, params, progress=progress)
-    if simulate is not None:
-        from .ops.simulate import simulate as cut
-
-        dev, sim, *_ = cut(part, tp, tools, simulate, stock="box", progress=progress, device=device)
+    if p.stock is not None and p.axes != 3:
+        raise InputError("stock: 5-axis plunge roughing starts from the part's box (give axes 3)", ("stock", "axes"))
+    device = _device(p.device)
+    run = plunge3 if p.axes == 3 else plunge5
+    tp, summary = run(p.part, p.tools, p.tool, p.replace(device=device), progress=p.progress)
+    if p.simulate is not None:
+        dev, sim, *_ = cut(p.part, tp, p.tools, p.simulate, "box", progress=p.progress, device=device)
         v = sim["volumes_mm3"]
-        summary["simulation"] = {"step": simulate, "stock_volume": v["stock"], "removed_volume": v["removed"],
+        summary["simulation"] = {"step": p.simulate, "stock_volume": v["stock"], "removed_volume": v["removed"],
                                  "remaining_volume": v["remaining"], "gouged_volume": v["gouged"],
                                  "gouge_max": dev["gouge_max"], "seconds": sim["seconds"]["total"]}
-    return _path_result("plunge", tp, summary, part, tools, device)
+    return _path_result("plunge", tp, summary, p.part, p.tools, device)
 
 
-@dataclass
-class VerifyResult(_Saved):
-    """``report``: what verify found (moves, gouging and colliding moves, worst cases, ok)."""
+@operation(VerifyParams, "part", "toolpath", "tools")
+def verify(p) -> VerifyResult:
+    """Check ``toolpath`` against the part for gouges beyond ``tolerance`` and shank or holder
+    collisions, certified between poses ``step`` mm apart; rapids against ``stock``."""
+    from .cluster import connect
+    from .ops.verify import verify as run
 
-    report: dict
-    device: str
-    stock_checked: bool
-
-    @property
-    def ok(self) -> bool:
-        return bool(self.report["ok"])
-
-    def save(self, path) -> list:
-        """Write the report as JSON to ``path``."""
-        return self._save([path], lambda run: write_json(run.tmp(path), self.report))
-
-
-@_named_errors
-def verify(part, toolpath, tools, *, tolerance=GOUGE_TOL, step=0.5, stock=None, allowance=0.0, worst=10,
-           machine=None, device="auto", cluster=None, progress=None) -> VerifyResult:
-    """Check ``toolpath`` (a Toolpath, or an APT CL / G-code file read for ``machine``) against the
-    part for gouges beyond ``tolerance`` and shank or holder collisions, certified between poses
-    ``step`` mm apart; rapids against ``stock`` (a closed mesh or file) or ``allowance`` mm on
-    the part. ``cluster``: a number of local worker processes, a Dask scheduler's address or a
-    ``distributed.Client``: ranges of moves verified there (the same report)."""
-    from .kernels.backend import solid_kernels
-    from .pathing.verify import StockCheck, verify_toolpath
-
-    if not (_finite(step) and step >= 1e-4):
-        raise InputError(f"--step must be a finite number of at least 0.0001 mm, got {step}")
-    if not (_finite(tolerance) and tolerance >= 0):
-        raise InputError(f"--tolerance must be a finite number >= 0, got {tolerance}")
-    if not (_finite(allowance) and allowance >= 0):
-        raise InputError(f"--allowance must be a number of mm >= 0, got {allowance}")
-    stock = _load_stock(stock)
-    if isinstance(toolpath, (str, os.PathLike)):
-        toolpath = load_toolpath(toolpath, tools, machine=machine)
-    device = _device(device)
-    say = progress or (lambda stage: None)
-    floor = min(part.bounds[0, 2], stock.bounds[0, 2]) if stock is not None else None
-    allowance = 0.0 if stock is not None else allowance
-    if cluster is not None:
-        from .cluster import PIECES_PER_WORKER, connect, run_pieces, workers
-        from .pathing.verify import merge_reports, path_pieces, verify_piece
-
-        with connect(cluster) as client:
-            pieces = path_pieces(toolpath, PIECES_PER_WORKER * workers(client))
-            shared = dict(part=part, floor=floor, stock=stock, allowance=allowance, tools=list(tools), tol=tolerance,
-                          step=step, device=device)
-            parts = run_pieces(client, verify_piece, shared, pieces, say, "certified check of every move")
-        report = merge_reports(toolpath, parts, tolerance, step,
-                               {**StockCheck(allowance=allowance).summary(), "mesh": stock is not None}, worst)
-    else:
-        say("index")
-        check = StockCheck(allowance=allowance, kern=solid_kernels(stock, device) if stock is not None else None)
-        kern = solid_kernels(part, device, floor)
-        say("certified check of every move")
-        report = verify_toolpath(kern, toolpath, tools, tolerance, step, worst=worst, stock=check, progress=say)
-    report.pop("problem_moves")
-    return VerifyResult(report, device, stock is not None or bool(allowance))
+    device = _device(p.device)
+    with connect(p.cluster) as client:
+        report = run(p.part, p.toolpath, p.tools, p.tolerance, p.step, p.stock, p.worst, device, client,
+                     p.progress if client is not None else None)
+    problems = report.pop("problem_moves", None)
+    checked = p.stock is not None and (p.stock.kind != "offset" or p.stock.allowance > 0)
+    return VerifyResult(report, device, checked, problems)
 
 
-@dataclass
-class DexelResult(_Saved):
-    """``model``: the :class:`~meshmill.simulation.dexel.DexelModel`; ``summary``."""
-
-    model: object
-    summary: dict
-
-    def save(self, path) -> list:
-        """Write the model to ``path`` (.npz compact binary, .td the seed's ASCII) and
-        ``summary.json`` beside it."""
-        from .simulation.dexel import export_td, save_npz
-
-        path = os.fspath(path)
-        folder = os.path.dirname(os.path.abspath(path))
-
-        def write(run):
-            (export_td if path.lower().endswith(".td") else save_npz)(run.tmp(path), self.model)
-            self.summary["file"] = os.path.abspath(path)
-            write_json(run.tmp(os.path.join(folder, "summary.json")), self.summary)
-
-        return self._save([path, os.path.join(folder, "summary.json")], write)
-
-
-@_named_errors
-def dexel(part, *, step, index="bvh", partitions="1", kmax=27, init="k-means++", minibatch=False, device="auto",
-          cluster=None, progress=None) -> DexelResult:
-    """Triple-dexel model of the part (seed 000) with lines ``step`` mm apart; ``index``: bvh, or the
-    seed's cells or kmeans partitions (``partitions`` a count or "auto"); ``cluster`` (local
-    workers, a scheduler's address or a Client): blocks of lines cast there (the same model)."""
+@operation(DexelParams, "part")
+def dexel(p) -> DexelResult:
+    """Triple-dexel model of the part (seed 000) with lines ``step`` mm apart."""
+    from .cluster import connect
     from .ops.simulate import dexel_model
 
-    if index != "bvh" and device == "auto":
-        device = "cpu"  # the seed's indexes run on the CPU only
-    device = _device(device)
-    from .cluster import connect
-
-    with connect(cluster) as client:
-        model, summary = dexel_model(part, step, index, str(partitions), init, minibatch, kmax, progress=progress,
-                                     device=device, cluster=client)
-    model.name = os.path.basename(part.source or "part")
-    summary["part"] = _part_entry(part)
+    device = _device("cpu" if p.index != "bvh" and p.device == "auto" else p.device)  # the seed's indexes: CPU
+    with connect(p.cluster) as client:
+        model, summary = dexel_model(p.part, p.step, p.index, p.partitions, p.init, p.minibatch, p.kmax,
+                                     progress=p.progress, device=device, cluster=client)
+    summary["part"] = _part_entry(p.part)
     summary["device"] = device
     return DexelResult(model, summary)
 
 
-@dataclass
-class SimulateResult(_Saved):
-    """``deviation`` (ISO 25178 parameters, gouge and excess), ``summary``, the ``machined``
-    surface ``(vertices, faces)`` and the deviation ``samples`` (points, e)."""
-
-    deviation: dict
-    summary: dict
-    machined: tuple
-    samples: dict
-
-    @property
-    def ok(self) -> bool:
-        """No rapid cut material and no shank or holder hit it."""
-        return not (self.summary["rapid_moves_cutting"] or self.summary["colliding_moves"])
-
-    def save(self, folder) -> list:
-        """Write deviation.json, summary.json and, where the run kept them, deviation.npz and
-        machined.stl into ``folder`` (an earlier run's files there are removed)."""
-        import numpy as np
-
-        def write(run):
-            if self.samples is not None:
-                np.savez_compressed(run.tmp(os.path.join(folder, "deviation.npz")), points=self.samples["points"],
-                                    e=self.samples["e"])
-            if self.machined is not None and len(self.machined[1]):
-                import trimesh
-
-                trimesh.Trimesh(*self.machined, process=False).export(run.tmp(os.path.join(folder, "machined.stl")))
-            write_json(run.tmp(os.path.join(folder, "deviation.json")), self.deviation)
-            write_json(run.tmp(os.path.join(folder, "summary.json")), self.summary)
-
-        return self._save([os.path.join(folder, n) for n in FOLDER_OUTPUTS["simulate"]], write)
-
-
-@_named_errors
-def simulate(design, toolpath, tools, *, step, stock="box", allowance=None, tolerance=GOUGE_TOL, mode="sweep",
-             tool=None, machine=None, device="auto", cluster=None, outputs=("deviation", "mesh"),
-             progress=None) -> SimulateResult:
-    """Cut ``toolpath`` (a Toolpath or a file, read for ``machine`` and ``tool``) from the stock
-    with dexels ``step`` mm apart and measure the result against ``design``: ``stock`` "box",
-    a closed mesh or file, or ``allowance`` mm on the design; ``mode`` sweep (exact swept volumes)
-    or points (the seed's); ``cluster``: blocks of dexel lines cast, cut and measured there (the
-    same result; this process never holds the models); ``outputs``: what is kept beyond the
-    summary and deviation figures, ``"deviation"`` (every dexel end's deviation, ``samples``)
-    and ``"mesh"`` (the machined surface); a run without them is faster and smaller."""
+@operation(SimulateParams, "design", "toolpath", "tools")
+def simulate(p) -> SimulateResult:
+    """Cut ``toolpath`` from ``stock`` with dexels ``step`` mm apart and measure the result
+    against ``design``; ``result.stock`` is the stock after it."""
+    from .cluster import connect
     from .ops.simulate import simulate as one_process
     from .ops.simulate_blocks import simulate_on
 
-    if not (_finite(step) and step > 0):
-        raise InputError(f"--step must be a positive number of mm, got {step}")
-    if allowance is not None and stock not in (None, "box"):
-        raise InputError("give --stock or --allowance, not both")
-    stock = "box" if stock in (None, "box") else _load_stock(stock)
-    if isinstance(toolpath, (str, os.PathLike)):
-        if isinstance(machine, (str, os.PathLike)):
-            machine = load_machine(machine)
-        toolpath = load_toolpath(toolpath, tools, tool=tool, machine=machine)
-    device = _device(device)
-    from .cluster import connect
+    from .simulation.stock import Stock
 
-    with connect(cluster) as client:
-        run = one_process if client is None else functools.partial(simulate_on, client)
-        deviation, summary, _, machined, samples = run(design, toolpath, tools, step, stock=stock,
-                                                       allowance=allowance, tolerance=tolerance, mode=mode,
-                                                       progress=progress, device=device, outputs=tuple(outputs))
+    device = _device(p.device)
+    stock = Stock.of(p.stock, "box")
+    with connect(p.cluster) as client:
+        if client is None or stock.cut_already:  # an in-process stock is cut here (its pieces on the cluster)
+            deviation, summary, after, machined, samples = one_process(
+                p.design, p.toolpath, p.tools, p.step, stock, p.tolerance, p.mode, p.progress, device, p.outputs,
+                client)
+        else:
+            deviation, summary, after, machined, samples = simulate_on(
+                client, p.design, p.toolpath, p.tools, p.step, stock, p.tolerance, p.mode, p.progress, device,
+                p.outputs)
     summary["device"] = device
-    summary["tools_file"] = _tools_file(tools)
-    summary["design"] = _part_entry(design)
-    summary["toolpath"] = {"file": toolpath.source, "warnings": list(toolpath.warnings)}
-    return SimulateResult(deviation, summary, machined, samples)
+    summary["tools_file"] = _tools_file(p.tools)
+    summary["design"] = _part_entry(p.design)
+    summary["toolpath"] = {"file": p.toolpath.source, "warnings": list(p.toolpath.warnings)}
+    return SimulateResult(deviation, summary, machined, samples, after)
 
 
-@dataclass
-class AnalysisResult(_Saved):
-    """``summary`` and the per-triangle and per-vertex ``arrays`` (analysis.npz)."""
-
-    summary: dict
-    arrays: dict
-
-    def save(self, folder) -> list:
-        import numpy as np
-
-        def write(run):
-            np.savez_compressed(run.tmp(os.path.join(folder, "analysis.npz")), **self.arrays)
-            write_json(run.tmp(os.path.join(folder, "summary.json")), self.summary)
-
-        return self._save([os.path.join(folder, n) for n in FOLDER_OUTPUTS["analyze"]], write)
-
-
-@_named_errors
-def analyze(part, *, direction=(0.0, 0.0, 1.0), weighting="area", theta_step=None, delta_step=10.0, device="auto",
-            progress=None) -> AnalysisResult:
+@operation(AnalyzeParams, "part")
+def analyze(p) -> AnalysisResult:
     """Triangle and vertex parameters, visibility and accessibility along ``direction`` (seed 001);
     with ``theta_step`` (degrees) also the accessibility map over the hemisphere."""
+    from .ops.analyze import analyze as run
+
+    summary, arrays = run(p.part, p.direction, p.weighting, p.theta_step, p.delta_step, _device(p.device),
+                          p.progress)
+    return AnalysisResult({"part": _part_entry(p.part), **summary}, arrays)
+
+
+@operation(ChooseParams, "surface")
+def choose(p) -> ChooseResult:
+    """Tool choice, zones and directions by machining time (seed 002) on ``surface``: the
+    candidates are a ``tool_pair`` "D,r" or the ball and bull-nose cutters of ``tools``."""
     import numpy as np
 
-    from .geometry import analysis
-    from .kernels.backend import MeshKernels
-    from .kernels.bvh import build_bvh
-
-    if isinstance(direction, str):
-        try:
-            direction = [float(v) for v in direction.split(",")]
-        except ValueError:
-            raise InputError(f"--direction must be three numbers X,Y,Z, got '{direction}'") from None
-    if len(direction) != 3:
-        raise InputError(f"--direction must be three numbers X,Y,Z, got '{','.join(map(str, direction))}'")
-    say = progress or (lambda stage: None)
-    device = _device(device)
-    t0 = time.perf_counter()
-    say("visibility")
-    kern = MeshKernels(build_bvh(part.vertices, part.faces), device)
-    tri = analysis.triangle_parameters(part)
-    normals = analysis.vertex_normals(part, weighting)
-    flags = analysis.visibility(part, direction, weighting, kern)
-    seconds = {"visibility": round(time.perf_counter() - t0, 4)}
-    summary = {
-        "part": _part_entry(part),
-        "direction": analysis.unit_direction(direction).round(9).tolist(),
-        "weighting": weighting,
-        "area_mm2": {"total": float(tri["area"].sum()), "min": float(tri["area"].min()), "max": float(tri["area"].max())},
-        "boundary_edges": int((tri["neighbours"] < 0).sum()),
-        **{k: int(v.sum()) for k, v in flags.items()},
-    }
-    arrays = {"vertex_normals": normals, **tri, **flags}
-    if theta_step is not None:
-        say("accessibility map")
-        t1 = time.perf_counter()
-        dirs = analysis.hemisphere(theta_step, delta_step)
-        share, reached = analysis.accessibility_map(part, dirs, kern)
-        seconds["map"] = round(time.perf_counter() - t1, 4)
-        summary["map"] = {"directions": len(dirs), "best_direction": dirs[int(np.argmax(share))].round(9).tolist(),
-                          "best_share": float(share.max()), "never_reached_triangles": int((reached == 0).sum())}
-        arrays.update(map_directions=dirs, map_share=share, triangles_reached=reached)
-    summary["seconds"] = seconds
-    return AnalysisResult(summary, arrays)
-
-
-@dataclass
-class ChooseResult(PathResult):
-    """choose: the path, the chosen ``tools`` (written as tools.toml), the ``zones`` arrays
-    (zones.npz), the ``machine`` it was timed on and the ``device`` it ran on; ``part`` is the
-    surface's name."""
-
-    zones: dict = field(default_factory=dict)
-    machine: object = None
-    device: str = "cpu"
-
-    @property
-    def ok(self) -> bool:
-        return bool(self.summary["verify"]["ok"]) and not self.summary["incomplete_zones"]
-
-    def save(self, folder) -> list:
-        import numpy as np
-
-        from .tools.table import write_tools
-        from .toolpath.cldata import write_apt
-
-        def write(run):
-            self.summary["tools_file"] = os.path.abspath(os.path.join(folder, "tools.toml"))
-            write_tools(run.tmp(os.path.join(folder, "tools.toml")), self.tools)
-            write_apt(run.tmp(os.path.join(folder, "toolpath.cl")), self.toolpath, self.tools,
-                      partno=os.path.basename(self.part))
-            np.savez_compressed(run.tmp(os.path.join(folder, "zones.npz")), **self.zones)
-            write_json(run.tmp(os.path.join(folder, "summary.json")), self.summary)
-
-        return self._save([os.path.join(folder, n) for n in FOLDER_OUTPUTS["choose"]], write)
-
-
-@_named_errors
-def choose(surface, *, scallop, tool_pair=None, tools=None, zones="auto", k_max=6, axes="3", optimise=0,
-           machine="generic-3axis", cluster="kmeans", metric="euclidean", grid=80, mesh_step=0.5, sample=0.5,
-           min_zone=0.01, seed=0, flip=False, device="auto", progress=None) -> ChooseResult:
-    """Tool choice, zones and directions by machining time (seed 002) on ``surface`` (a patch TOML,
-    "rubio" or "choi", a mesh file or a loaded part): the candidates are a ``tool_pair`` "D,r" or the ball and
-    bull-nose cutters of ``tools`` (a table or its file)."""
-    import numpy as np
-
-    from .ops.choose import ChooseParams, load_surface
     from .ops.choose import choose as run
+    from .ops.choose import load_surface
     from .ops.choose import tool_pair as pair
 
-    if (tool_pair is None) == (tools is None):
-        raise InputError("give exactly one of --tool-pair and --tools")
-    if zones == "auto":
-        zones = None
-    else:
-        try:
-            zones = int(zones)
-        except (TypeError, ValueError):
-            raise InputError(f"--zones must be 'auto' or an integer, got '{zones}'") from None
-    params = ChooseParams(scallop=scallop, zones=zones, axes=axes, optimise=optimise, grid=grid, mesh_step=mesh_step,
-                          sample=sample, cluster=cluster, metric=metric, k_max=k_max, min_zone=min_zone, seed=seed)
-    params.check()
-    if tool_pair is not None:
-        tools = pair(tool_pair)
-    elif isinstance(tools, (str, os.PathLike)):
-        tools = load_tools(tools)
-    if isinstance(machine, (str, os.PathLike)):
-        machine = load_machine(machine)
-    device = _device(device)
-    loaded = load_surface(surface, params, flip=flip)
-    tp, summary, cells, chooser = run(loaded, tools, machine, params, progress=progress, device=device)
+    tools = pair(p.tool_pair) if p.tool_pair is not None else p.tools
+    device = _device(p.device)
+    loaded = load_surface(p.surface, p, flip=p.flip)
+    tp, summary, cells, chooser = run(loaded, tools, p.machine, p, progress=p.progress, device=device)
     s = chooser.samples
     zone_arrays = dict(grid_shape=np.array(s.grid_shape), zones=cells, points=s.points, normals=s.normals,
                        valid=s.valid)
-    name = surface.source or "part" if hasattr(surface, "vertices") else os.fspath(surface)
-    return ChooseResult("choose", tp, summary, name, chooser.tools, zones=zone_arrays, machine=machine, device=device)
+    name = p.surface.source or "part" if _is_mesh(p.surface) else os.fspath(p.surface)
+    return ChooseResult("choose", tp, summary, name, chooser.tools, zones=zone_arrays, machine=p.machine,
+                        device=device)
 
 
-@dataclass
-class PostResult(_Saved):
-    """``lines``: the G-code program; ``report``: what the post did (blocks, axis ranges, warnings)."""
+@operation(PostParams, "toolpath", "machine", "tools")
+def post(p) -> PostResult:
+    """G-code of ``toolpath`` (an APT CL file or a Toolpath) for ``machine``."""
+    from .machine.post import post_program
 
-    lines: list
-    report: dict
-
-    def save(self, path) -> list:
-        """Write the program to ``path``."""
-        def write(run):
-            try:
-                with open(run.tmp(path), "w") as fh:
-                    fh.write("\n".join(self.lines) + "\n")
-            except OSError as exc:
-                raise InputError(f"{path}: cannot write ({exc.strerror})") from None
-            self.report["program"] = os.path.abspath(path)
-
-        return self._save([path], write)
+    toolpath = p.toolpath
+    if p.progress:
+        p.progress("inverse kinematics and blocks")
+    per_s, note, _ = _feeds(toolpath, p.feed, p.machine)
+    lines, report = post_program(toolpath, p.tools, p.machine, feed=per_s, tolerance=p.tolerance, origin=p.origin,
+                                 clearance=p.clearance)
+    report = {"operation": "post", "toolpath": toolpath.source, "program": "",
+              "tools_file": _tools_file(p.tools), "feeds": note, **report}
+    report["warnings"] = list(toolpath.warnings) + report["warnings"]
+    return PostResult(lines, report)
 
 
 def _feeds(toolpath, feed, machine):
@@ -687,7 +546,7 @@ def _feeds(toolpath, feed, machine):
     feed_move = ~toolpath.rapid
     unset = feed_move & np.isnan(per_s)
     nominal = f"the machine's {machine.motion.feed * 60.0:g} mm/min"
-    fill = f"--feed {feed:g} mm/min" if feed is not None else nominal
+    fill = f"feed {feed:g} mm/min" if feed is not None else nominal
     if feed is not None:
         per_s[unset] = feed / 60.0
     if not unset.any():
@@ -699,126 +558,49 @@ def _feeds(toolpath, feed, machine):
     return per_s, note, unset
 
 
-@_named_errors
-def post(toolpath, machine, tools, *, feed=None, tolerance=0.005, origin=None, clearance=None,
-         progress=None) -> PostResult:
-    """G-code of ``toolpath`` (a Toolpath or an APT CL file) for ``machine`` (a Machine or a name):
-    ``feed`` mm/min where the path sets none; ``tolerance`` mm, the largest tip deviation between
-    5-axis blocks; ``origin`` (X, Y, Z) the program's zero in machine coordinates; ``clearance``
-    the Z above which the whole tool stays while the rotaries unwind."""
-    from .machine.post import post_program
-    from .toolpath.cldata import MAX_COORDINATE
+@operation(TimeParams, "toolpath", "machine", "tools")
+def machining_time(p) -> TimeResult:
+    """Machining time of ``toolpath`` on ``machine`` with jerk-limited motion (seed 002 §1.6.2):
+    ``feed`` mm/min on every feed move (default: as programmed, else the machine's)."""
+    from .machine.timing import path_times
 
-    if feed is not None and not (_finite(feed) and feed > 0):
-        raise InputError(f"--feed must be a positive number of mm/min, got {feed}")
-    if not (_finite(tolerance) and tolerance > 0):
-        raise InputError(f"--tolerance must be a positive number of mm, got {tolerance}")
-    if isinstance(origin, str):
-        try:
-            origin = [float(v) for v in origin.split(",")]
-        except ValueError:
-            origin = []
-    if origin is not None and (len(origin) != 3 or not all(_finite(v) for v in origin)):
-        raise InputError(f"--origin wants X,Y,Z in mm (the program's zero in machine coordinates), got '{origin}'")
-    if clearance is not None and not abs(clearance) <= MAX_COORDINATE:
-        raise InputError(f"--clearance must be a Z in mm (|Z| <= {MAX_COORDINATE:g}), got {clearance}")
-    if isinstance(machine, (str, os.PathLike)):
-        machine = load_machine(machine)
-    if isinstance(toolpath, (str, os.PathLike)):
-        from .machine.pathfile import TOOLPATH_APT
-        from .toolpath.cldata import read_apt
-
-        if os.path.splitext(os.fspath(toolpath))[1].lower() not in TOOLPATH_APT:
-            read_apt(toolpath, tools)  # refuses what is not an APT CL file
-        toolpath = load_toolpath(toolpath, tools)
-    per_s, note, _ = _feeds(toolpath, feed, machine)
-    (progress or (lambda stage: None))("inverse kinematics and blocks")
-    lines, report = post_program(toolpath, tools, machine, feed=per_s, tolerance=tolerance, origin=origin,
-                                 clearance=clearance)
-    report = {"operation": "post", "toolpath": toolpath.source, "program": "",
-              "tools_file": _tools_file(tools), "feeds": note, **report}
-    report["warnings"] = list(toolpath.warnings) + report["warnings"]
-    return PostResult(lines, report)
+    if p.progress:
+        p.progress("timing")
+    summary, notes = path_times(p.toolpath, p.machine, p.tools, p.feed)
+    summary = {"operation": "time", "toolpath": p.toolpath.source, "moves": len(p.toolpath),
+               "machine": p.machine.summary(), "tools_file": _tools_file(p.tools), "notes": notes, **summary}
+    return TimeResult(summary, list(p.toolpath.warnings))
 
 
-@dataclass
-class TimeResult(_Saved):
-    """``summary``: machining time per tool and in total (cutting, rapid, tool changes, stops)."""
-
-    summary: dict
-    warnings: list
-
-    def save(self, path) -> list:
-        return self._save([path], lambda run: write_json(run.tmp(path), self.summary))
-
-
-@_named_errors
-def machining_time(toolpath, machine, tools, *, feed=None, tool=None, progress=None) -> TimeResult:
-    """Machining time of ``toolpath`` (a Toolpath or an APT CL / G-code file) on ``machine`` with
-    jerk-limited motion (seed 002 §1.6.2): ``feed`` mm/min on every feed move (default: as
-    programmed, else the machine's)."""
-    import numpy as np
-
-    from .machine.timing import rotary_seconds, tool_times
-    from .machine.pathfile import TOOLPATH_GCODE
-
-    if feed is not None and not (_finite(feed) and feed > 0):
-        raise InputError(f"--feed must be a positive number of mm/min, got {feed}")
-    if isinstance(machine, (str, os.PathLike)):
-        machine = load_machine(machine)
-    if isinstance(toolpath, (str, os.PathLike)):
-        is_gcode = os.path.splitext(os.fspath(toolpath))[1].lower() in TOOLPATH_GCODE
-        toolpath = load_toolpath(toolpath, tools, tool=tool, machine=machine if is_gcode else None)
-    tp = toolpath
-    (progress or (lambda stage: None))("timing")
-    feed_move = ~tp.rapid[1:]
-    if feed is not None:
-        per_s, unset = np.full(len(tp), feed / 60.0), 0
-        notes = [f"feed {feed:g} mm/min (--feed) on every feed move"]
-    else:
-        per_s = np.asarray(tp.feed, float) / 60.0
-        unset = int((feed_move & np.isnan(per_s[1:])).sum())
-        nominal = f"the machine's {machine.motion.feed * 60.0:g} mm/min"
-        if not unset:
-            notes = ["feeds as programmed"]
-        elif unset == feed_move.sum():
-            notes = [f"no feed programmed: every feed move at {nominal}"]
-        else:
-            notes = [f"{unset} of {feed_move.sum()} feed moves without a programmed feed: {nominal}"]
-    rotary = None
-    if np.ptp(tp.axis, axis=0).max() > 1e-9:
-        if machine.chain.type == "3-axis":
-            notes.append("the tool axis turns along the path: rotary-axis motion is not timed on a 3-axis machine")
-        else:
-            try:
-                rotary = rotary_seconds(machine, tp.tip, tp.axis, tools, tp.tool)
-                notes.append(f"rotary axes at {machine.rotary_rapid * 60.0:g} deg/min bound each move's time")
-            except InputError as exc:
-                notes.append(f"rotary-axis motion is not timed ({exc})")
-    times = tool_times(tp.tip, tp.rapid, tp.tool, machine, per_s, rotary)
-    summary = {"operation": "time", "toolpath": tp.source, "moves": len(tp),
-               "machine": machine.summary(), "tools_file": _tools_file(tools), "notes": notes,
-               "feed_moves": int(feed_move.sum()), "feed_moves_at_machine_feed": unset,
-               "tools": {tools[t].name: entry for t, entry in times["tools"].items()}, "total": times["total"]}
-    return TimeResult(summary, list(tp.warnings))
-
-
-@_named_errors
-def report(folders, out="report.html", *, progress=None) -> dict:
+@operation(ReportParams, "folders", "out")
+def report(p) -> dict:
     """One self-contained HTML file ``out`` with 3D views and tables of the run ``folders``;
     returns what it holds (runs, views, bytes, notes)."""
     from .htmlreport import write_report
     from .runfiles import RunFiles
 
-    folder = os.path.dirname(os.path.abspath(out))
+    folder = os.path.dirname(os.path.abspath(p.out))
     if not os.path.isdir(folder):
-        raise InputError(f"{folder}: no such folder for --out")
-    run = RunFiles([out])
+        raise InputError(f"{folder}: no such folder for out", "out")
+    run = RunFiles([p.out])
     try:
-        info = write_report(list(folders), run.tmp(out), progress=progress)
+        info = write_report(list(p.folders), run.tmp(p.out), progress=p.progress)
         run.commit()
     finally:
         if not run.done:
             run.abort()
-    info["file"] = os.path.abspath(out)
+    info["file"] = os.path.abspath(p.out)
     return info
+
+
+@operation(ClearFixturesParams, "toolpath", "tools", "fixtures")
+def clear_fixtures(p) -> FixturesResult:
+    """``toolpath`` kept out of the ``fixtures`` (solids no cutter, shank or holder may enter): the
+    moves that would enter one left out, each stretch left out linked over at ``safe_z`` (up the
+    tool axis, across, down at feed), and the path checked against them again."""
+    from .ops.fixtures import clear_fixtures as run
+    from .ops.fixtures import union
+
+    solid = union([f.solid(p.part) for f in p.fixtures])
+    tp, trimmed, report = run(p.toolpath, p.tools, solid, p.safe_z, resolve_device(p.device), p.label)
+    return FixturesResult(tp, trimmed, report)

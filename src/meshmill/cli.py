@@ -1,20 +1,26 @@
 """Command line: argument parsing, progress and error messages; no geometry here.
 
-Bad input ends with one line on stderr and exit code 2; ``verify`` exits 1 when it finds problems.
+Every command's options are its API function's (:mod:`meshmill.params`): the parser is made from
+them (``step_down`` is ``--step-down``, the same defaults, help and checks), and the values given
+are handed to the API as they are, after turning the text into the option's kind. Bad input ends
+with one line on stderr and exit code 2 (the API's :class:`InputError`, its parameters spelled as
+flags); an interrupt, at any moment, with ``meshmill: interrupted`` and exit code 130; ``verify``
+exits 1 when it finds problems.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import signal
 import sys
 import time
 
 from . import __version__, memory
 from .errors import InputError
+from .options import Option
 from .runfiles import RunFiles
 from .runfolder import FOLDER_OUTPUTS
-from .tolerances import GOUGE_TOL, HOLDER_CLEARANCE
 
 
 class _Parser(argparse.ArgumentParser):
@@ -24,6 +30,7 @@ class _Parser(argparse.ArgumentParser):
 
 _status_line = [False]  # a progress line is open on the terminal (to be ended before other text)
 _run = [None]  # the result files of the command running (RunFiles): earlier results go at once
+_interrupted = [False]  # SIGINT came: whatever exception follows is the interrupt's
 
 
 def _quiet(args):
@@ -74,89 +81,21 @@ def _finish_json(args, summary):
         sys.stdout.write("\n")
 
 
-def _add_setup(parser):
-    """``--units``, ``--up``, ``--origin``: how the part file is set up on the machine."""
-    from .geometry.placement import ORIGINS, UNITS
-
-    g = parser.add_argument_group("set-up (the part file into the work frame: mm, +Z to the spindle)")
-    g.add_argument("--units", choices=tuple(UNITS), default="mm", help="units of the part file (mm)")
-    g.add_argument("--up", default="+Z",
-                   help="the part's axis that points to the spindle (+X, -Y, ...), or a rotation: RX,RY,RZ degrees "
-                        "about X, then Y, then Z, or nine numbers, a matrix by rows (+Z)")
-    g.add_argument("--scale", type=float, default=1.0,
-                   help="the model's scale, after --units (0.05: a 1:20 model) (1)")
-    g.add_argument("--origin", default="file",
-                   help=f"the work zero: {', '.join(ORIGINS)} (of the part's box, after --up) or a point X,Y,Z "
-                        "in the file's coordinates (file: the file's own zero)")
+def _mm(x) -> str:
+    """A length as the command line prints it (to a tenth of a micrometre)."""
+    return f"{x:.4f}"
 
 
-def _add_cluster(parser):
-    """``--workers N`` / ``--scheduler ADDRESS``: the heavy work on a Dask cluster (meshmill[cluster])."""
-    g = parser.add_mutually_exclusive_group()
-    g.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="split the work over N worker processes on this machine (a Dask LocalCluster; "
-                        "needs meshmill[cluster]); the result is the same")
-    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="split the work over a running Dask cluster (tcp://host:8786); the result is the same")
-
-
-def _cluster(args):
-    return args.workers if args.workers is not None else args.scheduler
-
-
-def _add_device(parser):
-    parser.add_argument("--device", choices=("cpu", "cuda", "auto"), default="auto",
-                        help="run the heavy kernels on the CPU or an NVIDIA GPU (needs meshmill[cuda]); "
-                             "auto: the GPU when a usable one is present (auto)")
-
-
-def _load_part(args, path, placed=True):
-    """The part ``path`` placed into the work frame by ``--units``, ``--up``, ``--scale``,
-    ``--origin`` and ``--flip`` (``placed=False``: a file already in the work frame, a stock),
-    its warnings said."""
+def _load_part(args, path):
+    """The part ``path`` placed into the work frame by the set-up options (``--units``, ``--up``,
+    ``--scale``, ``--origin``, ``--flip``), its warnings said."""
     from . import api
+    from .params import SETUP
 
-    if placed:
-        mesh = api.load_part(path, units=args.units, up=args.up, origin=args.origin, scale=args.scale,
-                             flip=getattr(args, "flip", False))
-    else:
-        mesh = api.load_part(path)
+    mesh = api.load_part(path, **{k: args.options.pop(k) for k in SETUP if k in args.options})
     for w in mesh.warnings:
         _say(args, f"warning: {w}")
     return mesh
-
-
-def _stock(args):
-    """The stock mesh of ``--stock FILE`` (its warnings said), or None."""
-    path = getattr(args, "stock", None)
-    return None if path in (None, "box") else _load_part(args, path, placed=False)
-
-
-def _add_stock(parser, allowance_flag="--stock-allowance", default=None):
-    """``--stock FILE`` or ``--stock-allowance MM``: the material rapid moves must keep clear of."""
-    from .tolerances import STOCK_ALLOWANCE
-
-    g = parser.add_mutually_exclusive_group()
-    g.add_argument("--stock", default=None, metavar="FILE",
-                   help="closed mesh of the material the operation starts from (a machined.stl of simulate, a "
-                        "blank): rapid moves keep the clearance from it")
-    default = STOCK_ALLOWANCE if default is None else default
-    g.add_argument(allowance_flag, type=float, default=default, metavar="MM", dest="stock_allowance",
-                   help=f"instead of --stock: material earlier operations left on the part, mm ({default:g}); rapid "
-                        "moves keep the clearance from it")
-
-
-def _tools_beside(args):
-    """The tool table of ``--tools``, else the ``tools.toml`` beside ``args.toolpath`` (as choose
-    writes it)."""
-    from . import api
-
-    path = args.tools
-    if path is None:
-        path = os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "tools.toml")
-        if not os.path.exists(path):
-            raise InputError(f"no --tools given and no tools.toml beside {args.toolpath}: give the tool table")
-    return api.load_tools(path)
 
 
 def _results(paths) -> RunFiles:
@@ -189,20 +128,11 @@ def _clear_after_usage_error(argv):
             pass
 
 
-def _options(args, *names):
-    """``{name: args.name}``: the API's keyword arguments of the same names as the options."""
-    return {n: getattr(args, n) for n in names}
-
-
 def cmd_finish(args):
     from . import api
 
-    tools = api.load_tools(args.tools)
-    mesh = _load_part(args, args.part)
-    res = api.finish(mesh, tools, stock=_stock(args), progress=_progress(args), cluster=_cluster(args),
-                     **_options(args, "step_down", "sample", "max_tilt", "tilt_step", "order", "safe_z", "tolerance",
-                                "clearance", "lead", "machine", "scallop", "min_run", "whole_contours",
-                                "stock_allowance", "device"))
+    mesh = _load_part(args, args.options.pop("part"))
+    res = api.finish(mesh, progress=_progress(args), **args.options)
     res.save(args.out)
     summary = res.summary
     v = summary["verify"]
@@ -212,20 +142,19 @@ def cmd_finish(args):
     for name, entry in summary["tools_used"].items():
         _say(args, f"  {name}: {entry['contours']} contour(s), {entry['cc_points']} CC points")
     _say(args, f"verify: {'OK' if v['ok'] else 'PROBLEMS'} ({v['poses_checked']} poses, max gouge "
-               f"{v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
+               f"{_mm(v['max_gouge'])} mm, tolerance {summary['tolerance']:g} mm)")
     _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
                f"(device {summary['device']})")
     _finish_json(args, summary)
     return 0 if res.ok else 1
 
 
-def _three_axis(args, run, **options):
-    """raster, waterline and plunge: load, run ``run`` (the API's function), save, say."""
+def _three_axis(args):
+    """raster, waterline and plunge: load, run the API's function, save, say."""
     from . import api
 
-    tools = api.load_tools(args.tools)
-    mesh = _load_part(args, args.part)
-    res = run(mesh, tools, tool=args.tool, device=args.device, progress=_progress(args), **options)
+    mesh = _load_part(args, args.options.pop("part"))
+    res = getattr(api, args.command)(mesh, progress=_progress(args), **args.options)
     res.save(args.out)
     summary = res.summary
     if "simulation" in summary:
@@ -234,34 +163,11 @@ def _three_axis(args, run, **options):
                    f"{s['remaining_volume']:.1f} mm^3 left over the part")
     v = summary["verify"]
     _say(args, f"{summary['cl_points']} CL points, {summary['moves']} moves; verify: {'OK' if v['ok'] else 'PROBLEMS'} "
-               f"(max gouge {v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
+               f"(max gouge {_mm(v['max_gouge'])} mm, tolerance {v['tolerance']:g} mm)")
     _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
                f"(device {summary['device']})")
     _finish_json(args, summary)
     return 0 if res.ok else 1
-
-
-def cmd_raster(args):
-    from . import api
-
-    return _three_axis(args, api.raster, stock=_stock(args), cluster=_cluster(args),
-                       **_options(args, "stepover", "scallop", "angle", "sample", "tolerance", "clearance",
-                                  "stock_allowance", "allowance", "rest"))
-
-
-def cmd_waterline(args):
-    from . import api
-
-    return _three_axis(args, api.waterline, stock=_stock(args), cluster=_cluster(args),
-                       **_options(args, "step_down", "sample", "tolerance", "clearance", "stock_allowance", "allowance",
-                                                    "rest"))
-
-
-def cmd_plunge(args):
-    from . import api
-
-    return _three_axis(args, api.plunge, stock=_stock(args), **_options(args, "allowance", "axes", "radial_step", "engagement",
-                                                      "theta_step", "delta_step", "regions", "clearance", "simulate"))
 
 
 def cmd_verify(args):
@@ -269,16 +175,12 @@ def cmd_verify(args):
 
     if args.out:
         _results([args.out])
-    tools = api.load_tools(args.tools)
-    mesh = _load_part(args, args.part)
-    stock = _stock(args)
-    tp = api.load_toolpath(args.toolpath, tools, machine=args.machine)
+    o = args.options
+    mesh = _load_part(args, o.pop("part"))
+    tp = api.load_toolpath(o.pop("toolpath"), o["tools"], machine=o.get("machine"))
     for w in tp.warnings:
         _say(args, f"warning: {w}")
-    cluster = _cluster(args)
-    res = api.verify(mesh, tp, tools, stock=stock, allowance=args.stock_allowance, cluster=cluster,
-                     progress=_progress(args) if cluster is not None else None,
-                     **_options(args, "tolerance", "step", "worst", "device"))
+    res = api.verify(mesh, tp, progress=_progress(args) if o.get("cluster") is not None else None, **o)
     if args.out:
         res.save(args.out)
     report = res.report
@@ -292,8 +194,8 @@ def cmd_verify(args):
           + f", {report['poses_checked']} poses checked: "
           f"{count(report['gouging_moves'], 'gouge')} gouging, {count(report['colliding_moves'], 'collision')} colliding, "
           f"{count(report['rapid_moves_touching'], 'rapid')} rapid into the {'stock' if res.stock_checked else 'part'}; "
-          f"max gouge {report['max_gouge']:.4f} mm, "
-          f"max collision {report['max_collision']:.4f} mm (tolerance {report['tolerance']} mm; device {res.device})")
+          f"max gouge {_mm(report['max_gouge'])} mm, "
+          f"max collision {_mm(report['max_collision'])} mm (tolerance {report['tolerance']:g} mm; device {res.device})")
     for line in report["worst"]:
         print("  " + line)
     print("OK" if res.ok else "PROBLEMS FOUND")
@@ -303,13 +205,13 @@ def cmd_verify(args):
 def cmd_dexel(args):
     from . import api
 
-    out = args.out or os.path.splitext(os.path.basename(args.part))[0] + ".dexel.npz"
+    part = args.options.pop("part")
+    out = args.out or os.path.splitext(os.path.basename(part))[0] + ".dexel.npz"
     if not out.lower().endswith((".td", ".npz")):
         out += ".npz"
     _results([out, os.path.join(os.path.dirname(os.path.abspath(out)), "summary.json")])
-    mesh = _load_part(args, args.part)
-    res = api.dexel(mesh, progress=_progress(args), cluster=_cluster(args),
-                    **_options(args, "step", "index", "partitions", "kmax", "init", "minibatch", "device"))
+    mesh = _load_part(args, part)
+    res = api.dexel(mesh, progress=_progress(args), **args.options)
     res.save(out)
     summary = res.summary
     for w in summary["warnings"]:
@@ -331,29 +233,15 @@ def _mesh_volume(mesh):
     return float(np.einsum("ij,ij->", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6.0)
 
 
-def _outputs(text: str) -> tuple:
-    """``--outputs`` of simulate: a comma list of summary, deviation, mesh (or all)."""
-    names = {w.strip() for w in text.split(",") if w.strip()}
-    if names == {"all"}:
-        return ("deviation", "mesh")
-    unknown = names - {"summary", "deviation", "mesh"}
-    if unknown or not names:
-        raise InputError(f"--outputs: give a comma list of summary, deviation, mesh (or all), got '{text}'")
-    return tuple(k for k in ("deviation", "mesh") if k in names)
-
-
 def cmd_simulate(args):
     from . import api
 
-    tools = api.load_tools(args.tools)
-    design = _load_part(args, args.design)
-    stock = _stock(args)
-    tp = api.load_toolpath(args.toolpath, tools, tool=args.tool, machine=args.machine)
+    o = args.options
+    design = _load_part(args, o.pop("design"))
+    tp = api.load_toolpath(o.pop("toolpath"), o["tools"], tool=o.get("tool"), machine=o.get("machine"))
     for w in tp.warnings:
         _say(args, f"warning: {w}")
-    res = api.simulate(design, tp, tools, stock="box" if stock is None else stock, progress=_progress(args),
-                       cluster=_cluster(args), outputs=_outputs(args.outputs),
-                       **_options(args, "step", "allowance", "tolerance", "mode", "device"))
+    res = api.simulate(design, tp, progress=_progress(args), **o)
     written = ", ".join(os.path.basename(p) for p in res.save(args.out))
     summary, deviation = res.summary, res.deviation
     for w in summary["warnings"]:
@@ -364,8 +252,9 @@ def cmd_simulate(args):
     if len(summary["errors"]) > 10:
         print(f"error: ... {len(summary['errors']) - 10} more in summary.json", file=sys.stderr)
     _say(args, f"Sa {deviation['Sa']:.4f}  Sq {deviation['Sq']:.4f}  Sp {deviation['Sp']:.4f}  Sv {deviation['Sv']:.4f}  "
-               f"Sz {deviation['Sz']:.4f} mm; within ±{args.tolerance:g} mm: {100 * deviation['within_tolerance']:.1f} %")
-    _say(args, f"gouge max {deviation['gouge_max']:.4f} mm at {deviation['gouge_at']}; excess max "
+               f"Sz {deviation['Sz']:.4f} mm; within ±{deviation['tolerance']:g} mm: "
+               f"{100 * deviation['within_tolerance']:.1f} %")
+    _say(args, f"gouge max {_mm(deviation['gouge_max'])} mm at {deviation['gouge_at']}; excess max "
                f"{deviation['excess_max']:.4f} mm; removed {deviation['removed_volume']:.1f} mm^3, remaining "
                f"{deviation['remaining_volume']:.1f} mm^3")
     c = summary["cutting_mm"]
@@ -379,9 +268,8 @@ def cmd_simulate(args):
 def cmd_analyze(args):
     from . import api
 
-    mesh = _load_part(args, args.part)
-    res = api.analyze(mesh, progress=_progress(args),
-                      **_options(args, "direction", "weighting", "theta_step", "delta_step", "device"))
+    mesh = _load_part(args, args.options.pop("part"))
+    res = api.analyze(mesh, progress=_progress(args), **args.options)
     res.save(args.out)
     summary, seconds = res.summary, res.summary["seconds"]
     _say(args, f"{summary['visible_triangles']} of {len(mesh.faces)} triangles visible along {summary['direction']}, "
@@ -396,15 +284,16 @@ def cmd_analyze(args):
 
 
 def cmd_job(args):
-    from .job import Job
+    from .job import Job, JobFolder
 
-    job = Job.from_toml(args.jobfile)
-    if args.device is not None:
-        job.device = args.device
+    job = Job.from_toml(args.options["jobfile"])
+    if "device" in args.options:
+        job.device = args.options["device"]
+    folder = JobFolder(args.out)  # checked and cleared before anything is computed
     for w in job.part.warnings:
         _say(args, f"warning: {w}")
-    res = job.run(progress=_progress(args), cluster=_cluster(args))
-    res.save(args.out, report=not args.no_report, progress=_progress(args))
+    res = job.run(progress=_progress(args), cluster=args.options.get("cluster"))
+    res.save(folder, report=not args.no_report, progress=_progress(args))
     s = res.summary
     for op in s["operations"]:
         c = op["cutting_mm"]
@@ -416,7 +305,7 @@ def cmd_job(args):
             _say(args, f"  error: {e}")
     f = s["final"]
     _say(args, f"final: {100 * f['within_tolerance']:.1f} % of the surface within ±{f['tolerance']:g} mm, "
-               f"{f['left_over_design_mm3']:.0f} mm^3 left over the part, max gouge {f['gouge_max']:.4f} mm")
+               f"{f['left_over_design_mm3']:.0f} mm^3 left over the part, max gouge {_mm(f['gouge_max'])} mm")
     _say(args, f"wrote {args.out}/ (program.nc: {s['post']['blocks']} blocks, {_clock(s['machining_s'])} on "
                f"{s['machine']['name']}; job.json{'' if args.no_report else ', report.html'}) in "
                f"{s['seconds']['total']:.1f} s")
@@ -427,7 +316,7 @@ def cmd_job(args):
 def cmd_report(args):
     from . import api
 
-    info = api.report(args.folders, args.out, progress=_progress(args))
+    info = api.report(progress=_progress(args), **args.options)
     for r in info["runs"]:
         for n in r["notes"]:
             _say(args, f"note: {r['folder']}: {n}")
@@ -447,8 +336,8 @@ def cmd_time(args):
 
     if args.out:
         _results([args.out])
-    machine = api.load_machine(args.machine)
-    res = api.machining_time(args.toolpath, machine, _tools_beside(args), feed=args.feed, tool=args.tool)
+    machine = api.load_machine(args.options.pop("machine"))
+    res = api.machining_time(machine=machine, **args.options)
     if args.out:
         res.save(args.out)
     summary = res.summary
@@ -470,11 +359,10 @@ def cmd_time(args):
 def cmd_post(args):
     from . import api
 
-    out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.toolpath)), "program.nc")
+    out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.options["toolpath"])), "program.nc")
     _results([out])
-    machine = api.load_machine(args.machine)
-    res = api.post(args.toolpath, machine, _tools_beside(args),
-                   **_options(args, "feed", "tolerance", "origin", "clearance"))
+    machine = api.load_machine(args.options.pop("machine"))
+    res = api.post(machine=machine, **args.options)
     res.save(out)
     report = res.report
     for w in report["warnings"]:
@@ -502,10 +390,7 @@ def cmd_post(args):
 def cmd_choose(args):
     from . import api
 
-    res = api.choose(args.surface, progress=_progress(args),
-                     **_options(args, "scallop", "tool_pair", "tools", "zones", "k_max", "axes", "optimise", "machine",
-                                "cluster", "metric", "grid", "mesh_step", "sample", "min_zone", "seed", "flip",
-                                "device"))
+    res = api.choose(progress=_progress(args), **args.options)
     res.save(args.out)
     summary = res.summary
     v = summary["verify"]
@@ -532,284 +417,225 @@ def cmd_choose(args):
         if not z["machined"]:
             _say(args, f"warning: zone {z['zone']} ({z['cells']} cells) is not machined: no candidate covers it "
                        f"(best {100 * z['coverage']:.0f} % of its cells{', no passes' if not z['planes'] else ''})")
-    _say(args, f"verify: {'OK' if v['ok'] else 'PROBLEMS'} (max gouge {v['max_gouge']:.4f} mm, tolerance {v['tolerance']} mm)")
+    _say(args, f"verify: {'OK' if v['ok'] else 'PROBLEMS'} (max gouge {_mm(v['max_gouge'])} mm, tolerance "
+               f"{v['tolerance']:g} mm)")
     _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')}, tools.toml, zones.npz and summary.json in "
                f"{summary['seconds']['total']:.1f} s (device {res.device})")
     _finish_json(args, summary)
     return 0 if res.ok else 1
 
 
+
+
+# ---------------------------------------------------------------- the parser, made from the API's options
+
+
+def _spec(command):
+    """The API function and options of ``command``."""
+    from . import api
+
+    return {"finish": api.finish, "raster": api.raster, "waterline": api.waterline, "plunge": api.plunge,
+            "verify": api.verify, "dexel": api.dexel, "simulate": api.simulate, "analyze": api.analyze,
+            "choose": api.choose, "post": api.post, "time": api.machining_time, "report": api.report}[command].spec
+
+
+def _add_options(parser, spec, skip=()):
+    """An argument for every option of ``spec`` the command line has: a positional for a
+    positional one, ``--flag`` (``store_true`` for a flag) otherwise, with its aliases in a group;
+    none has a default here (the API's applies)."""
+    for name, o in spec.options().items():
+        if not o.cli or name in skip:
+            continue
+        if o.positional:
+            parser.add_argument(name, nargs="+" if o.role == "folders" else None, help=o.help_text())
+            continue
+        if o.kind == "flag":
+            parser.add_argument(o.flag, action="store_true", default=argparse.SUPPRESS, help=o.help_text())
+            continue
+        target = parser.add_mutually_exclusive_group(required=o.required) if o.aliases else parser
+        metavar = o.metavar or (o.unit.upper().replace("/", "_PER_") if o.unit else None)
+        target.add_argument(o.flag, dest=name, default=argparse.SUPPRESS, metavar=metavar,
+                            required=o.required and not o.aliases,
+                            choices=[str(c) for c in o.choices] or None, help=o.help_text())
+        for flag, prefix in o.aliases:
+            target.add_argument(flag, dest=f"{name}|{prefix}", default=argparse.SUPPRESS, metavar="MM",
+                                help=f"the same as {o.flag} {prefix}MM")
+
+
+def _add_cluster(parser):
+    """``--workers N`` / ``--scheduler ADDRESS``: the API's ``cluster`` (meshmill[cluster])."""
+    g = parser.add_mutually_exclusive_group()
+    g.add_argument("--workers", dest="cluster", type=int, default=argparse.SUPPRESS, metavar="N",
+                   help="split the work over N worker processes on this machine (a Dask LocalCluster; needs "
+                        "meshmill[cluster]); the result is the same")
+    g.add_argument("--scheduler", dest="cluster", default=argparse.SUPPRESS, metavar="ADDRESS",
+                   help="split the work over a running Dask cluster (tcp://host:8786); the result is the same")
+
+
+def _add_setup(parser):
+    """``--units``, ``--up``, ``--scale``, ``--origin``, ``--flip``: load_part's options, how the
+    part file is set up on the machine."""
+    from .params import LoadPartParams
+
+    g = parser.add_argument_group("set-up (the part file into the work frame: mm, +Z to the spindle)")
+    _add_options(g, LoadPartParams, skip=("path",))
+
+
+def _options_given(args, spec) -> dict:
+    """The options given on the command line, in the kinds of ``spec`` (text turned into numbers,
+    choices, points; an alias's value with its prefix)."""
+    from .params import LoadPartParams
+
+    opts = {**LoadPartParams.options(), **spec.options()}
+    out = {}
+    for key, text in vars(args).items():
+        name, _, prefix = key.partition("|")
+        if name not in opts:
+            continue
+        o = opts[name]
+        if name == "cluster" or o.kind == "flag" or o.positional:
+            out[name] = text
+        elif prefix:  # an alias's value: a number of mm, checked under the alias's own name
+            flag = next(f for f, pre in o.aliases if pre == prefix)
+            alias = Option("number", "", unit="mm", low=0.0, name=flag[2:].replace("-", "_"))
+            out[name] = f"{prefix}{alias.check(alias.from_text(text)):g}"
+        else:
+            out[name] = o.from_text(text)
+    return out
+
+
 def build_parser():
+    from .job import JobParams
+
     p = _Parser(prog="meshmill", description="Exact, verified multi-axis milling tool paths from triangle meshes.")
     p.add_argument("--version", action="version", version=f"meshmill {__version__}")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
 
-    f = sub.add_parser("finish", help="5-axis Z-constant finishing with ball-end tools")
-    f.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
-    f.add_argument("--tools", required=True, help="TOML tool table")
-    f.add_argument("--step-down", type=float, required=True, help="distance between Z planes, mm")
-    f.add_argument("--sample", type=float, default=0.5, help="largest distance between CC points, mm (0.5)")
-    f.add_argument("--max-tilt", type=float, default=60.0, help="largest tool tilt from vertical, degrees (60)")
-    f.add_argument("--tilt-step", type=float, default=5.0, help="tilt search step, degrees (5)")
-    f.add_argument("--order", choices=("contour", "tool"), default="contour",
-                   help="contour by contour from the top, or grouped by tool (contour)")
-    f.add_argument("--safe-z", type=float, default=None, help="safe plane for rapid moves, mm (part top + 5 + ...)")
-    f.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge tolerance, mm ({GOUGE_TOL})")
-    f.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
-                   help=f"shank and holder clearance from the part, and rapids' from the stock, mm ({HOLDER_CLEARANCE})")
-    f.add_argument("--lead", type=float, default=2.0, help="lead-in/out distance, mm (2)")
-    f.add_argument("--machine", default=None,
-                   help="the 5-axis machine the path is for (TOML file or shipped name): no move swings the tool axis "
-                        "past the pole of its rotaries (it goes round it)")
-    f.add_argument("--scallop", type=float, default=None,
-                   help="add levels where the surface is shallow so that the scallop between passes stays under MM "
-                        "(surfaces flatter than 10 deg are reported, for raster) (off)")
-    f.add_argument("--min-run", type=float, default=1.0,
-                   help="a stretch of a contour that a ball fits, shorter than this, is left out, mm (1)")
-    f.add_argument("--whole-contours", action="store_true",
-                   help="seed 004's rule: one ball per contour, and a contour with a point that no ball fits is not "
-                        "cut (default: every run of a contour that a ball fits is cut, with its own ball)")
-    _add_stock(f)
-    f.add_argument("--out", default="out", help="output folder (out)")
-    _add_cluster(f)
-    _add_device(f)
-    f.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    f.set_defaults(func=cmd_finish)
+    def command(name, help, func, out=None, out_help=None, setup=True, cluster=False, json=True, quiet=True):
+        sp = sub.add_parser(name, help=help)
+        spec = _spec(name) if name != "job" else None
+        if spec is not None:
+            _add_options(sp, spec)
+        if setup:
+            _add_setup(sp)
+        if cluster:
+            _add_cluster(sp)
+        if out_help:
+            sp.add_argument("--out", default=out, help=out_help)
+        if quiet:
+            sp.add_argument("--quiet", action="store_true", help="print nothing but errors")
+        if json:
+            sp.add_argument("--json", action="store_true", help="print the summary as JSON on stdout (and nothing on "
+                                                                "stderr)")
+        sp.set_defaults(func=func, spec=spec)
+        return sp
 
-    r = sub.add_parser("raster", help="3-axis zigzag finishing (flat, ball or bull-nose)")
-    r.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
-    r.add_argument("--tools", required=True, help="TOML tool table")
-    r.add_argument("--tool", required=True, help="name of the tool in the table")
-    g = r.add_mutually_exclusive_group(required=True)
-    g.add_argument("--stepover", type=float, help="distance between passes, mm")
-    g.add_argument("--scallop", type=float, help="scallop height that sets the stepover, mm")
-    r.add_argument("--angle", type=float, default=0.0, help="machining direction from X, degrees (0)")
-    r.add_argument("--sample", type=float, default=0.5, help="largest distance between CL points along a pass, mm (0.5)")
-    r.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge and chord tolerance, mm ({GOUGE_TOL})")
-    r.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
-                   help=f"distance rapid moves keep from the stock, mm ({HOLDER_CLEARANCE})")
-    _add_stock(r)
-    r.add_argument("--allowance", type=float, default=0.0, metavar="MM",
-                   help="material left on the part, mm: the tool kept that far from it (semi-finishing) (0)")
-    r.add_argument("--rest", type=float, default=None, metavar="MM",
-                   help="rest machining: with --stock, cut only the pieces of the passes that remove more than MM of it "
-                        "(1.5 samples of pass kept on each side); the passes through air are left out (off)")
-    r.add_argument("--out", default="out", help="output folder (out)")
-    _add_device(r)
-    _add_cluster(r)
-    r.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    r.set_defaults(func=cmd_raster)
-
-    w = sub.add_parser("waterline", help="3-axis Z-level loops (flat, ball or bull-nose)")
-    w.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
-    w.add_argument("--tools", required=True, help="TOML tool table")
-    w.add_argument("--tool", required=True, help="name of the tool in the table")
-    w.add_argument("--step-down", type=float, required=True, help="distance between Z levels, mm")
-    w.add_argument("--sample", type=float, default=0.5, help="grid spacing of the loop search, mm (0.5)")
-    w.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge and chord tolerance, mm ({GOUGE_TOL})")
-    w.add_argument("--clearance", type=float, default=HOLDER_CLEARANCE,
-                   help=f"distance rapid moves keep from the stock, mm ({HOLDER_CLEARANCE})")
-    _add_stock(w)
-    w.add_argument("--allowance", type=float, default=0.0, metavar="MM",
-                   help="material left on the part, mm: the tool kept that far from it (semi-finishing) (0)")
-    w.add_argument("--rest", type=float, default=None, metavar="MM",
-                   help="rest machining: with --stock, cut only the pieces of the loops that remove more than MM of it "
-                        "(1.5 samples of loop kept on each side) (off)")
-    w.add_argument("--out", default="out", help="output folder (out)")
-    _add_cluster(w)
-    _add_device(w)
-    w.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    w.set_defaults(func=cmd_waterline)
-
-    pl = sub.add_parser("plunge", help="3- or 5-axis plunge roughing (tréflage)")
-    pl.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
-    pl.add_argument("--tools", required=True, help="TOML tool table")
-    pl.add_argument("--tool", required=True, help="name of the tool in the table")
-    pl.add_argument("--axes", type=int, choices=(3, 5), default=3, help="3: nested contours; 5: hemisphere (3)")
-    pl.add_argument("--radial-step", type=float, default=5.0, help="3-axis: distance between plunges along a contour, mm (5)")
-    pl.add_argument("--engagement", type=float, default=5.0, help="3-axis: radial engagement between contours, mm (5)")
-    pl.add_argument("--theta-step", type=float, default=15.0, help="5-axis: tilt step of the directions, degrees (15)")
-    pl.add_argument("--delta-step", type=float, default=30.0, help="5-axis: azimuth step, degrees (30)")
-    pl.add_argument("--regions", type=int, default=0,
-                    help="5-axis: split the part into K regions, each plunged from its best direction (0: the seed's "
-                         "one plunge a direction through the stock centre)")
-    pl.add_argument("--allowance", type=float, required=True, help="material left on the part, mm")
-    pl.add_argument("--clearance", type=float, default=5.0, help="clearance plane above the stock, mm (5)")
-    pl.add_argument("--stock", default=None,
-                    help="3-axis: a closed stock mesh (work frame) holding the part: the plunges cover its box "
-                         "(default: the part's box)")
-    pl.add_argument("--simulate", type=float, default=None,
-                    help="also cut the path from the part's box with dexels of this step, mm, and report the volumes")
-    pl.add_argument("--out", default="out", help="output folder (out)")
-    _add_device(pl)
-    pl.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    pl.set_defaults(func=cmd_plunge)
-
-    v = sub.add_parser("verify", help="check an APT CL file or G-code for gouges and collisions")
-    v.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
-    v.add_argument("toolpath", help="APT CL file (.cl) or G-code (.nc, .ngc, .gcode, .tap)")
-    v.add_argument("--tools", required=True, help="TOML tool table")
-    v.add_argument("--machine", default=None,
-                   help="G-code's machine (TOML file or shipped name): 5-axis words are read through its kinematics")
-    v.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"gouge tolerance, mm ({GOUGE_TOL})")
-    v.add_argument("--step", type=float, default=0.5,
-                   help="distance between the poses first measured along a move, mm (every interval between them is "
-                        "then certified or halved: the result does not depend on it, its speed does) (0.5)")
-    _add_stock(v, "--allowance", default=0.0)
-    v.add_argument("--worst", type=int, default=10, help="how many worst cases to print (10)")
-    v.add_argument("--out", default=None, help="write the report as JSON to this file")
-    _add_device(v)
-    _add_cluster(v)
-    v.add_argument("--quiet", action="store_true", help="no warnings")
-    v.set_defaults(func=cmd_verify)
-
-    d = sub.add_parser("dexel", help="triple-dexel model of a closed part")
-    d.add_argument("part", help="part mesh (STL, OBJ, PLY), mm; must be closed")
-    d.add_argument("--step", type=float, required=True, help="distance between grid lines, mm")
-    d.add_argument("--index", choices=("bvh", "cells", "kmeans"), default="bvh",
-                   help="how lines find their triangles: BVH, or the seed's cells or k-means partitions (bvh)")
-    d.add_argument("--partitions", default="1", help="number of cells or clusters, or 'auto' (K-optimal helper) (1)")
-    d.add_argument("--kmax", type=int, default=27, help="largest K the K-optimal helper tries (27)")
-    d.add_argument("--init", choices=("k-means++", "random"), default="k-means++", help="k-means initialisation")
-    d.add_argument("--minibatch", action="store_true", help="mini-batch k-means")
-    _add_device(d)
-    _add_cluster(d)
-    d.add_argument("--out", default=None, help="model file: .npz (compact binary) or .td (seed's ASCII) (PART.dexel.npz)")
-    d.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    d.set_defaults(func=cmd_dexel)
-
-    s = sub.add_parser("simulate", help="cut a tool path from a stock and measure it against the design")
-    s.add_argument("--design", required=True, help="design part mesh (STL, OBJ, PLY), mm; closed")
-    g = s.add_mutually_exclusive_group()
-    g.add_argument("--stock", default=None, help="'box' (the design's box, default) or a closed stock mesh")
-    g.add_argument("--allowance", type=float, default=None, help="stock = design dexels lengthened by MM at both ends")
-    s.add_argument("--toolpath", required=True,
-                   help="APT CL file (.cl) or G-code (.nc, .ngc, .gcode, .tap; 5-axis with --machine)")
-    s.add_argument("--tools", required=True, help="TOML tool table")
-    s.add_argument("--tool", default=None, help="tool name for G-code without T words")
-    s.add_argument("--machine", default=None,
-                   help="G-code's machine (TOML file or shipped name): 5-axis words are read through its kinematics")
-    s.add_argument("--step", type=float, required=True, help="dexel grid step, mm")
-    s.add_argument("--tolerance", type=float, default=GOUGE_TOL, help=f"deviation tolerance band ±MM ({GOUGE_TOL})")
-    s.add_argument("--mode", choices=("sweep", "points"), default="sweep",
-                   help="exact swept volume of every move, or the tool at the points only (seed) (sweep)")
-    s.add_argument("--out", default="sim", help="output folder (sim)")
-    s.add_argument("--outputs", default="all",
-                   help="what to write beside summary.json and deviation.json: a comma list of summary (those alone), "
-                        "deviation (deviation.npz: every dexel end), mesh (machined.stl), or all (all)")
-    _add_device(s)
-    _add_cluster(s)
-    s.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    s.set_defaults(func=cmd_simulate)
-
-    n = sub.add_parser("analyze", help="triangle and vertex parameters, visibility and accessibility")
-    n.add_argument("part", help="part mesh (STL, OBJ, PLY), mm")
-    n.add_argument("--direction", default="0,0,1", help="direction X,Y,Z (0,0,1)")
-    n.add_argument("--weighting", choices=("area", "angle", "uniform"), default="area", help="vertex normals (area)")
-    n.add_argument("--theta-step", type=float, default=None, help="also map accessibility over the hemisphere, degrees")
-    n.add_argument("--delta-step", type=float, default=10.0, help="azimuth step of the map, degrees (10)")
-    n.add_argument("--out", default="analysis", help="output folder (analysis)")
-    _add_device(n)
-    n.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    n.set_defaults(func=cmd_analyze)
-
-    jb = sub.add_parser("job", help="machine a part from its stock in one run: operations in order, rest machining, "
-                                    "one program and one report")
-    jb.add_argument("jobfile", help="the job's TOML file ([part], [stock], [[fixtures]], [[operations]], tools, machine)")
-    jb.add_argument("--out", default="job", help="output folder (job)")
+    folder = "output folder (out)"
+    command("finish", "5-axis Z-constant finishing with ball-end tools", cmd_finish, "out", folder, cluster=True)
+    command("raster", "3-axis zigzag finishing (flat, ball or bull-nose)", _three_axis, "out", folder, cluster=True)
+    command("waterline", "3-axis Z-level loops (flat, ball or bull-nose)", _three_axis, "out", folder, cluster=True)
+    command("plunge", "3- or 5-axis plunge roughing (tréflage)", _three_axis, "out", folder)
+    command("verify", "check an APT CL file or G-code for gouges and collisions", cmd_verify, None,
+            "write the report as JSON to this file", cluster=True, json=False)
+    command("dexel", "triple-dexel model of a closed part", cmd_dexel, None,
+            "model file: .npz (compact binary) or .td (seed's ASCII) (PART.dexel.npz)", cluster=True)
+    command("simulate", "cut a tool path from a stock and measure it against the design", cmd_simulate, "sim",
+            "output folder (sim)", cluster=True)
+    command("analyze", "triangle and vertex parameters, visibility and accessibility", cmd_analyze, "analysis",
+            "output folder (analysis)", json=False)
+    command("choose", "tool choice, zones and directions by machining time (3-axis or 3+2)", cmd_choose, "choose",
+            "output folder (choose)", setup=False)
+    jb = command("job", "machine a part from its stock in one run: operations in order, rest machining, one program "
+                        "and one report", cmd_job, "job", "output folder (job): checked before anything is "
+                        "computed, written whole when the job completes", setup=False, cluster=True)
+    jb.add_argument("jobfile", help="the job's TOML file ([part], [stock], [[fixtures]], [[operations]], tools, "
+                                    "machine)")
     jb.add_argument("--no-report", action="store_true", help="do not write report.html")
-    jb.add_argument("--device", choices=("cpu", "cuda", "auto"), default=None,
+    jb.add_argument("--device", choices=JobParams.options()["device"].choices, default=argparse.SUPPRESS,
                     help="run the heavy kernels on the CPU or an NVIDIA GPU (default: the job file's, else auto)")
-    _add_cluster(jb)
-    jb.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    jb.add_argument("--json", action="store_true", help="print job.json on stdout (and nothing on stderr)")
-    jb.set_defaults(func=cmd_job)
-
-    rp = sub.add_parser("report", help="one self-contained HTML file with 3D views and tables of run folders")
-    rp.add_argument("folders", nargs="+", help="folders written by finish, raster, waterline, plunge, dexel or simulate")
-    rp.add_argument("--out", default="report.html", help="HTML file to write (report.html)")
-    rp.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    rp.set_defaults(func=cmd_report)
-
-    tm = sub.add_parser("time", help="machining time of a tool path on a jerk-limited machine")
-    tm.add_argument("toolpath", help="APT CL file (.cl) or G-code (.nc, .ngc, .gcode, .tap; 5-axis on a 5-axis --machine)")
-    tm.add_argument("--machine", required=True,
-                    help="TOML machine file, or a shipped one: generic-3axis, seed-002")
-    tm.add_argument("--tools", default=None,
-                    help="TOML tool table (default: tools.toml beside the tool path, as choose writes it)")
-    tm.add_argument("--tool", default=None, help="tool name for G-code without T words")
-    tm.add_argument("--feed", type=float, default=None,
-                    help="cutting feed for every feed move, mm/min (default: as programmed, else the machine's)")
-    tm.add_argument("--out", default=None, help="write the summary as JSON to this file")
-    tm.set_defaults(func=cmd_time)
-    po = sub.add_parser("post", help="G-code for a machine from an APT CL file (3- and 5-axis)")
-    po.add_argument("toolpath", help="APT CL file")
-    po.add_argument("--machine", required=True,
-                    help="TOML machine file, or a shipped one: generic-3axis, linuxcnc-3axis, grbl-3axis, "
-                         "table-table-ac, head-table-bc, head-head-ca")
-    po.add_argument("--tools", default=None,
-                    help="TOML tool table (default: tools.toml beside the tool path, as choose writes it)")
-    po.add_argument("--out", default=None, help="program file to write (program.nc beside the tool path)")
-    po.add_argument("--origin", default=None, metavar="X,Y,Z",
-                    help="the program's zero in machine coordinates (work offset), for the travel of X Y Z "
-                         "(default: each axis's span must fit its travel)")
-    po.add_argument("--clearance", type=float, default=None, metavar="Z",
-                    help="5-axis: Z (work coordinates, mm) above which the whole tool stays while the rotaries "
-                         "unwind or swing over; the part's top plus a margin (default: the path's highest tip)")
-    po.add_argument("--tolerance", type=float, default=0.005,
-                    help="5-axis: largest tip deviation from a CL move between blocks, mm (0.005)")
-    po.add_argument("--feed", type=float, default=None,
-                    help="feed for the moves the CL file gives none, mm/min (default: the machine's)")
-    po.add_argument("--json", action="store_true", help="print the report as JSON on stdout (and nothing on stderr)")
-    po.set_defaults(func=cmd_post)
-    ch = sub.add_parser("choose", help="tool choice, zones and directions by machining time (3-axis or 3+2)")
-    ch.add_argument("surface", help="surface: patch TOML (Bezier/B-spline/NURBS), 'rubio' or 'choi', or a mesh (STL, OBJ, PLY)")
-    ch.add_argument("--tool-pair", default=None, metavar="D,r",
-                    help="a ball of diameter D and a bull-nose D with corner radius r, mm (e.g. 10,2)")
-    ch.add_argument("--tools", default=None, help="TOML tool table: its ball and bull-nose cutters are the candidates")
-    ch.add_argument("--scallop", type=float, required=True, help="largest scallop height, mm")
-    ch.add_argument("--zones", default="auto", help="number of clusters K, or auto (best of 1..--k-max) (auto)")
-    ch.add_argument("--k-max", type=int, default=6, help="largest K tried by --zones auto (6)")
-    ch.add_argument("--axes", choices=("3", "3+2"), default="3", help="3-axis or 3+2-axis (3)")
-    ch.add_argument("--optimise", type=int, default=0, metavar="EVALS",
-                    help="NOMAD black-box evaluations for the weights, directions, tools (and tilts) (0: none)")
-    ch.add_argument("--machine", default="generic-3axis",
-                    help="TOML machine file, or a shipped one: generic-3axis, seed-002 (generic-3axis)")
-    ch.add_argument("--cluster", choices=("kmeans", "rpcl", "ward"), default="kmeans", help="clustering (kmeans)")
-    ch.add_argument("--metric", choices=("euclidean", "mahalanobis", "std", "std2", "pca"), default="euclidean",
-                    help="clustering metric (euclidean)")
-    ch.add_argument("--grid", type=int, default=80, help="sampling grid, cells a side (80)")
-    ch.add_argument("--mesh-step", type=float, default=0.5, help="triangle size of a patch's mesh, mm (0.5)")
-    ch.add_argument("--sample", type=float, default=0.5, help="drop-cutter spacing along a pass, mm (0.5)")
-    ch.add_argument("--min-zone", type=float, default=0.01,
-                    help="zones under this fraction of the cells join a neighbour (0.01)")
-    ch.add_argument("--seed", type=int, default=0, help="random seed of RPCL and NOMAD (0)")
-    ch.add_argument("--out", default="choose", help="output folder (choose)")
-    ch.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    _add_device(ch)
-    ch.set_defaults(func=cmd_choose)
-    for sp in (f, r, w, pl, v, d, s, n, ch):
-        sp.add_argument("--flip", action="store_true",
-                        help="turn every face of the part over (reverse its normals): for a part wound inside out, "
-                             "or an open surface that faces away from the spindle")
-    for sp in (f, r, w, pl, v, d, s, n):
-        _add_setup(sp)
-    for sp in (f, r, w, pl, d, s, rp, tm, ch):
-        sp.add_argument("--json", action="store_true", help="print the summary as JSON on stdout (and nothing on stderr)")
+    command("report", "one self-contained HTML file with 3D views and tables of run folders", cmd_report,
+            setup=False)
+    command("time", "machining time of a tool path on a jerk-limited machine", cmd_time, None,
+            "write the summary as JSON to this file", setup=False, quiet=False, json=False).add_argument(
+        "--json", action="store_true", help="print the summary as JSON on stdout")
+    command("post", "G-code for a machine from an APT CL file (3- and 5-axis)", cmd_post, None,
+            "program file to write (program.nc beside the tool path)", setup=False, quiet=False, json=False
+            ).add_argument("--json", action="store_true", help="print the report as JSON on stdout (and nothing on "
+                                                               "stderr)")
     return p
 
 
-def _flags(exc) -> str:
-    """An error's message with the parameters it names as this command's flags (``step_down`` ->
-    ``--step-down``: the API's keyword arguments are the options' names)."""
-    return getattr(exc, "flags_message", None) or str(exc)
+def _spelled(argv, parser) -> list:
+    """``argv`` with the value of an option that starts with a dash joined to it (``--up -Z`` is
+    ``--up=-Z``; argparse would take ``-Z`` for an option), where it is not itself an option."""
+    if not argv or argv[0] not in parser._subparsers._group_actions[0].choices:
+        return argv
+    sp = parser._subparsers._group_actions[0].choices[argv[0]]
+    takes = {s for a in sp._actions if a.option_strings and a.nargs != 0 for s in a.option_strings}
+    known = {s for a in sp._actions for s in a.option_strings}
+    out, i = [argv[0]], 1
+    while i < len(argv):
+        a = argv[i]
+        if a in takes and i + 1 < len(argv) and argv[i + 1].startswith("-") and argv[i + 1] not in known \
+                and argv[i + 1] != "--":
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def _on_interrupt(signum, frame):
+    """SIGINT: remember it (whatever exception it leaves, a numba kernel's included, is the
+    interrupt's) and stop the Python code running."""
+    _interrupted[0] = True
+    raise KeyboardInterrupt
+
+
+def _caused_by_interrupt(exc) -> bool:
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def main(argv=None) -> int:
     _status_line[0] = False
     _run[0] = None
+    _interrupted[0] = False
+    previous = signal.signal(signal.SIGINT, _on_interrupt) if _main_thread() else None
+    try:
+        return _main(argv)
+    except BaseException as exc:  # an interrupt, however it surfaces (in a numba kernel: a SystemError)
+        if _interrupted[0] or _caused_by_interrupt(exc):
+            _end_status()
+            print("meshmill: interrupted", file=sys.stderr)
+            return 130
+        raise
+    finally:
+        if _run[0] is not None and not _run[0].done:
+            _run[0].abort()  # a run that did not complete leaves no result behind
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+def _main(argv) -> int:
     parser = build_parser()
-    argv = sys.argv[1:] if argv is None else list(argv)
+    argv = _spelled(sys.argv[1:] if argv is None else list(argv), parser)
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # usage errors (2), --help and --version (0)
@@ -822,23 +648,18 @@ def main(argv=None) -> int:
     try:
         if args.command in FOLDER_OUTPUTS:
             _results([os.path.join(args.out, n) for n in FOLDER_OUTPUTS[args.command]])  # earlier results go now
+        args.options = _options_given(args, args.spec) if args.spec is not None else \
+            {k: v for k, v in vars(args).items() if k in ("jobfile", "device", "cluster")}
         return args.func(args)
     except InputError as exc:
         _end_status()
-        print(f"meshmill: error: {_flags(exc)}", file=sys.stderr)
+        print(f"meshmill: error: {exc.text(_flag)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        _end_status()
-        print("meshmill: interrupted", file=sys.stderr)
-        return 130
     except MemoryError:  # an estimate fell short: still one line, and nothing written
         _end_status()
         print(f"meshmill: error: out of memory ({memory.size(memory.available_bytes())} available): use a coarser "
               "step, sample or step-down", file=sys.stderr)
         return 2
-    finally:
-        if _run[0] is not None and not _run[0].done:
-            _run[0].abort()  # a run that did not complete leaves no result behind
 
 
 if __name__ == "__main__":

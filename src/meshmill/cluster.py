@@ -35,7 +35,7 @@ def connect(cluster):
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        raise InputError("--workers and --scheduler need Dask: pip install 'meshmill[cluster]'") from None
+        raise InputError("cluster: a Dask cluster needs Dask: pip install 'meshmill[cluster]'", "cluster") from None
     if isinstance(cluster, Client):
         yield cluster
         return
@@ -43,7 +43,7 @@ def connect(cluster):
         raise InputError(f"cluster must be a number of workers, a scheduler address or a Client, got {cluster!r}")
     if isinstance(cluster, int):
         if cluster < 1:
-            raise InputError(f"--workers must be at least 1, got {cluster}")
+            raise InputError(f"cluster must be at least 1 worker, got {cluster}", "cluster")
         with LocalCluster(n_workers=cluster, threads_per_worker=1, processes=True, dashboard_address=None,
                           env=worker_env(cluster)) as lc, Client(lc) as client:
             yield client
@@ -51,7 +51,7 @@ def connect(cluster):
     try:
         client = Client(cluster, timeout=30)
     except (OSError, TimeoutError) as exc:
-        raise InputError(f"--scheduler {cluster}: cannot reach the scheduler ({exc})") from None
+        raise InputError(f"cluster {cluster}: cannot reach the scheduler ({exc})", "cluster") from None
     with client:
         yield client
 
@@ -119,9 +119,9 @@ def worker_memory(client) -> int:
     return min(limits) if limits else 0
 
 
-def check_workers(client, need: float, what: str, change: str) -> None:
+def check_workers(client, need: float, what: str, change: str, params=("cluster", "step")) -> None:
     """Refuse, before it starts, work whose estimate ``need`` (bytes per worker) exceeds
     :data:`~meshmill.memory.SHARE` of a worker's memory limit, in one line with the figures."""
     limit = worker_memory(client)
     if limit:
-        memory.check(need, f"{what} on each worker", change, available=limit)
+        memory.check(need, f"{what} on each worker", change, params, available=limit)

@@ -1,190 +1,97 @@
 """A job: one part machined from its stock to finished in one run (``meshmill job job.toml``,
-:class:`Job` in Python).
+:class:`Job` in Python), written as a user of the API writes it: a loop over public calls of
+:mod:`meshmill.api` (an import-linter contract keeps it from reaching below).
 
-The part is set up as every command sets it up; the stock is a box with margins, a cylinder, a
-closed mesh, or the part with an allowance; the fixtures are solids no tool, shank or holder may
-enter. The operations run in order, each from the in-process stock: a triple-dexel model of the
-stock, cut by each operation's path exactly as ``simulate`` cuts it and handed to the next one,
-which receives it as a closed mesh around every dexel (:func:`~meshmill.simulation.surface.stock_hull`:
-rapids, shanks and holders keep clear of it; raster and waterline leave out the
-pieces of their passes that remove less than ``rest`` mm of it). Each path is trimmed where it
-would enter a fixture (the stretch is left uncut and linked over: up along the tool axis to the
-job's safe plane, across, and down at feed), verified against the part and the fixtures, cut from
-the in-process stock (rapids through material and shanks or holders meeting it are errors), timed
-on the job's machine, and written with the stock it leaves. One program holds every operation
-with its tool changes; the last stock is measured against the design.
+The part is set up as every command sets it up (:func:`~meshmill.api.load_part`); the stock is a
+:class:`~meshmill.simulation.stock.Stock` (a box with margins, a cylinder, a closed mesh, or the
+part with an allowance), turned into the in-process stock (triple dexels) at the start; the
+fixtures are solids no tool, shank or holder may enter. The operations run in order, each given
+the in-process stock as ``stock=`` (its rapids, shanks and holders keep clear of it; raster and
+waterline leave out the pieces of their passes that remove less than ``rest`` mm of it). Each
+path is lifted to the job's plane at both ends (:meth:`~meshmill.toolpath.model.Toolpath.lifted_to`),
+trimmed where it would enter a fixture (:func:`~meshmill.api.clear_fixtures`), verified against
+the part (:func:`~meshmill.api.verify`), cut from the in-process stock and measured
+(:func:`~meshmill.api.simulate`, whose stock after it the next operation gets: a rapid through
+material or a shank or holder meeting it is an error), timed on the job's machine
+(:func:`~meshmill.api.machining_time`), and written with the stock it leaves. An operation that
+finds nothing to cut is skipped with a warning, or refused, as ``nothing_to_cut`` says. One
+program holds every operation with its tool changes (:func:`~meshmill.api.post`).
+
+The job's folder (:class:`JobFolder`) is checked before anything is computed, emptied of an
+earlier job's results, and written whole under a temporary name that is put in place once
+complete: nothing an earlier or interrupted run left can look like this run's result.
 
 Units: mm, mm^3, seconds.
 """
 from __future__ import annotations
 
-import inspect
-import math
 import os
+import shutil
 import time
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from . import api
-from .errors import InputError
-from .runfolder import write_json
-from .tolerances import GOUGE_TOL, HOLDER_CLEARANCE
+from .api import InputError, NothingToCut
+from .options import Params, option
 from .tomlfile import read_toml
 
 OPERATIONS = {"plunge": api.plunge, "raster": api.raster, "waterline": api.waterline, "finish": api.finish,
               "choose": api.choose}
-STOCK_KINDS = ("box", "cylinder", "mesh", "offset")
-REST_DEPTH = 0.05  # mm: the depth of stock below which raster and waterline pieces are left out
+SET_BY_JOB = {"part", "tools", "stock", "device", "progress", "machine", "cluster", "simulate", "surface",
+              "tool_pair", "flip"}  # an operation's parameters the job gives it
+JOB_TABLES = ("part", "stock", "fixtures", "operations")
+REMOVES_NOTHING = 1e-6  # mm^3: an operation that removes less of the in-process stock cut nothing
+REST_DEPTH = 0.05  # mm: the depth of stock below which a job's raster and waterline pieces are left out
 LINK_CLEARANCE = 5.0  # mm: the job's safe plane above the stock and the fixtures
-CYLINDER_SEGMENTS = 128
-_JOB_KEYS = {"name", "machine", "tools", "step", "tolerance", "rest", "in_process", "device", "clearance", "part",
-             "stock", "fixtures", "operations"}
-_SET_BY_JOB = {"part", "tools", "stock", "rest", "rest_stock", "device", "progress", "machine", "simulate", "surface",
-               "tool_pair", "flip", "cluster"}
 
 
-def _number(value, what, low=None, positive=False):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise InputError(f"{what} must be a number of mm, got {value!r}")
-    if positive and value <= 0 or low is not None and value < low:
-        raise InputError(f"{what} must be {'a positive number of mm' if positive else f'at least {low:g} mm'}, "
-                         f"got {value:g}")
-    return float(value)
+@dataclass(frozen=True, kw_only=True)
+class JobParams(Params):
+    """A job's settings: a job file's top level (``[part]`` takes :func:`~meshmill.api.load_part`'s
+    options and ``file``, ``[stock]`` and ``[[fixtures]]`` :class:`~meshmill.params.StockParams`'
+    and :class:`~meshmill.params.FixtureParams`', ``[[operations]]`` their API function's)."""
+
+    name: str | None = option("text", "the job's name (default: the job file's name)", None)
+    machine: object = option("object", "the machine the program is for: a shipped name or a machine file (default: "
+                                       "table-table-ac when a finish runs, else generic-3axis)", None, role="machine")
+    tools: object = option("object", "the tool table's file", role="tools")
+    step: float = option("number", "the in-process stock's dexels", 0.5, unit="mm", above=0.0)
+    rest: object = option("number", "raster and waterline leave out what removes less of the in-process stock "
+                                    "(false: off)", REST_DEPTH, unit="mm", low=0.0, words=(False,))
+    tolerance: float = option("number", "gouge tolerance of every path and of the final check",
+                              api.finish.spec.options()["tolerance"].default, unit="mm", low=0.0)
+    clearance: float = option("number", "above the stock and the fixtures: the plane the job links on",
+                              LINK_CLEARANCE, unit="mm", low=0.0)
+    in_process: bool = option("flag", "each operation starts from the in-process stock (false: from the part alone, "
+                                      "only cut from the stock, for comparison)", True)
+    nothing_to_cut: str = option("choice", "an operation that removes nothing of the stock: skip it with a warning, "
+                                           "or refuse the job", "skip", choices=("skip", "refuse"))
+    device: str = option("choice", "run the heavy kernels on the CPU or an NVIDIA GPU (auto: the GPU when a usable "
+                                   "one is present)", "auto", choices=("cpu", "cuda", "auto"))
 
 
-@dataclass
-class Stock:
-    """What the job starts from: ``kind`` box (the part's box grown by the margins), cylinder
-    (about Z through the box's centre, its ``diameter`` or the part's widest radius plus the side
-    margin), mesh (a closed ``file``, in the part file's frame or ``frame = "work"``), offset
-    (the part with ``allowance`` mm on every dexel end). ``side``, ``top``, ``bottom``: margins, mm."""
-
-    kind: str = "box"
-    side: float = 0.0
-    top: float = 0.0
-    bottom: float = 0.0
-    diameter: float | None = None
-    allowance: float = 1.0
-    file: str = ""
-    frame: str = "part"
-
-    @classmethod
-    def from_dict(cls, d: dict, folder: str = "") -> "Stock":
-        d = dict(d)
-        kind = d.pop("type", d.pop("kind", "box"))
-        if kind not in STOCK_KINDS:
-            raise InputError(f"[stock] type must be one of {', '.join(STOCK_KINDS)}, got {kind!r}")
-        margin = _number(d.pop("margin", 0.0), "[stock] margin", low=0.0)
-        s = cls(kind=kind, side=margin, top=margin, bottom=margin)
-        for key in ("side", "top", "bottom"):
-            if key in d:
-                setattr(s, key, _number(d.pop(key), f"[stock] {key}", low=0.0))
-        if "diameter" in d:
-            s.diameter = _number(d.pop("diameter"), "[stock] diameter", positive=True)
-        if "allowance" in d:
-            s.allowance = _number(d.pop("allowance"), "[stock] allowance", low=0.0)
-        if "file" in d:
-            s.file = os.path.join(folder, str(d.pop("file")))
-        s.frame = str(d.pop("frame", "part"))
-        if d:
-            raise InputError(f"[stock]: unknown key(s) {', '.join(sorted(d))}")
-        if s.frame not in ("part", "work"):
-            raise InputError(f"[stock] frame must be 'part' or 'work', got {s.frame!r}")
-        if kind == "mesh" and not s.file:
-            raise InputError("[stock] type 'mesh' needs file")
-        return s
-
-    def solid(self, part):
-        """The closed stock :class:`~meshmill.geometry.mesh.Mesh` in the work frame (None for an
-        offset stock, which is the part's dexels lengthened)."""
-        from .geometry import shapes
-
-        lo, hi = part.bounds
-        if self.kind == "box":
-            return shapes.box(lo - [self.side, self.side, self.bottom], hi + [self.side, self.side, self.top])
-        if self.kind == "cylinder":
-            centre = 0.5 * (lo + hi)
-            widest = float(np.hypot(*(part.vertices[:, :2] - centre[:2]).T).max())
-            radius = 0.5 * self.diameter if self.diameter else widest + self.side
-            if radius < widest - 1e-9:
-                raise InputError(f"[stock] diameter {2 * radius:g} mm is narrower than the part ({2 * widest:.3f} mm)")
-            ring = radius / math.cos(math.pi / CYLINDER_SEGMENTS)  # the polygon holds the round bar
-            z0, z1 = lo[2] - self.bottom, hi[2] + self.top
-            m = shapes.revolve([0.0, ring, ring, 0.0], [z0, z0, z1, z1], CYLINDER_SEGMENTS, "cylinder stock")
-            m.vertices[:, :2] += centre[:2]
-            return m
-        if self.kind == "mesh":
-            return _placed(self.file, part, self.frame, "stock")
-        return None
-
-    def summary(self) -> dict:
-        d = {"type": self.kind}
-        if self.kind in ("box", "cylinder"):
-            d.update(side=self.side, top=self.top, bottom=self.bottom)
-        if self.kind == "cylinder" and self.diameter:
-            d["diameter"] = self.diameter
-        if self.kind == "offset":
-            d["allowance"] = self.allowance
-        if self.kind == "mesh":
-            d.update(file=os.path.abspath(self.file), frame=self.frame)
-        return d
+SETUP = tuple(n for n in api.load_part.spec.options() if n != "path")  # [part]'s keys besides file
 
 
-def _placed(path, part, frame, what):
-    """The closed mesh of ``path`` in the work frame: placed as the part was (``frame`` "part")
-    or as it is ("work")."""
-    from .geometry.mesh import load_mesh, mesh_from_arrays
-
-    mesh = load_mesh(path)
-    if frame == "part" and part.placement is not None:
-        mesh = mesh_from_arrays(part.placement.apply(mesh.vertices), mesh.faces, os.path.basename(path))
-        mesh.source = os.path.abspath(path)
-    if not mesh.closed:
-        raise InputError(f"{path}: the {what} mesh is open (not watertight)")
-    return mesh
+def _table(value, what: str, example: str) -> dict:
+    if not isinstance(value, dict):
+        raise InputError(f"{what} must be a table ({example}), got {value!r}", what)
+    return value
 
 
-@dataclass
-class Fixture:
-    """A solid no tool, shank or holder may enter: a closed ``mesh`` in the work frame."""
-
-    name: str
-    mesh: object
-
-    @classmethod
-    def from_dict(cls, d: dict, part, folder: str = "", number: int = 1) -> "Fixture":
-        from .geometry import shapes
-
-        d = dict(d)
-        name = str(d.pop("name", f"fixture {number}"))
-        frame = str(d.pop("frame", "part"))
-        if ("file" in d) == ("box" in d):
-            raise InputError(f"fixture '{name}': give exactly one of file and box")
-        if "box" in d:
-            b = d.pop("box")
-            if not (isinstance(b, list) and len(b) == 6):
-                raise InputError(f"fixture '{name}': box wants six numbers [x0, y0, z0, x1, y1, z1] (work frame, mm)")
-            lo = np.array([_number(v, f"fixture '{name}' box") for v in b[:3]])
-            hi = np.array([_number(v, f"fixture '{name}' box") for v in b[3:]])
-            if (hi <= lo).any():
-                raise InputError(f"fixture '{name}': box's second corner must lie above the first on every axis")
-            mesh = shapes.box(lo, hi)
-        else:
-            if frame not in ("part", "work"):
-                raise InputError(f"fixture '{name}': frame must be 'part' or 'work', got {frame!r}")
-            mesh = _placed(os.path.join(folder, str(d.pop("file"))), part, frame, f"fixture '{name}'")
-        if d:
-            raise InputError(f"fixture '{name}': unknown key(s) {', '.join(sorted(d))}")
-        return cls(name, mesh)
+def _tables(value, what: str, example: str) -> list:
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise InputError(f"{what} must be a list of tables ({example}), got {value!r}", what)
+    return value
 
 
 @dataclass
 class Operation:
-    """One operation of the job: ``kind`` (plunge, raster, waterline, finish), its ``name`` and
-    the keyword arguments of the API's function of that name (``tool``, ``step_down``, ...);
-    ``rest`` mm (raster, waterline): leave out what removes less of the in-process stock (None:
-    cut the whole path); ``tools``: finish's ball cutters by name (None: every one)."""
+    """One operation of the job: ``kind`` (plunge, raster, waterline, finish, choose), its ``name``
+    and the keyword arguments of the API's function of that name (``tool``, ``step_down``, ...,
+    checked against its options when made); ``rest`` mm (raster, waterline): leave out what
+    removes less of the in-process stock (None: cut the whole path); ``tools``: finish's and
+    choose's cutters by name (None: every one)."""
 
     kind: str
     name: str
@@ -193,47 +100,131 @@ class Operation:
     tools: list | None = None
 
     @classmethod
-    def from_dict(cls, d: dict, number: int, rest_default) -> "Operation":
-        d = {k.replace("-", "_"): v for k, v in d.items()}
+    def from_dict(cls, d: dict, number: int, rest_default=REST_DEPTH) -> "Operation":
+        """An operation of a job file's ``[[operations]]``: refused in one line where its type,
+        a parameter's name, kind or range is wrong, before anything is computed."""
+        _table(d, f"operation {number}", "type = ..., tool = ..., ...")
+        d = {str(k).replace("-", "_"): v for k, v in d.items()}
         kind = d.pop("type", None)
         if kind not in OPERATIONS:
-            raise InputError(f"operation {number}: type must be one of {', '.join(OPERATIONS)}, got {kind!r}")
-        name = str(d.pop("name", f"{kind} {d.get('tool', '')}".strip()))
-        rest = d.pop("rest", rest_default)
-        if rest is False:
-            rest = None
-        elif rest is not None:
-            rest = _number(rest, f"operation {number} ({name}): rest", low=0.0)
-        tools = d.pop("tools", None)
-        if tools is not None and kind not in ("finish", "choose"):
-            raise InputError(f"operation {number} ({name}): tools is finish's and choose's (the cutters they "
-                             "choose from); give tool")
-        if tools is not None and not (isinstance(tools, list) and tools and all(isinstance(t, str) for t in tools)):
-            raise InputError(f"operation {number} ({name}): tools wants a list of tool names")
-        allowed = set(inspect.signature(OPERATIONS[kind]).parameters) - _SET_BY_JOB
-        unknown = sorted(set(d) - allowed)
-        if unknown:
-            raise InputError(f"operation {number} ({name}): unknown parameter(s) {', '.join(unknown)} for {kind} "
-                             f"(it takes {', '.join(sorted(allowed))})")
-        return cls(kind, name, d, rest if kind in ("raster", "waterline") else None, tools)
+            raise InputError(f"operation {number}: type must be one of {', '.join(OPERATIONS)}, got {kind!r}", "type")
+        name = d.pop("name", None)
+        if name is not None and not (isinstance(name, str) and name.strip()):
+            raise InputError(f"operation {number}: name must be text, got {name!r}", "name")
+        name = name or f"{kind} {d.get('tool', '')}".strip()
+        where = f"operation {number} ({name})"
+        try:
+            rest = JobParams.options()["rest"].check(d.pop("rest", rest_default))
+            tools = d.pop("tools", None)
+            if tools is not None and kind not in ("finish", "choose"):
+                raise InputError("tools is finish's and choose's (the cutters they choose from); give tool", "tools")
+            if tools is not None and not (isinstance(tools, list) and tools and all(isinstance(t, str) for t in tools)):
+                raise InputError(f"tools wants a list of tool names, got {tools!r}", "tools")
+            spec = OPERATIONS[kind].spec
+            unknown = sorted(set(d) - (set(spec.options()) - SET_BY_JOB))
+            if unknown:
+                raise InputError(f"unknown parameter{'s' * (len(unknown) > 1)} {', '.join(unknown)} for {kind} (it "
+                                 f"takes {', '.join(n for n in spec.options() if n not in SET_BY_JOB)})",
+                                 tuple(unknown))
+            given = {k: v for k, v in d.items()}
+            spec.checked({**given, **{k: PLACEHOLDER.get(k) for k, o in spec.options().items()
+                                      if k in SET_BY_JOB and (o.required or k in PLACEHOLDER)}})  # kinds, ranges
+        except InputError as exc:
+            raise exc.within(where) from None
+        return cls(kind, name, d, (None if rest is False else rest) if kind in ("raster", "waterline") else None,
+                   tools)
+
+
+PLACEHOLDER = {"tools": "the job's"}  # what stands for the job's own arguments when an operation is checked
 
 
 @dataclass
 class OperationResult:
-    """An operation as the job ran it: ``path`` (:class:`~meshmill.api.PathResult`, its
-    ``summary["job"]`` the job's figures), the ``stock`` after it (DexelModel), the stock's
-    ``machined`` surface ``(vertices, faces)``, its deviation ``samples`` and ``stock_summary``."""
+    """An operation as the job ran it: ``path`` (:class:`~meshmill.results.PathResult`, its
+    ``summary["job"]`` the job's figures) and ``cut`` (:class:`~meshmill.results.SimulateResult`:
+    what it cut from the in-process stock, ``cut.stock`` the stock after it); ``skipped``: why it
+    was left out (nothing to cut), with ``path`` and ``cut`` None."""
 
     operation: Operation
     path: object
-    stock: object
-    machined: tuple
-    samples: dict
-    stock_summary: dict
+    cut: object
+    skipped: str = ""
+
+    @property
+    def stock(self):
+        return self.cut.stock
 
     @property
     def ok(self) -> bool:
-        return self.path.summary["job"]["ok"]
+        return True if self.skipped else self.path.summary["job"]["ok"]
+
+
+class JobFolder:
+    """A job's output folder, checked before anything is computed: not a file, writable, and
+    either new, empty, or an earlier job's, whose results (``job.json``, ``program.nc``,
+    ``report.html`` and the ``NN-name/`` folders) are removed at once: no result of an earlier run
+    stays to look like this one's. :meth:`write` writes the job there, each file under a temporary
+    name put in place when complete and ``job.json`` last; a write that fails or is interrupted
+    removes what it wrote."""
+
+    RESULTS = ("job.json", "program.nc", "report.html")
+
+    def __init__(self, path):
+        self.path = os.path.abspath(os.fspath(path))
+        parent = os.path.dirname(self.path)
+        if os.path.exists(self.path) and not os.path.isdir(self.path):
+            raise InputError(f"{path}: is a file, not a folder for the job", "out")
+        try:
+            os.makedirs(self.path, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"{path}: cannot create the job's folder ({exc.strerror})", "out") from None
+        if not os.access(self.path, os.W_OK | os.X_OK) or not os.access(parent, os.X_OK):
+            raise InputError(f"{path}: cannot write there (permission denied)", "out")
+        entries = os.listdir(self.path)
+        ours = self._results()
+        if entries and not ours:
+            raise InputError(f"{path}: the folder holds other files and no earlier job's: give a new or empty folder",
+                             "out")
+        self.clear()
+
+    def _results(self) -> list:
+        return [os.path.join(self.path, e) for e in sorted(os.listdir(self.path))
+                if e in self.RESULTS or _is_operation_folder(os.path.join(self.path, e)) or e.startswith(".")
+                and ".partial-" in e]
+
+    def clear(self):
+        """Remove every result of a job in the folder."""
+        for target in self._results():
+            try:
+                shutil.rmtree(target) if os.path.isdir(target) else os.remove(target)
+            except OSError as exc:
+                raise InputError(f"{target}: cannot remove an earlier job's result ({exc.strerror})", "out") from None
+
+    def write(self, fill) -> list:
+        """``fill(folder)`` writes the job into the folder and returns the paths it wrote; nothing of
+        it stays if it fails."""
+        try:
+            return fill(self.path)
+        except BaseException:
+            self.clear()
+            raise
+
+    def write_text(self, name, text) -> str:
+        """The file ``name`` of the folder with ``text``, put in place when complete."""
+        final = os.path.join(self.path, name)
+        tmp = os.path.join(self.path, f".{name}.partial-{os.getpid()}")
+        try:
+            with open(tmp, "w") as fh:
+                fh.write(text)
+            os.replace(tmp, final)
+        except OSError as exc:
+            raise InputError(f"{final}: cannot write ({exc.strerror})", "out") from None
+        return final
+
+
+def _is_operation_folder(path) -> bool:
+    name = os.path.basename(path)
+    return os.path.isdir(path) and len(name) > 3 and name[:2].isdigit() and name[2] == "-"
 
 
 @dataclass
@@ -252,58 +243,57 @@ class JobResult:
         return bool(self.summary["ok"])
 
     def save(self, folder, report=True, progress=None) -> list:
-        """Write the job's folder: per operation ``NN-name/`` (the operation's files and
-        ``stock.npz``, the in-process stock after it, with ``stock/`` its view: machined.stl,
-        deviation.npz, deviation.json, summary.json), ``program.nc``, ``job.json`` and, with
-        ``report``, ``report.html``. Returns the folders and files written."""
-        from .simulation.dexel import save_npz
+        """Write the job's folder (a path or a :class:`JobFolder`): per operation ``NN-name/`` (the
+        operation's files and ``stock.npz``, the in-process stock after it, with ``stock/`` its
+        view: machined.stl, deviation.npz, deviation.json, summary.json), ``program.nc``,
+        ``job.json`` (last) and, with ``report``, ``report.html``; whole or not at all. Returns the
+        folders and files written."""
+        target = folder if isinstance(folder, JobFolder) else JobFolder(folder)
+        return target.write(lambda path: self._write(target, report, progress))
 
-        os.makedirs(folder, exist_ok=True)
+    def _write(self, folder: JobFolder, report, progress) -> list:
+        import json
+
         written, views = [], []
-        for k, op in enumerate(self.operations):
-            sub = os.path.join(folder, op.path.summary["job"]["folder"])
+        for op in self.operations:
+            if op.skipped:
+                continue
+            sub = os.path.join(folder.path, op.path.summary["job"]["folder"])
             written += op.path.save(sub)
-            save_npz(os.path.join(sub, "stock.npz"), op.stock)
-            res = api.SimulateResult(op.stock_summary["deviation"], op.stock_summary, op.machined, op.samples)
-            op.stock_summary["toolpath"] = {"file": os.path.abspath(os.path.join(sub, "toolpath.cl")), "warnings": []}
-            res.save(os.path.join(sub, "stock"))
+            op.stock.save(os.path.join(sub, "stock.npz"))
+            op.cut.summary["toolpath"] = {"file": os.path.join(sub, "toolpath.cl"), "warnings": []}
+            op.cut.save(os.path.join(sub, "stock"))
             views += [sub, os.path.join(sub, "stock")]
-        program = os.path.join(folder, "program.nc")
-        with open(program, "w") as fh:
-            fh.write("\n".join(self.program) + "\n")
-        self.summary["program"] = os.path.abspath(program)
-        written.append(program)
+        self.summary["program"] = folder.write_text("program.nc", "\n".join(self.program) + "\n")
+        written.append(self.summary["program"])
         if report:
-            info = api.report(views, os.path.join(folder, "report.html"), progress=progress)
-            self.summary["report"] = info["file"]
-            written.append(info["file"])
-        write_json(os.path.join(folder, "job.json"), self.summary)
-        written.append(os.path.join(folder, "job.json"))
+            self.summary["report"] = api.report(views, os.path.join(folder.path, "report.html"),
+                                                progress=progress)["file"]
+            written.append(self.summary["report"])
+        written.append(folder.write_text("job.json", json.dumps(self.summary, indent=2, default=float) + "\n"))
         return written
 
 
 @dataclass
 class Job:
-    """A part, its stock and fixtures, a tool table, a machine and operations in order.
-
-    ``step``: the in-process stock's dexel spacing (mm); ``tolerance``: the gouge tolerance of
-    the paths and of the final check (mm); ``in_process``: the operations are given the
-    in-process stock (False: each is computed from the part alone, as run on its own, and only
-    simulated on the stock, for comparison); ``clearance``: mm above the stock and fixtures for
-    the links between operations."""
+    """A part, its stock and fixtures, a tool table, a machine and operations in order. ``part``
+    and ``tools`` may be given as files, ``stock`` as a Stock or a ``[stock]`` table, the
+    fixtures and operations as Fixtures / Operations or tables; the other settings are
+    :class:`~meshmill.params.JobParams`' (checked by :meth:`run`)."""
 
     part: object
-    tools: list
+    tools: object
     operations: list
-    stock: Stock = field(default_factory=Stock)
+    stock: object = None
     fixtures: list = field(default_factory=list)
     machine: object = None
     step: float = 0.5
-    tolerance: float = GOUGE_TOL
+    tolerance: float = JobParams.options()["tolerance"].default
     in_process: bool = True
-    clearance: float = LINK_CLEARANCE
+    clearance: float = JobParams.options()["clearance"].default
     device: str = "auto"
     name: str = "job"
+    nothing_to_cut: str = "skip"
 
     @classmethod
     def from_toml(cls, path) -> "Job":
@@ -329,62 +319,103 @@ class Job:
         path = os.fspath(path)
         d = read_toml(path, "a job file (TOML)", "job file")
         folder = os.path.dirname(os.path.abspath(path))
-        unknown = sorted(set(d) - _JOB_KEYS)
+        known = set(JobParams.options()) | set(JOB_TABLES)
+        unknown = sorted(set(d) - known)
         if unknown:
-            raise InputError(f"{path}: unknown key(s) {', '.join(unknown)} (a job has {', '.join(sorted(_JOB_KEYS))})")
-        part_d = dict(d.get("part") or {})
-        if "file" not in part_d:
-            raise InputError(f"{path}: [part] needs file")
-        part_file = os.path.join(folder, str(part_d.pop("file")))
-        setup = {k: part_d.pop(k) for k in ("units", "up", "origin", "scale", "flip") if k in part_d}
-        if part_d:
-            raise InputError(f"[part]: unknown key(s) {', '.join(sorted(part_d))}")
-        part = api.load_part(part_file, **setup)
-        if "tools" not in d:
-            raise InputError(f"{path}: no tools (the tool table's file)")
-        tools = api.load_tools(os.path.join(folder, str(d["tools"])))
-        machine = d.get("machine")
-        if isinstance(machine, str) and os.path.exists(os.path.join(folder, machine)):
-            machine = os.path.join(folder, machine)
-        rest = d.get("rest", REST_DEPTH)
-        ops = d.get("operations") or []
-        if not ops:
-            raise InputError(f"{path}: no [[operations]]")
-        return cls(part=part, tools=tools,
-                   operations=[Operation.from_dict(o, k + 1, rest) for k, o in enumerate(ops)],
-                   stock=Stock.from_dict(d.get("stock") or {}, folder),
-                   fixtures=[Fixture.from_dict(f, part, folder, k + 1) for k, f in enumerate(d.get("fixtures") or [])],
-                   machine=machine, step=d.get("step", 0.5), tolerance=d.get("tolerance", GOUGE_TOL),
-                   in_process=bool(d.get("in_process", True)), clearance=d.get("clearance", LINK_CLEARANCE),
-                   device=d.get("device", "auto"), name=str(d.get("name", os.path.splitext(os.path.basename(path))[0])))
+            raise InputError(f"{path}: unknown key{'s' * (len(unknown) > 1)} {', '.join(unknown)} (a job has "
+                             f"{', '.join(sorted(known))})", tuple(unknown), where=path)
+        try:
+            settings = JobParams.checked({k: v for k, v in d.items() if k not in JOB_TABLES and k not in
+                                          ("tools", "machine")} | {"tools": "file"}, "a job")
+            part_d = dict(_table(d.get("part"), "part", "[part] with file = ..."))
+            if "file" not in part_d:
+                raise InputError("[part] needs file", "file")
+            part_file = part_d.pop("file")
+            if not (isinstance(part_file, str) and part_file.strip()):
+                raise InputError(f"[part] file must be a file name, got {part_file!r}", "file")
+            unknown = sorted(set(part_d) - set(SETUP))
+            if unknown:
+                raise InputError(f"[part]: unknown key{'s' * (len(unknown) > 1)} {', '.join(unknown)} (it takes "
+                                 f"file, {', '.join(SETUP)})", tuple(unknown))
+            for k, v in part_d.items():
+                api.load_part.spec.options()[k].check(v)
+            if "tools" not in d:
+                raise InputError("no tools (the tool table's file)", "tools")
+            if not (isinstance(d["tools"], str) and d["tools"].strip()):
+                raise InputError(f"tools must be the tool table's file name, got {d['tools']!r}", "tools")
+            machine = d.get("machine")
+            if machine is not None and not (isinstance(machine, str) and machine.strip()):
+                raise InputError(f"machine must be a shipped name or a machine file, got {machine!r}", "machine")
+            if isinstance(machine, str) and os.path.exists(os.path.join(folder, machine)):
+                machine = os.path.join(folder, machine)
+            ops = _tables(d.get("operations", []), "operations", "[[operations]]")
+            if not ops:
+                raise InputError("no [[operations]]", "operations")
+            operations = [Operation.from_dict(o, k + 1, settings.rest) for k, o in enumerate(ops)]
+            stock = api.Stock.from_dict(_table(d.get("stock", {}), "stock", "[stock] with type = ..."), folder)
+            fixtures = [api.Fixture.from_dict(f, folder, k + 1)
+                        for k, f in enumerate(_tables(d.get("fixtures", []), "fixtures", "[[fixtures]]"))]
+            part = api.load_part(os.path.join(folder, part_file), **part_d)
+            tools = api.load_tools(os.path.join(folder, d["tools"]))
+        except InputError as exc:
+            raise exc.within(path) from None
+        return cls(part=part, tools=tools, operations=operations, stock=stock, fixtures=fixtures, machine=machine,
+                   step=settings.step, tolerance=settings.tolerance, in_process=settings.in_process,
+                   clearance=settings.clearance, device=settings.device, nothing_to_cut=settings.nothing_to_cut,
+                   name=settings.name or os.path.splitext(os.path.basename(path))[0])
 
     # ------------------------------------------------------------ checks
 
     def _check(self):
-        _number(self.step, "step", positive=True)
-        _number(self.tolerance, "tolerance", low=0.0)
-        _number(self.clearance, "clearance", low=0.0)
-        if not self.operations:
-            raise InputError("a job needs at least one operation")
-        if not isinstance(self.stock, Stock):
-            self.stock = Stock.from_dict(self.stock)
-        self.operations = [o if isinstance(o, Operation) else Operation.from_dict(o, k + 1, REST_DEPTH)
+        """Every setting checked, files read, tables made into their values; the stock holds the
+        part, no fixture overlaps it. Raises :class:`InputError` before anything is computed."""
+        JobParams.checked(dict(name=self.name, tools="given", step=self.step, tolerance=self.tolerance,
+                               in_process=self.in_process, clearance=self.clearance, device=self.device,
+                               nothing_to_cut=self.nothing_to_cut), "a job")
+        if isinstance(self.part, (str, os.PathLike)):
+            self.part = api.load_part(self.part)
+        if not (hasattr(self.part, "vertices") and hasattr(self.part, "faces")):
+            raise InputError(f"part must be a Mesh (meshmill.load_part) or a mesh file, got {self.part!r}", "part")
+        if isinstance(self.tools, (str, os.PathLike)):
+            self.tools = api.load_tools(self.tools)
+        if not isinstance(self.tools, list) or not self.tools:
+            raise InputError(f"tools must be a tool table (its file, or meshmill.load_tools), got {self.tools!r}",
+                             "tools")
+        if not isinstance(self.operations, list) or not self.operations:
+            raise InputError("a job needs at least one operation (a list of Operations or tables)", "operations")
+        self.operations = [o if isinstance(o, Operation) else Operation.from_dict(o, k + 1)
                            for k, o in enumerate(self.operations)]
-        self.fixtures = [f if isinstance(f, Fixture) else Fixture.from_dict(f, self.part, "", k + 1)
+        if self.stock is None:
+            self.stock = api.Stock.box()
+        elif isinstance(self.stock, dict):
+            self.stock = api.Stock.from_dict(self.stock)
+        elif not isinstance(self.stock, api.Stock):
+            raise InputError(f"stock must be a Stock (meshmill.Stock.box(...)) or a [stock] table, got {self.stock!r}",
+                             "stock")
+        if not isinstance(self.fixtures, (list, tuple)):
+            raise InputError(f"fixtures must be a list of Fixtures or tables, got {self.fixtures!r}", "fixtures")
+        self.fixtures = [f if isinstance(f, api.Fixture) else api.Fixture.from_dict(f, "", k + 1)
                          for k, f in enumerate(self.fixtures)]
         five = any(o.kind == "finish" for o in self.operations)
         if self.machine is None:
             self.machine = "table-table-ac" if five else "generic-3axis"
-        if isinstance(self.machine, (str, os.PathLike)):
+        if not hasattr(self.machine, "chain"):
+            if not (isinstance(self.machine, (str, os.PathLike)) and os.fspath(self.machine).strip()):
+                raise InputError(f"machine must be a shipped name, a machine file or a Machine, got {self.machine!r}",
+                                 "machine")
             self.machine = api.load_machine(self.machine)
         if five and self.machine.chain.type == "3-axis":
-            raise InputError(f"the finish operation is 5-axis: the machine {self.machine.name} is 3-axis")
+            raise InputError(f"the finish operation is 5-axis: the machine {self.machine.name} is 3-axis", "machine")
         names = {t.name for t in self.tools}
         for k, o in enumerate(self.operations):
             for t in (o.tools or []) + ([o.params["tool"]] if "tool" in o.params else []):
                 if t not in names:
                     raise InputError(f"operation {k + 1} ({o.name}): no tool '{t}' in the tool table "
-                                     f"({', '.join(sorted(names))})")
+                                     f"({', '.join(sorted(names))})", "tool")
+        self.stock.holds(self.part)
+        for name in api.Fixture.overlapping(self.part, self.fixtures):
+            raise InputError(f"fixture '{name}' overlaps the part (deeper than {api.Fixture.TOUCH:g} mm): move it "
+                             "or check the part's set-up (origin, up)", "fixtures")
 
     # ------------------------------------------------------------ running
 
@@ -392,142 +423,97 @@ class Job:
         """Run the operations in order from the stock; returns the :class:`JobResult`.
         ``cluster`` (local workers, a Dask scheduler's address or a Client): the operations and
         the cutting of the in-process stock split there, as each operation splits (the same job)."""
-        from .cluster import connect
-
-        with connect(cluster) as client:
-            return self._run(progress, client)
-
-    def _run(self, progress, client) -> JobResult:
-        from .geometry.mesh import closed_mesh
-        from .kernels.backend import solid_kernels
-        from .ops.simulate import cut_path, measure, simulate_summary
-        from .pathing.verify import verify_toolpath
-        from .simulation import cut as cutting
-        from .simulation.dexel import dexelize
-        from .simulation.surface import machined_mesh, stock_hull
-        from .toolpath.model import Toolpath
-
-        say = progress or (lambda stage: None)
-        t_job = time.perf_counter()
         self._check()
-        device = api._device(self.device)
-        part = self.part
-        stock_mesh = self.stock.solid(part)
-        fix_mesh = _union([f.mesh for f in self.fixtures]) if self.fixtures else None
-        if stock_mesh is not None:
-            bounds = np.array([np.minimum(stock_mesh.bounds[0], part.bounds[0]),
-                               np.maximum(stock_mesh.bounds[1], part.bounds[1])])
-        else:
-            pad = self.stock.allowance + self.step
-            bounds = part.bounds + np.array([[-pad], [pad]])
+        with api.connect(cluster) as client:
+            return self._run(progress or (lambda stage: None), client)
+
+    def _run(self, say, client) -> JobResult:
+        t_job = time.perf_counter()
+        device = api.resolve_device(self.device)
         say("the in-process stock: dexels of the design and the stock")
-        design_model = dexelize(part, self.step, bounds=bounds, device=device, cluster=client)
-        if stock_mesh is None:
-            st = cutting.stock_from_model(design_model, self.stock.allowance)
-        else:
-            st = cutting.stock_from_model(dexelize(stock_mesh, self.step, bounds=bounds, device=device, cluster=client))
-        start_model = st.to_model("stock")
-        floor = float(bounds[0, 2])
-        top = float(bounds[1, 2])
-        if fix_mesh is not None:
-            top = max(top, float(fix_mesh.bounds[1, 2]))
+        stock = self.stock.dexels(self.part, self.step, device=device, cluster=client)
+        top = max([float(stock.state.bounds[1, 2])] + [float(f.solid(self.part).bounds[1, 2]) for f in self.fixtures])
         safe_z = top + self.clearance
-        surface = stock_mesh or closed_mesh(*machined_mesh(start_model)[:2], "stock")
-        if stock_mesh is None:
-            stock_mesh = closed_mesh(*stock_hull(start_model), "stock")
-        fix_kern = solid_kernels(fix_mesh, device) if fix_mesh is not None else None
-        part_kern = solid_kernels(part, device)  # every path verified against it
         results = []
-        # the in-process stock for the next operation: a hull around every dexel (what rapids,
-        # shanks and holders keep clear of) and its surface (what rest depths are measured from)
-        current = stock_mesh
         for k, op in enumerate(self.operations):
-            t_op = time.perf_counter()
-            label = f"operation {k + 1} ({op.name})"
-            say(f"{label}: {op.kind}")
+            result = self._operation(k, op, stock, safe_z, device, say, client)
+            results.append(result)
+            if not result.skipped:
+                stock = result.stock
+        ran = [r for r in results if not r.skipped]
+        if not ran:
+            raise NothingToCut("nothing to cut: every operation was skipped (" +
+                               "; ".join(f"{r.operation.name}: {r.skipped}" for r in results) + ")")
+        return self._program(results, ran, safe_z, device, t_job, say)
 
-            def stage(text, label=label):
-                say(f"{label}: {text}")
+    def _operation(self, k, op, stock, safe_z, device, say, client) -> OperationResult:
+        """Operation ``k`` from the in-process ``stock``: its path, lifted to ``safe_z``, kept out of
+        the fixtures, verified, cut from the stock and timed; or skipped (or refused) when it finds
+        nothing to cut."""
+        t_op = time.perf_counter()
+        label = f"operation {k + 1} ({op.name})"
+        say(f"{label}: {op.kind}")
 
-            res = self._path(op, label, current if self.in_process else None, surface if self.in_process else None,
-                             device, stage, client)
-            tp, trimmed, fixture_check = _linked(res.toolpath, safe_z), 0, None
-            stage("verify against the part and the fixtures")
-            if fix_kern is not None:
-                tp, trimmed, fixture_check = _clear_fixtures(tp, self.tools, fix_kern, safe_z, label)
-            check = verify_toolpath(part_kern, tp, self.tools, self.tolerance)
-            check.pop("problem_moves")
-            op_s = time.perf_counter() - t_op
-            before = start_model.volume if not results else results[-1].stock.volume
-            stage("cut from the in-process stock")
-            t_cut = time.perf_counter()
-            cuts = cut_path(st, tp, self.tools, self.tolerance, "sweep", None, device, client)
-            machined = st.to_model(f"stock after {op.name}")
-            verts, faces, stride = machined_mesh(machined)
-            deviation, volumes, warnings, (pts, e) = measure(machined, start_model, part, design_model, floor,
-                                                             self.tolerance, self.step, device)
-            cut_s = time.perf_counter() - t_cut
-            timed = api.machining_time(tp, self.machine, self.tools).summary
-            errors = list(cuts["errors"])
-            if not check["ok"]:
-                errors.append(f"the path gouges the part or collides with it ({check['gouging_moves']} gouging, "
-                              f"{check['colliding_moves']} colliding moves, max gouge {check['max_gouge']:.4f} mm)")
-            if fixture_check is not None and not fixture_check["ok"]:
-                errors.append(f"the path enters a fixture ({fixture_check['gouging_moves']} cutter, "
-                              f"{fixture_check['colliding_moves']} shank or holder moves)")
-            res.toolpath = tp
-            res.summary["verify"] = check
-            res.summary["job"] = {
-                "number": k + 1, "name": op.name, "folder": f"{k + 1:02d}-{_slug(op.name)}",
-                "ok": not errors, "errors": errors,
-                "in_process_stock": self.in_process, "rest": op.rest,
-                "removed_mm3": before - machined.volume,
-                "left_over_design_mm3": volumes["remaining"],
-                "cutting_mm": cuts["cutting_mm"],
-                "rapid_moves_cutting": cuts["rapid_moves_cutting"], "colliding_moves": cuts["colliding_moves"],
-                "fixtures": None if fixture_check is None else {"trimmed_moves": trimmed, "ok": fixture_check["ok"],
-                                                                 "max_depth": fixture_check["max_gouge"],
-                                                                 "max_collision": fixture_check["max_collision"]},
-                "machining_s": timed["total"]["total_s"], "time": timed,
-                "seconds": {"operation": round(op_s, 3), "cut_and_measure": round(cut_s, 3)},
-            }
-            stock_summary = simulate_summary("sweep", self.step, machined.summary(), len(tp), cuts, volumes, deviation,
-                                             (verts, faces, stride), warnings,
-                                             {"cut": cuts["seconds"], "total": round(cut_s, 3)})
-            stock_summary.update(design=api._part_entry(part), tools_file=api._tools_file(self.tools), device=device)
-            results.append(OperationResult(op, res, machined, (verts, faces), {"points": pts, "e": e}, stock_summary))
-            current = closed_mesh(*stock_hull(machined), f"stock after {op.name}")
-            surface = closed_mesh(verts, faces, f"stock after {op.name}")
-        say("the program")
-        whole = Toolpath.concatenate([r.path.toolpath for r in results])
-        posted = api.post(whole, self.machine, self.tools, clearance=safe_z if self.machine.chain.type != "3-axis"
-                          else None)
-        timed = api.machining_time(whole, self.machine, self.tools).summary
-        final = results[-1].stock_summary
-        summary = {
-            "operation": "job", "name": self.name, "ok": all(r.ok for r in results),
-            "part": api._part_entry(part), "tools_file": api._tools_file(self.tools),
-            "machine": self.machine.summary(), "stock": {**self.stock.summary(), "volume_mm3": start_model.volume},
-            "fixtures": [{"name": f.name, "box": f.mesh.bounds.round(6).tolist()} for f in self.fixtures],
-            "step": self.step, "tolerance": self.tolerance, "in_process": self.in_process, "safe_z": safe_z,
-            "device": device,
-            "operations": [{"name": r.operation.name, "type": r.operation.kind, "folder": r.path.summary["job"]["folder"],
-                            **{kk: r.path.summary["job"][kk] for kk in ("ok", "removed_mm3", "left_over_design_mm3",
-                                                                          "cutting_mm", "machining_s", "errors")},
-                            "verify_ok": r.path.summary["verify"]["ok"]} for r in results],
-            "final": {"design_volume_mm3": final["volumes_mm3"]["design"],
-                      "left_over_design_mm3": final["volumes_mm3"]["remaining"],
-                      "gouged_mm3": final["volumes_mm3"]["gouged"], **final["deviation"]},
-            "program": "", "post": {kk: v for kk, v in posted.report.items() if kk not in ("program",)},
+        def stage(text):
+            say(f"{label}: {text}")
+
+        try:
+            res = self._path(op, label, stock if self.in_process else None, device, stage, client)
+        except NothingToCut as exc:
+            return self._nothing(op, label, str(exc))
+        tp, fixtures = res.toolpath.lifted_to(safe_z), None
+        stage("verify against the part and the fixtures")
+        if self.fixtures:
+            fixtures = api.clear_fixtures(tp, self.tools, self.fixtures, safe_z=safe_z, part=self.part, device=device,
+                                          label=label)
+            tp = fixtures.toolpath
+        check = api.verify(self.part, tp, self.tools, tolerance=self.tolerance, device=device).report
+        op_s = time.perf_counter() - t_op
+        stage("cut from the in-process stock")
+        t_cut = time.perf_counter()
+        cut = api.simulate(self.part, tp, self.tools, step=self.step, stock=stock, tolerance=self.tolerance,
+                           device=device, cluster=client)
+        cut.stock = cut.stock.named(f"stock after {op.name}")
+        cut_s = time.perf_counter() - t_cut
+        removed = stock.volume - cut.stock.volume
+        if removed < REMOVES_NOTHING:
+            return self._nothing(op, label, f"its path removes nothing of the stock ({removed:.3g} mm^3)")
+        timed = api.machining_time(tp, self.machine, self.tools).summary
+        s = cut.summary
+        errors = list(s["errors"])
+        if not check["ok"]:
+            errors.append(f"the path gouges the part or collides with it ({check['gouging_moves']} gouging, "
+                          f"{check['colliding_moves']} colliding moves, max gouge {check['max_gouge']:.4f} mm)")
+        if fixtures is not None and not fixtures.ok:
+            errors.append(f"the path enters a fixture ({fixtures.report['gouging_moves']} cutter, "
+                          f"{fixtures.report['colliding_moves']} shank or holder moves)")
+        res.toolpath = tp
+        res.summary["verify"] = check
+        res.summary["job"] = {
+            "number": k + 1, "name": op.name, "folder": f"{k + 1:02d}-{_slug(op.name)}",
+            "ok": not errors, "errors": errors,
+            "in_process_stock": self.in_process, "rest": op.rest,
+            "removed_mm3": removed,
+            "left_over_design_mm3": s["volumes_mm3"]["remaining"],
+            "cutting_mm": s["cutting_mm"],
+            "rapid_moves_cutting": s["rapid_moves_cutting"], "colliding_moves": s["colliding_moves"],
+            "fixtures": None if fixtures is None else {"trimmed_moves": fixtures.trimmed, "ok": fixtures.ok,
+                                                       "max_depth": fixtures.report["max_gouge"],
+                                                       "max_collision": fixtures.report["max_collision"]},
             "machining_s": timed["total"]["total_s"], "time": timed,
-            "seconds": {"total": round(time.perf_counter() - t_job, 3)},
+            "seconds": {"operation": round(op_s, 3), "cut_and_measure": round(cut_s, 3)},
         }
-        return JobResult(self, results, posted.lines, posted.report, summary)
+        return OperationResult(op, res, cut)
 
-    def _path(self, op: Operation, label, stock, surface, device, stage, client=None):
-        """The operation's :class:`~meshmill.api.PathResult` from the part (and the in-process
-        stock: its hull ``stock`` and its ``surface``, or None), its tools numbered as the job's
-        table."""
+    def _nothing(self, op, label, why) -> OperationResult:
+        """An operation that finds nothing to cut: skipped, or the job refused."""
+        if self.nothing_to_cut == "refuse":
+            raise NothingToCut(f"{label}: {why} (nothing_to_cut = \"skip\" goes on without it)", "nothing_to_cut")
+        return OperationResult(op, None, None, skipped=why)
+
+    def _path(self, op: Operation, label, stock, device, stage, client):
+        """The operation's :class:`~meshmill.results.PathResult` from the part (and the in-process
+        ``stock``, or None), its tools numbered as the job's table."""
         run = OPERATIONS[op.kind]
         params = dict(op.params)
         tools = self.tools
@@ -537,106 +523,63 @@ class Job:
                 tools = [t for t in self.tools if t.name in op.tools]
         if op.kind in ("raster", "waterline") and stock is not None and op.rest is not None:
             params["rest"] = op.rest
-            params["rest_stock"] = surface
         if client is not None and op.kind in ("raster", "waterline", "finish"):
             params["cluster"] = client
         if stock is not None and op.kind != "choose":  # choose links its zones over the part alone
             params["stock"] = stock
-            if op.kind != "plunge":  # the hull's corners are cut by up to half a cell: rapids keep that too
-                params["clearance"] = params.get("clearance", HOLDER_CLEARANCE) + 0.5 * self.step
         try:
             if op.kind == "choose":
                 res = run(self.part, tools=tools, device=device, progress=stage, **params)
             else:
                 res = run(self.part, tools, device=device, progress=stage, **params)
         except InputError as exc:
-            raise InputError(f"{label}: {exc}") from None
+            raise type(exc)(f"{label}: {exc}", exc.params, label) from None
         if res.tools is not self.tools:  # the path's tools numbered as the job's table
+            import numpy as np
+
             names = [t.name for t in self.tools]
             index = np.array([names.index(t.name) for t in res.tools])
             res.toolpath.tool = index[res.toolpath.tool]
             res.tools = self.tools
         return res
 
+    def _program(self, results, ran, safe_z, device, t_job, say) -> JobResult:
+        """The program of the operations that ran, its time, and job.json's summary."""
+        say("the program")
+        whole = api.Toolpath.concatenate([r.path.toolpath for r in ran])
+        posted = api.post(whole, self.machine, self.tools, clearance=safe_z if self.machine.chain.type != "3-axis"
+                          else None)
+        timed = api.machining_time(whole, self.machine, self.tools).summary
+        final = ran[-1].cut.summary
+        start = ran[0].cut.stock.state.start
+        summary = {
+            "operation": "job", "name": self.name, "ok": all(r.ok for r in results),
+            "part": api.part_entry(self.part), "tools_file": api.tools_file(self.tools),
+            "machine": self.machine.summary(), "stock": {**self.stock.summary(), "volume_mm3": start.volume},
+            "fixtures": [{"name": f.name, "box": f.solid(self.part).bounds.round(6).tolist()} for f in self.fixtures],
+            "step": self.step, "tolerance": self.tolerance, "in_process": self.in_process, "safe_z": safe_z,
+            "device": device,
+            "operations": [_entry(r) for r in results],
+            "final": {"design_volume_mm3": final["volumes_mm3"]["design"],
+                      "left_over_design_mm3": final["volumes_mm3"]["remaining"],
+                      "gouged_mm3": final["volumes_mm3"]["gouged"], **final["deviation"]},
+            "program": "", "post": {kk: v for kk, v in posted.report.items() if kk not in ("program",)},
+            "machining_s": timed["total"]["total_s"], "time": timed,
+            "seconds": {"total": round(time.perf_counter() - t_job, 3)},
+        }
+        return JobResult(self, results, posted.lines, posted.report, summary)
 
-def _union(meshes):
-    from .geometry.mesh import mesh_from_arrays
 
-    verts, faces, base = [], [], 0
-    for m in meshes:
-        verts.append(m.vertices)
-        faces.append(m.faces + base)
-        base += len(m.vertices)
-    return mesh_from_arrays(np.vstack(verts), np.vstack(faces), "fixtures")
+def _entry(r: OperationResult) -> dict:
+    """An operation's line in job.json."""
+    if r.skipped:
+        return {"name": r.operation.name, "type": r.operation.kind, "ok": True, "skipped": r.skipped}
+    j = r.path.summary["job"]
+    return {"name": r.operation.name, "type": r.operation.kind, "folder": j["folder"],
+            **{k: j[k] for k in ("ok", "removed_mm3", "left_over_design_mm3", "cutting_mm", "machining_s", "errors")},
+            "verify_ok": r.path.summary["verify"]["ok"]}
 
 
 def _slug(name: str) -> str:
     keep = "".join(c if c.isalnum() else "-" for c in name.lower())
     return "-".join(p for p in keep.split("-") if p) or "operation"
-
-
-def _lift(tip, axis, z):
-    """The tip moved along ``axis`` up to height ``z`` (or straight up where the axis is flat)."""
-    if tip[2] >= z:
-        return tip.copy()
-    return tip + axis * ((z - tip[2]) / axis[2]) if axis[2] > 1e-6 else np.array([tip[0], tip[1], z])
-
-
-def _linked(tp, safe_z):
-    """``tp`` starting and ending on the job's safe plane: a rapid down from above its first
-    point, a rapid up from its last (along the tool axis)."""
-    from .toolpath.model import Toolpath
-
-    if not len(tp):
-        return tp
-    first, last = _lift(tp.tip[0], tp.axis[0], safe_z), _lift(tp.tip[-1], tp.axis[-1], safe_z)
-    return Toolpath(np.vstack([first, tp.tip, last]), np.vstack([tp.axis[:1], tp.axis, tp.axis[-1:]]),
-                    np.r_[True, tp.rapid, True], np.r_[tp.tool[:1], tp.tool, tp.tool[-1:]],
-                    np.r_[0, tp.line, 0], np.r_[np.nan, tp.feed, np.nan], tp.source, list(tp.warnings))
-
-
-def _clear_fixtures(tp, tools, fix_kern, safe_z, label):
-    """``(toolpath, trimmed moves, its check against the fixtures)``: ``tp`` with the moves that
-    bring a cutter, shank or holder into a fixture left out; each stretch left out is linked over
-    (a rapid up the tool axis to ``safe_z``, across, and down to the next point kept at feed).
-    Raises :class:`InputError` when the links themselves enter a fixture."""
-    from .pathing.verify import verify_toolpath
-    from .toolpath.model import Toolpath
-
-    report = verify_toolpath(fix_kern, tp, tools, 0.0)
-    bad = np.zeros(len(tp), bool)
-    bad[report.pop("problem_moves")] = True  # the move into point i
-    if not bad.any():
-        return tp, 0, report
-    # a point is kept when neither move at it enters a fixture
-    keep = ~bad & ~np.r_[bad[1:], False]
-    tips, axes, rapid, tool, feed = [], [], [], [], []
-    prev = None
-    for i in np.nonzero(keep)[0]:
-        if prev is not None and i != prev + 1:  # a stretch left out: link over it
-            a, b = _lift(tp.tip[prev], tp.axis[prev], safe_z), _lift(tp.tip[i], tp.axis[i], safe_z)
-            tips += [a, b]
-            axes += [tp.axis[prev], tp.axis[i]]
-            rapid += [True, True]
-            tool += [tp.tool[prev], tp.tool[i]]
-            feed += [np.nan, np.nan]
-            tips.append(tp.tip[i])  # down at feed: the stretch below was not cut
-            axes.append(tp.axis[i])
-            rapid.append(False)
-        else:
-            tips.append(tp.tip[i])
-            axes.append(tp.axis[i])
-            rapid.append(bool(tp.rapid[i]) if prev is not None else True)
-        tool.append(tp.tool[i])
-        feed.append(tp.feed[i])
-        prev = i
-    if not tips:
-        raise InputError(f"{label}: every move enters a fixture")
-    out = Toolpath(np.array(tips), np.array(axes), np.array(rapid), np.array(tool, np.int64), None,
-                   np.array(feed, float), tp.source, list(tp.warnings))
-    again = verify_toolpath(fix_kern, out, tools, 0.0)
-    again.pop("problem_moves")
-    if not again["ok"]:
-        raise InputError(f"{label}: the path cannot be linked clear of the fixtures ({again['worst'][0]}): raise the "
-                         "job's clearance or move the fixture")
-    return out, int(bad.sum()), again

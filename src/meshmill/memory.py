@@ -55,9 +55,10 @@ def size(n: float) -> str:
     return f"{n:.0f} B"
 
 
-def check(need: float, what: str, change: str, available: int | None = None) -> None:
+def check(need: float, what: str, change: str, params=(), available: int | None = None) -> None:
     """Refuse (``InputError``) a run whose estimate ``need`` (bytes) exceeds ``SHARE`` of the
-    available memory, in one line: ``what`` needs it, ``change`` says which option to change."""
+    available memory, in one line: ``what`` needs it, ``change`` says which options (``params``,
+    by name) to change."""
     avail = available_bytes() if available is None else available
     if need > SHARE * avail:
-        raise InputError(f"{what} need about {size(need)} of memory, {size(avail)} is available: {change}")
+        raise InputError(f"{what} need about {size(need)} of memory, {size(avail)} is available: {change}", params)

@@ -83,4 +83,4 @@ def test_simulation_matches_cpu(setup, runs, name):
     x, y = (simulate(m, path, tools, 2.0, device=dev) for dev in ("cpu", "cuda"))
     assert not EXACT or x[0] == y[0]
     for k in range(3):
-        assert same(x[2].start[k], y[2].start[k]) and same(x[2].iv[k], y[2].iv[k]), k
+        assert same(x[2].model.start[k], y[2].model.start[k]) and same(x[2].model.iv[k], y[2].model.iv[k]), k

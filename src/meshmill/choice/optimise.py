@@ -152,7 +152,7 @@ def _mads(f, x0, lo, hi, kinds, evals, quad, seed, history):
     try:
         import PyNomad
     except ImportError:
-        raise InputError("--optimise needs PyNomadBBO: pip install 'meshmill[optimise]'") from None
+        raise InputError("optimise needs PyNomadBBO: pip install 'meshmill[optimise]'", "optimise") from None
 
     failure = []
 
@@ -214,7 +214,7 @@ def optimise_plan(chooser, k, zones, clusters, plans, evals, seed=0, heuristic=F
         free = free[4:]  # the weights of a single cluster change nothing
     if heuristic:
         if not problem.axes32:
-            raise InputError("the PCA heuristic is a 3+2-axis method (--axes 3+2)")
+            raise InputError("the PCA heuristic is a 3+2-axis method (axes 3+2)", "axes")
         x0[:4] = [1.0] * 4
         modes = [4 + c * problem.per_cluster + 2 for c in range(k)]
         for i in modes:

@@ -71,7 +71,7 @@ def vertex_normals(mesh: Mesh, weighting: str = "area") -> np.ndarray:
     """Unit normal ``(n, 3)`` of every vertex: the incident facet normals weighted by facet area,
     by the facet's angle at the vertex, or uniformly, then normalised."""
     if weighting not in WEIGHTINGS:
-        raise InputError(f"--weighting must be one of {', '.join(WEIGHTINGS)}, got '{weighting}'")
+        raise InputError(f"weighting must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}", "weighting")
     t = triangle_parameters(mesh)
     w = {"area": np.repeat(t["area"][:, None], 3, axis=1), "angle": np.radians(t["angles"]),
          "uniform": np.ones((len(mesh.faces), 3))}[weighting]
@@ -118,9 +118,9 @@ def visibility(mesh: Mesh, direction, weighting="area", bvh=None, device="cpu") 
 def hemisphere(theta_step: float, delta_step: float) -> np.ndarray:
     """Directions ``(k, 3)`` on the upper hemisphere: theta from the pole (0) to the equator (90)
     by ``theta_step`` degrees, delta around by ``delta_step`` (one direction at the pole)."""
-    for name, v in (("--theta-step", theta_step), ("--delta-step", delta_step)):
+    for name, v in (("theta_step", theta_step), ("delta_step", delta_step)):
         if not (math.isfinite(v) and 0 < v <= 90):
-            raise InputError(f"{name} must be in (0, 90] degrees, got {v}")
+            raise InputError(f"{name} must be in (0, 90] degrees, got {v}", name)
     dirs = [(0.0, 0.0, 1.0)]
     for th in np.arange(theta_step, 90.0 + 1e-9, theta_step):
         for de in np.arange(0.0, 360.0 - 1e-9, delta_step):

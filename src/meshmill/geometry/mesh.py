@@ -296,7 +296,7 @@ def _orient(mesh: Mesh, name: str, flip: bool) -> None:
     if flip:
         F = F[:, ::-1].copy()
         mesh.flipped = True
-        mesh.warnings.append(f"{name}: --flip: every face turned over (normals reversed)")
+        mesh.warnings.append(f"{name}: flip: every face turned over (normals reversed)")
     mesh.faces = F.astype(np.int32)
     mesh.piece = comp
     loops, loop_piece = boundary_loops(mesh.faces, comp)
@@ -304,14 +304,14 @@ def _orient(mesh: Mesh, name: str, flip: bool) -> None:
     solid = mesh.piece_kind != SHEET
     if solid.any() and volume[solid].sum() < 0.0:
         raise InputError(f"{name}: the mesh is wound inside out (its closed pieces enclose {volume[solid].sum():.6g} "
-                         "mm^3: the normals point into the material); pass --flip to turn it over")
+                         "mm^3: the normals point into the material); flip turns it over", "flip")
     sheet = mesh.piece_kind == SHEET
     down = sheet & (up < 0.0)
     if down.any() and area[down].sum() > 0.05 * area.sum():  # not for a few stray fragments
         mesh.warnings.append(f"{name}: {int(down.sum())} of {int(sheet.sum())} open surface(s) "
                              f"({100 * area[down].sum() / area[sheet].sum():.0f} % of their area) face mostly away "
                              "from the spindle (-Z): the tool works on the side the normals face and the material "
-                             "is what lies below; if they should face up, pass --flip")
+                             "is what lies below; if they should face up, give flip")
 
 
 def load_mesh(path, flip=False, setup: Setup | None = None) -> Mesh:
@@ -343,7 +343,7 @@ def read_mesh(path, flip=False, setup: Setup | None = None) -> Mesh:
 
     if ext in BREP:
         if setup is not None and setup.units != "mm":
-            raise InputError(f"{path}: a {BREP[ext].upper()} file states its own units (read in mm): leave --units out")
+            raise InputError(f"{path}: a {BREP[ext].upper()} file states its own units (read in mm): leave units out", "units")
         vertices, faces = _read_brep(path, BREP[ext])
         return mesh_from_arrays(vertices, faces, name, flip, setup)
     try:

@@ -289,7 +289,7 @@ def patch_mesh(patch: Patch, step: float = 0.5, chord_tol: float | None = None) 
     for _ in range(8):
         nu, nv = int(math.ceil(len_u / step)) + 1, int(math.ceil(len_v / step)) + 1
         memory.check(NODE_BYTES * float(nu) * nv, f"a mesh step of {step:g} mm: {nu * nv:,} patch nodes",
-                     "use a larger --mesh-step")
+                     "use a larger mesh_step", ("mesh_step",))
         fu, fv = np.linspace(0.0, 1.0, nu), np.linspace(0.0, 1.0, nv)
         su_, sv_ = u0 + (u1 - u0) * fu, v0 + (v1 - v0) * fv
         s, su, sv = patch.grid(su_, sv_)
@@ -358,7 +358,7 @@ def mesh_samples(mesh: Mesh, nu: int = 80, nv: int = 80) -> Samples:
     z, face = _top_hits(mesh.vertices, mesh.faces.astype(np.int64), lo[0], lo[1], dx, dy, nu, nv)
     valid = face >= 0
     if valid.sum() < 3:
-        raise InputError("fewer than 3 cells of the sampling grid see the surface from above: use a finer --grid")
+        raise InputError("fewer than 3 cells of the sampling grid see the surface from above: use a finer grid", "grid")
     iu, iv = np.divmod(np.arange(nu * nv), nv)
     uv = np.column_stack([(iu + 0.5) / nu, (iv + 0.5) / nv])
     normals = mesh.face_normals[np.maximum(face, 0)]

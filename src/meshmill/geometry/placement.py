@@ -1,7 +1,7 @@
 """Where a part sits on the machine: the units of its file, which of its axes points to the
 spindle, and the work zero.
 
-A :class:`Setup` is what the user says (``--units``, ``--up``, ``--origin``); placing a part's
+A :class:`Setup` is what the user says (``units``, ``up``, ``origin``, ``scale``); placing a part's
 vertices by it gives the work frame (mm, +Z toward the spindle, the work zero at the origin) in
 which every operation computes and every path is written: ``work = scale * R @ p + offset``
 (:class:`Placement`). It is applied to the file's coordinates before anything else, welding and
@@ -56,9 +56,9 @@ def _numbers(text: str, what: str) -> list[float]:
     try:
         vals = [float(x) for x in text.replace(" ", "").split(",")]
     except ValueError:
-        raise InputError(f"{what} '{text}': expected numbers separated by commas") from None
+        raise InputError(f"{what} '{text}': expected numbers separated by commas", what) from None
     if not all(math.isfinite(v) for v in vals):
-        raise InputError(f"{what} '{text}': the numbers must be finite")
+        raise InputError(f"{what} '{text}': the numbers must be finite", what)
     return vals
 
 
@@ -80,12 +80,12 @@ def up_rotation(up: str) -> np.ndarray:
         k = np.cross(a, z)  # axis of the quarter turn
         kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
         return np.eye(3) + kx + kx @ kx  # Rodrigues, 90 degrees
-    usage = (f"--up '{up}': give an axis (+X, -Y, ...), three angles RX,RY,RZ in degrees, "
+    usage = (f"up '{up}': give an axis (+X, -Y, ...), three angles RX,RY,RZ in degrees, "
              "or nine numbers (a rotation matrix by rows)")
     try:
-        vals = _numbers(up, "--up")
+        vals = _numbers(up, "up")
     except InputError:
-        raise InputError(usage) from None
+        raise InputError(usage, "up") from None
     if len(vals) == 3:
         rx, ry, rz = (math.radians(v) for v in vals)
         cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
@@ -96,10 +96,10 @@ def up_rotation(up: str) -> np.ndarray:
     if len(vals) == 9:
         m = np.array(vals).reshape(3, 3)
         if not (np.allclose(m @ m.T, np.eye(3), atol=1e-6) and np.linalg.det(m) > 0):
-            raise InputError(f"--up '{up}': the nine numbers are not a rotation (orthonormal rows, determinant +1)")
+            raise InputError(f"up '{up}': the nine numbers are not a rotation (orthonormal rows, determinant +1)", "up")
         u, _, vt = np.linalg.svd(m)  # the nearest exact rotation
         return u @ vt
-    raise InputError(usage)
+    raise InputError(usage, "up")
 
 
 @dataclass(frozen=True)
@@ -117,13 +117,13 @@ class Setup:
 
     def check(self) -> None:
         if self.units not in UNITS:
-            raise InputError(f"--units must be one of {', '.join(UNITS)}, got '{self.units}'")
+            raise InputError(f"units must be one of {', '.join(UNITS)}, got {self.units!r}", "units")
         if isinstance(self.scale, bool) or not isinstance(self.scale, (int, float)) or not (
                 math.isfinite(self.scale) and self.scale > 0):
-            raise InputError(f"--scale must be a positive number, got {self.scale}")
+            raise InputError(f"scale must be a positive number, got {self.scale!r}", "scale")
         up_rotation(self.up)
-        if self.origin not in ORIGINS and len(_numbers(self.origin, "--origin")) != 3:
-            raise InputError(f"--origin '{self.origin}': give one of {', '.join(ORIGINS)} or a point X,Y,Z")
+        if self.origin not in ORIGINS and len(_numbers(self.origin, "origin")) != 3:
+            raise InputError(f"origin '{self.origin}': give one of {', '.join(ORIGINS)} or a point X,Y,Z", "origin")
 
     def place(self, vertices: np.ndarray, name: str = "part"):
         """``(work-frame vertices (n, 3), Placement, warnings)`` of the file's ``vertices (n, 3)``."""
@@ -141,7 +141,7 @@ class Setup:
         elif self.origin == "corner":
             zero = lo.copy()
         else:
-            zero = rot @ (np.array(_numbers(self.origin, "--origin")) * scale)
+            zero = rot @ (np.array(_numbers(self.origin, "origin")) * scale)
         v = v - zero
         placement = Placement(scale=scale, rotation=None if np.array_equal(rot, np.eye(3)) else rot,
                               offset=None if not zero.any() else -zero, units=self.units, up=self.up,
@@ -154,13 +154,13 @@ class Setup:
         if size < SMALL_PART:
             guess = "m" if self.units == "mm" else "mm"
             out.append(f"{name}: the part is only {size:.4g} mm across in {self.units}: if the file is in another unit, "
-                       f"say which (--units {guess}, or cm, in)")
+                       f"say which (units {guess}, or cm, in)")
         elif size > LARGE_PART:
-            out.append(f"{name}: the part is {size:.6g} mm across in {self.units}, larger than a machine: check --units")
+            out.append(f"{name}: the part is {size:.6g} mm across in {self.units}, larger than a machine: check units")
         centre = 0.5 * (v.min(axis=0) + v.max(axis=0))
         far = float(np.linalg.norm(centre))
         if far > max(FAR, 10.0 * size):
             out.append(f"{name}: the part lies {far:.6g} mm from the work zero (slow and imprecise to compute there, "
-                       "and far from any machine's travel): --origin bottom-centre, top-centre, corner or a point "
+                       "and far from any machine's travel): origin bottom-centre, top-centre, corner or a point "
                        "puts the work zero on the part")
         return out

@@ -355,7 +355,7 @@ def slice_contours(mesh: Mesh, levels: np.ndarray, sample: float, arc_step: floa
     lo = np.searchsorted(asc, tz.min(axis=1), side="right")
     hi = np.searchsorted(asc, tz.max(axis=1), side="right")
     cnt = hi - lo
-    memory.check(CUT_BYTES * float(cnt.sum()), f"{int(cnt.sum()):,} triangle cuts", "use a larger --step-down")
+    memory.check(CUT_BYTES * float(cnt.sum()), f"{int(cnt.sum()):,} triangle cuts", "use a larger step_down", ("step_down",))
     tri_idx = np.repeat(np.arange(len(F)), cnt)
     lvl_idx = (np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(lo, cnt))
     if len(V) ** 2 * max(1, len(asc)) >= 2 ** 62:
@@ -380,7 +380,7 @@ def slice_contours(mesh: Mesh, levels: np.ndarray, sample: float, arc_step: floa
     empty = np.empty((0, 3))
     counts = _emit(False, *args, empty, empty, np.empty(0))
     total = int(counts.sum())
-    memory.check(POINT_BYTES * float(total), f"{total:,} CC points", "use a larger --step-down or --sample")
+    memory.check(POINT_BYTES * float(total), f"{total:,} CC points", "use a larger step_down or sample", ("step_down", "sample"))
     out_p = np.empty((total, 3))
     out_n = np.empty((total, 3))
     out_r = np.ones(total)

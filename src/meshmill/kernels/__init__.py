@@ -24,3 +24,9 @@ def _cache_dir():
 
 if not os.environ.get("NUMBA_CACHE_DIR"):
     numba.config.CACHE_DIR = _cache_dir()
+
+# The threading layer of the parallel loops, pinned: GNU OpenMP where it loads, else numba's own
+# workqueue; never the system's TBB, whose pool can keep a finished process from exiting (a core
+# at 100 % after the result is written; numba #10556). An explicit NUMBA_THREADING_LAYER wins.
+if not os.environ.get("NUMBA_THREADING_LAYER") and not os.environ.get("NUMBA_THREADING_LAYER_PRIORITY"):
+    numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]

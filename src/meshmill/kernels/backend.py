@@ -38,7 +38,7 @@ def _simulated() -> bool:
 def resolve(device: str) -> str:
     """``"cpu"`` or ``"cuda"`` for a ``--device`` value (raises :class:`InputError`)."""
     if device not in DEVICES:
-        raise InputError(f"--device must be one of {', '.join(DEVICES)}, got '{device}'")
+        raise InputError(f"device must be one of {', '.join(DEVICES)}, got {device!r}", "device")
     if device == "cpu":
         return "cpu"
     if device == "auto" and _simulated():
@@ -46,8 +46,8 @@ def resolve(device: str) -> str:
     if cuda_available():
         return "cuda"
     if device == "cuda":
-        raise InputError("--device cuda: no usable CUDA GPU (numba.cuda.is_available() is false); "
-                         "use --device cpu or auto")
+        raise InputError("device cuda: no usable CUDA GPU (numba.cuda.is_available() is false); use device cpu or auto",
+                         "device")
     return "cpu"
 
 
@@ -127,7 +127,8 @@ class LineCaster:
 
     def __init__(self, index, device: str = "cpu"):
         if device == "cuda" and index[0] != "bvh":
-            raise InputError("the cells and k-means indexes run on the CPU only: use --index bvh with --device cuda")
+            raise InputError("the cells and k-means indexes run on the CPU only: use index bvh with device cuda",
+                             ("index", "device"))
         self.impl = implementation(device)
         if device == "cuda":
             from types import SimpleNamespace

@@ -151,7 +151,7 @@ class _Axes:
         """InputError for a rotary word that is not one of the machine's axes."""
         if self.machine is None:
             raise InputError(f"{where}: unsupported word {word}: rotary axes are read through the machine's "
-                             "kinematics; give the machine (--machine, e.g. table-table-ac or head-table-bc)")
+                             "kinematics; give the machine (machine, e.g. table-table-ac or head-table-bc)", "machine")
         if not self.five_axis:
             raise InputError(f"{where}: unsupported word {word}: {self.machine.name} is a 3-axis machine")
         raise InputError(f"{where}: unsupported word {word}: {self.machine.name} has no {word[0]} axis "
@@ -241,7 +241,7 @@ def _apply_g_codes(modes, gcodes, where, axes):
             modes.tcp = False
         elif g in TCP_ON:
             raise InputError(f"{where}: {g} (tool centre point control) needs a 5-axis machine "
-                             f"({'give it: --machine' if axes.machine is None else axes.machine.name + ' has 3 axes'})")
+                             f"({'give it: machine' if axes.machine is None else axes.machine.name + ' has 3 axes'})", "machine")
         elif g in END_RETRACT:
             retract = g
         elif g in REFUSED_G:

@@ -250,3 +250,38 @@ def programmed_feeds(path, line, gcode, tip=None) -> tuple[np.ndarray, list[str]
         warnings.append(f"{os.path.basename(path)}: {len(bad)} {word}(s) not honoured (first at line {bad[0]}): "
                         "not a positive feed per minute; the machine's feed there")
     return feed, warnings
+
+
+def path_times(tp, machine, tools, feed=None) -> tuple[dict, list[str]]:
+    """``(figures, notes)``: the machining time of Toolpath ``tp`` on ``machine`` per tool and in
+    total (:func:`tool_times`), ``feed`` mm/min on every feed move (default: as programmed, else
+    the machine's); the rotaries bound a move's time where the axis turns on a 5-axis machine."""
+    from ..errors import InputError
+
+    feed_move = ~tp.rapid[1:]
+    if feed is not None:
+        per_s, unset = np.full(len(tp), feed / 60.0), 0
+        notes = [f"feed {feed:g} mm/min on every feed move (as given)"]
+    else:
+        per_s = np.asarray(tp.feed, float) / 60.0
+        unset = int((feed_move & np.isnan(per_s[1:])).sum())
+        nominal = f"the machine's {machine.motion.feed * 60.0:g} mm/min"
+        if not unset:
+            notes = ["feeds as programmed"]
+        elif unset == feed_move.sum():
+            notes = [f"no feed programmed: every feed move at {nominal}"]
+        else:
+            notes = [f"{unset} of {feed_move.sum()} feed moves without a programmed feed: {nominal}"]
+    rotary = None
+    if len(tp) and np.ptp(tp.axis, axis=0).max() > 1e-9:
+        if machine.chain.type == "3-axis":
+            notes.append("the tool axis turns along the path: rotary-axis motion is not timed on a 3-axis machine")
+        else:
+            try:
+                rotary = rotary_seconds(machine, tp.tip, tp.axis, tools, tp.tool)
+                notes.append(f"rotary axes at {machine.rotary_rapid * 60.0:g} deg/min bound each move's time")
+            except InputError as exc:
+                notes.append(f"rotary-axis motion is not timed ({exc})")
+    times = tool_times(tp.tip, tp.rapid, tp.tool, machine, per_s, rotary)
+    return {"feed_moves": int(feed_move.sum()), "feed_moves_at_machine_feed": unset,
+            "tools": {tools[t].name: entry for t, entry in times["tools"].items()}, "total": times["total"]}, notes

@@ -21,13 +21,13 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import InputError
 from ..kernels.backend import solid_kernels
 from ..machine.timing import path_time
+from ..params import ChooseParams
 from ..tolerances import GOUGE_TOL
 from ..tools.table import Tool
 from ..choice import clustering
@@ -39,49 +39,8 @@ from ..geometry.mesh import SUPPORTED, Mesh, load_mesh
 from ..pathing.zigzag import frame_rotation
 from ..pathing.verify import DEFAULT_STEP, verify_toolpath
 
-CLUSTERS = ("kmeans", "rpcl", "ward")
 HEURISTIC_TILTS = (0.0, 15.0, -15.0, 30.0, -30.0)  # degrees about X_II tried in 3+2
 CHORD_SHARE = 0.25  # a patch's triangles stay within this share of the gouge tolerance of it
-
-
-@dataclass
-class ChooseParams:
-    scallop: float
-    zones: int | None = None  # None: auto
-    axes: str = "3"
-    optimise: int = 0
-    grid: int = 80
-    mesh_step: float = 0.5
-    sample: float = 0.5
-    cluster: str = "kmeans"
-    metric: str = "euclidean"
-    k_max: int = 6
-    min_zone: float = 0.01
-    seed: int = 0
-
-    def check(self):
-        if not (isinstance(self.scallop, (int, float)) and math.isfinite(self.scallop) and self.scallop > 0):
-            raise InputError(f"--scallop must be a positive number of mm, got {self.scallop}")
-        if self.zones is not None and not 1 <= self.zones <= 50:
-            raise InputError(f"--zones must be 'auto' or an integer from 1 to 50, got {self.zones}")
-        if self.axes not in ("3", "3+2"):
-            raise InputError(f"--axes must be 3 or 3+2, got {self.axes}")
-        if self.optimise < 0:
-            raise InputError(f"--optimise must be a number of evaluations >= 0, got {self.optimise}")
-        if not 4 <= self.grid <= 400:
-            raise InputError(f"--grid must be from 4 to 400 cells a side, got {self.grid}")
-        for name in ("mesh_step", "sample"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and 0.01 <= v <= 50):
-                raise InputError(f"--{name.replace('_', '-')} must be from 0.01 to 50 mm, got {v}")
-        if self.cluster not in CLUSTERS:
-            raise InputError(f"--cluster must be one of {', '.join(CLUSTERS)}, got {self.cluster}")
-        if self.metric not in clustering.METRICS:
-            raise InputError(f"--metric must be one of {', '.join(clustering.METRICS)}, got {self.metric}")
-        if not (math.isfinite(self.min_zone) and 0 <= self.min_zone < 1):
-            raise InputError(f"--min-zone must be a fraction of the cells from 0 to below 1, got {self.min_zone}")
-        if not 1 <= self.k_max <= 20:
-            raise InputError(f"--k-max must be from 1 to 20, got {self.k_max}")
 
 
 def tool_pair(spec: str) -> list[Tool]:
@@ -90,9 +49,10 @@ def tool_pair(spec: str) -> list[Tool]:
     try:
         d, r = (float(x) for x in spec.split(","))
     except ValueError:
-        raise InputError(f"--tool-pair wants 'DIAMETER,CORNER_RADIUS' in mm (e.g. 10,2), got '{spec}'") from None
+        raise InputError(f"tool_pair wants 'DIAMETER,CORNER_RADIUS' in mm (e.g. 10,2), got '{spec}'", "tool_pair") \
+            from None
     if not (math.isfinite(d) and math.isfinite(r) and d > 0 and 0 < r < d / 2):
-        raise InputError(f"--tool-pair {spec}: need a diameter > 0 and 0 < corner radius < diameter/2")
+        raise InputError(f"tool_pair {spec}: need a diameter > 0 and 0 < corner radius < diameter/2", "tool_pair")
     body = dict(diameter=d, flute_length=3 * d, gauge_length=5 * d, shank_diameter=d)
     return [Tool(name=f"BALL{d:g}", type="ball", corner_radius=d / 2, number=1, **body),
             Tool(name=f"BULL{d:g}R{r:g}", type="bull", corner_radius=r, number=2, **body)]
@@ -155,11 +115,10 @@ class Chooser:
     """Zoning, candidate plans and their evaluation for one surface; see the module docstring."""
 
     def __init__(self, samples, smesh, tools, machine, params: ChooseParams, device="cpu", say=None):
-        params.check()
         smallest = min(tools, key=lambda t: t.corner_radius)
         if params.scallop >= smallest.corner_radius:
-            raise InputError(f"--scallop {params.scallop:g} mm is not smaller than {smallest.name}'s corner radius "
-                             f"{smallest.corner_radius:g} mm: no stepover leaves it")
+            raise InputError(f"scallop {params.scallop:g} mm is not smaller than {smallest.name}'s corner radius "
+                             f"{smallest.corner_radius:g} mm: no stepover leaves it", "scallop")
         self.params, self.machine, self.tools = params, machine, tools
         self.say = say or (lambda stage: None)
         self.samples, self.smesh = samples, smesh
@@ -267,7 +226,7 @@ class Chooser:
 
         p = self.params
         runs = []
-        for k in ([p.zones] if p.zones is not None else range(1, p.k_max + 1)):
+        for k in ([p.zones] if p.zones not in (None, "auto") else range(1, p.k_max + 1)):
             self.say(f"zoning K={k}")
             zones, clusters = self.zoning(k)
             plans, tried = self.best_plans(zones)
@@ -383,7 +342,6 @@ def choose(surface, tools, machine, params: ChooseParams, progress=None, device=
     tool path verified against the surface."""
     say = progress or (lambda stage: None)
     t_all = time.perf_counter()
-    params.check()
     samples, smesh, described = load_surface(surface, params) if isinstance(surface, str) else surface
     chooser = Chooser(samples, smesh, candidate_tools(tools), machine, params, device, say)
     result, zones, clusters, summary = chooser.run()

@@ -24,18 +24,18 @@ import dataclasses
 import functools
 import math
 import time
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.spatial import cKDTree
 
 from ..progress import PIECES, Meter, ranges
-from ..errors import InputError
+from ..errors import InputError, NothingToCut
 from ..geometry.analysis import sample_surface
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import MIN_HALF_COS, concat_contours, contour_runs, slice_contours, z_levels
 from ..kernels.backend import solid_kernels
-from ..tolerances import FLOAT32_ROUNDING, GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE, WRITE_ROUNDING
+from ..params import FinishParams
+from ..simulation.stock import Stock
+from ..tolerances import FLOAT32_ROUNDING, WRITE_ROUNDING
 from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
 from .finish_levels import added_contours
@@ -51,51 +51,11 @@ REPAIR_ROUNDS = 7
 LINKS = ((True, False, False), (True, True, False), (False, False, False), (False, True, False), (False, False, True),
          (False, True, True))
 NO_LEAD = 2
-SCALLOP_MIN_SLOPE = 10.0  # deg from the horizontal: flatter surfaces are rastered, not Z-levelled (--scallop)
+SCALLOP_MIN_SLOPE = 10.0  # deg from the horizontal: flatter surfaces are rastered, not Z-levelled (scallop)
 AREA_SAMPLES = 2_000_000  # most points sampled on the design to say what each status of the CC points stands for
 POLE_MARGIN = 2.0  # deg: for a 5-axis machine, no move swings the axis nearer its rotaries' pole than this ...
 POLE_STEP = 10.0  # ... and C turns at most this much in one move (deg): the azimuth goes round in steps
 MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
-
-
-@dataclass
-class FinishParams:
-    step_down: float
-    sample: float = 0.5
-    max_tilt: float = 60.0  # degrees from +Z
-    tilt_step: float = 5.0  # degrees
-    order: str = "contour"  # contour | tool
-    safe_z: float | None = None
-    tol: float = GOUGE_TOL
-    clearance: float = HOLDER_CLEARANCE
-    lead: float = 2.0  # mm, lead-in/out along the outward side
-    stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
-    min_run: float = 1.0  # mm: a stretch of a contour that a ball fits, shorter than this, is left out
-    scallop: float | None = None  # mm: levels added where the surface is shallow, so that scallops stay under it
-    whole_contours: bool = False  # seed 004: one tool per contour, none where a point fits no ball
-
-    def check(self):
-        for name in ("step_down", "sample", "tilt_step", "max_tilt", "tol", "clearance", "lead", "safe_z",
-                     "stock_allowance", "min_run"):
-            v = getattr(self, name)
-            if v is None and name == "safe_z":
-                continue
-            flag = "--" + {"tol": "tolerance"}.get(name, name).replace("_", "-")
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise InputError(f"{flag} must be a finite number, got {v}")
-            if name in ("step_down", "sample", "tilt_step") and v <= 0:
-                raise InputError(f"{flag} must be a positive number, got {v}")
-        if self.step_down < 1e-4 or self.sample < 1e-4:
-            raise InputError("--step-down and --sample must be at least 0.0001 mm")
-        if not 0.0 <= self.max_tilt < 90.0:
-            raise InputError(f"--max-tilt must be in [0, 90) degrees, got {self.max_tilt}")
-        if self.order not in ("contour", "tool"):
-            raise InputError(f"--order must be 'contour' or 'tool', got {self.order!r}")
-        if self.scallop is not None and (isinstance(self.scallop, bool) or not isinstance(self.scallop, (int, float))
-                                         or not (math.isfinite(self.scallop) and self.scallop > 0)):
-            raise InputError(f"--scallop must be a positive number of mm, got {self.scallop}")
-        if self.tol < 0 or self.clearance < 0 or self.lead < 0 or self.stock_allowance < 0 or self.min_run < 0:
-            raise InputError("--tolerance, --clearance, --lead, --stock-allowance and --min-run must not be negative")
 
 
 def tilt_candidates(max_tilt_deg: float, step_deg: float):
@@ -483,7 +443,7 @@ def _run_tools(best, con, centre_dir, radii, params, kern):
     offsets = np.r_[0, np.cumsum([len(p) for p in pieces])]
     piece_of = np.repeat(np.arange(len(pieces)), np.diff(offsets))
     tool = _contour_tools(np.asarray(ranks)[piece_of], offsets, piece_of, con.points[order], centre_dir[order], radii,
-                          params.tol, kern)
+                          params.tolerance, kern)
     point_tool[order] = tool[piece_of]
     return point_tool, short, short_points
 
@@ -527,7 +487,7 @@ def _smaller_balls(point_tool, choice, con, centre_dir, side, radii, params, ker
         new = np.full(len(todo), -1, np.int64)
         for t in np.unique(point_tool[todo]) + 1:
             sel = point_tool[todo] + 1 == t
-            res = kern.largest_ball(con.points[todo[sel]], centre_dir[todo[sel]], radii[t:], params.tol)
+            res = kern.largest_ball(con.points[todo[sel]], centre_dir[todo[sel]], radii[t:], params.tolerance)
             new[sel] = np.where(res >= 0, t + res, -1)
         tried[todo[new < 0]] = True
         todo, new = todo[new >= 0], new[new >= 0]
@@ -658,22 +618,22 @@ class _ClusterCheck:
         return self.client.gather(futures)
 
 
-def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", stock=None, machine=None,
-           cluster=None):
+def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", machine=None, cluster=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, detail)``.
 
     ``tools``: the whole tool table (ball tools are used); ``progress(stage)`` is called as each
-    stage starts; ``stock``: a closed :class:`Mesh` of the material the finish starts from (else
-    the part with ``params.stock_allowance`` on it), which rapids keep ``params.clearance`` from.
-    ``detail`` holds per-point arrays for reports and tests. ``machine``: the 5-axis
-    :class:`~meshmill.machine.model.Machine` the path is for: no move swings the axis past the
-    pole of its rotaries (:func:`around_pole`).
+    stage starts; ``params.stock``: the material the finish starts from (a
+    :class:`~meshmill.simulation.stock.Stock`; default the part with ``STOCK_ALLOWANCE`` on it),
+    which rapids keep ``params.clearance`` from. ``detail`` holds per-point arrays for reports and
+    tests. ``machine``: the 5-axis :class:`~meshmill.machine.model.Machine` the path is for: no
+    move swings the axis past the pole of its rotaries (:func:`around_pole`).
     """
-    params.check()
+    stock, allowance, margin = Stock.of(params.stock, "offset").material(mesh)
     # kept under the tolerance by what writing the path and the part moves them (the files verify)
-    tolerance = params.tol
-    params = dataclasses.replace(params, tol=max(0.0, tolerance - WRITE_ROUNDING - FLOAT32_ROUNDING *
-                                                 float(np.abs(mesh.bounds).max())))
+    tolerance = params.tolerance
+    params = dataclasses.replace(params, tolerance=max(0.0, tolerance - WRITE_ROUNDING - FLOAT32_ROUNDING *
+                                                       float(np.abs(mesh.bounds).max())),
+                                 clearance=params.clearance + margin)
     say = progress or (lambda stage: None)
     seconds = {}
     t_all = time.perf_counter()
@@ -682,23 +642,24 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         raise InputError("the tool table has no ball tool: finish needs ball-end tools")
     radii = np.array([t.radius for t in balls])
     zmin, zmax = mesh.bounds[:, 2]
-    top = max(zmax, stock.bounds[1, 2]) if stock is not None else zmax + params.stock_allowance
+    top = max(zmax, stock.bounds[1, 2]) if stock is not None else zmax + allowance
     lowest_ball = radii.max() * (1.0 - math.cos(math.radians(params.max_tilt)))
     if params.safe_z is None:
         safe_z = max(zmax + 5.0, top + params.clearance + 1.0) + lowest_ball
     else:
         safe_z = params.safe_z
         if safe_z <= top + params.clearance + lowest_ball:
-            raise InputError(f"--safe-z {safe_z:g} is too low: it must be above {top + params.clearance + lowest_ball:.3f} "
-                             "mm (the stock's top, the clearance, and what a tilted ball hangs below its tip)")
+            raise InputError(f"safe_z {safe_z:g} is too low: it must be above {top + params.clearance + lowest_ball:.3f} "
+                             "mm (the stock's top, the clearance, and what a tilted ball hangs below its tip)", "safe_z")
     levels = z_levels(zmin, zmax, params.step_down)
     if len(levels) == 0:
-        raise InputError(f"--step-down {params.step_down:g} is larger than the part height {zmax - zmin:g} mm: no contour")
+        raise NothingToCut(f"step_down {params.step_down:g} is larger than the part height {zmax - zmin:g} mm: no contour",
+                         "step_down")
 
     say("index")
     t = time.perf_counter()
     kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device for every stage
-    rapid_stock = StockCheck(allowance=0.0 if stock is not None else params.stock_allowance,
+    rapid_stock = StockCheck(allowance=0.0 if stock is not None else allowance,
                              kern=solid_kernels(stock, device) if stock is not None else None,
                              clearance=params.clearance)
     seconds["index"] = time.perf_counter() - t
@@ -711,7 +672,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     if params.scallop is not None:
         def piece_tools(c):
             cd = c.normals * c.reach[:, None]
-            return _run_tools(_largest_balls(kern, c, cd, radii, params.tol), c, cd, radii, params, kern)[0]
+            return _run_tools(_largest_balls(kern, c, cd, radii, params.tolerance), c, cd, radii, params, kern)[0]
 
         added, scallop = added_contours(mesh, levels, zmin, zmax, radii, params.scallop, params.sample, arc_step,
                                         piece_tools, SCALLOP_MIN_SLOPE)
@@ -724,11 +685,11 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     t = time.perf_counter()
     centre_dir = con.normals * con.reach[:, None]  # ball centre = CC + R·centre_dir
     best = _by_contours(cluster, con.offsets, (con.points, con.reach, centre_dir),
-                        lambda p: largest_balls(kern, *p[:3], radii, params.tol), balls_piece,
-                        dict(part=mesh, device=device, radii=radii, tol=params.tol), say, "tools")
+                        lambda p: largest_balls(kern, *p[:3], radii, params.tolerance), balls_piece,
+                        dict(part=mesh, device=device, radii=radii, tol=params.tolerance), say, "tools")
     fits = best >= 0
     if params.whole_contours:
-        contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tol, kern)
+        contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tolerance, kern)
         point_tool = contour_tool[contour_of]
         short_runs = short_points = 0
     else:
@@ -740,7 +701,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     side = np.cross(con.feed, [0.0, 0.0, 1.0])
     cand, cand_tilt = tilt_candidates(params.max_tilt, params.tilt_step)
     # shank and holder keep the clearance from the part, and stay out of the allowance on it
-    body, _ = pack_cylinders(balls, params.tol, max(params.clearance, rapid_stock.allowance))
+    body, _ = pack_cylinders(balls, params.tolerance, max(params.clearance, rapid_stock.allowance))
     slack = math.radians(params.tilt_step) + 1e-9
     centres = con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir
     choice = _by_contours(cluster, con.offsets, (centres, con.feed, side, point_tool),
@@ -766,7 +727,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     if params.scallop is not None:
         say("shallow areas")
         t = time.perf_counter()
-        shallow = shallow_fill(mesh, kern, balls, params.scallop, SCALLOP_MIN_SLOPE, params.sample, params.tol,
+        shallow = shallow_fill(mesh, kern, balls, params.scallop, SCALLOP_MIN_SLOPE, params.sample, params.tolerance,
                                max(params.clearance, rapid_stock.allowance), params.min_run)
         seconds["shallow"] = time.perf_counter() - t
 
@@ -820,31 +781,31 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
             first += size
     if not passes:
         smallest = min(radii)
-        raise InputError(f"nothing to cut: of {len(con)} contour(s), {int((contour_tool >= 0).sum())} fit a ball of "
+        raise NothingToCut(f"nothing to cut: of {len(con)} contour(s), {int((contour_tool >= 0).sum())} fit a ball of "
                          f"the table (smallest R {smallest:g} mm) and none has a collision-free axis within "
-                         f"--max-tilt {params.max_tilt:g}; add smaller or longer tools")
+                         f"max_tilt {params.max_tilt:g}; add smaller or longer tools", "max_tilt")
     if params.order == "tool":
         passes.sort(key=lambda p: (p["rank"], p["shallow"], p["contour"]))
     gentle = None
     if machine is not None and machine.chain.type != "3-axis":
         gentle = machine.chain.singular
     builder = _PathBuilder(tip, axis, side, safe_z, params.lead,
-                           approach=rapid_stock.allowance + rapid_stock.clearance + params.tol,
+                           approach=rapid_stock.allowance + rapid_stock.clearance + params.tolerance,
                            radius=np.array([t.radius for t in tools]), gentle=gentle,
                            reach=None if stock is None else functools.partial(
-                               rapid_reach, kern, tools, params.tol, rapid_stock))
+                               rapid_reach, kern, tools, params.tolerance, rapid_stock))
     seconds["path"] = time.perf_counter() - t
 
     say("verify")
     t = time.perf_counter()
     step = min(DEFAULT_STEP, params.sample)
     if cluster is not None:  # ranges of moves on the workers: the same reports
-        parts = _ClusterCheck(cluster, mesh, stock, rapid_stock, tools, params.tol, step, device, say)
+        parts = _ClusterCheck(cluster, mesh, stock, rapid_stock, tools, params.tolerance, step, device, say)
     else:
         def parts(path, only):
-            return check_parts(kern, path, tools, params.tol, step, rapid_stock, only, progress=say)
+            return check_parts(kern, path, tools, params.tolerance, step, rapid_stock, only, progress=say)
     # each round of repairs checks only the moves it changed
-    check = Reverify(parts, params.tol, step, rapid_stock.summary())
+    check = Reverify(parts, params.tolerance, step, rapid_stock.summary())
     dropped = 0
     for rnd in range(REPAIR_ROUNDS + 1):
         tp, owner, role = builder.build(passes)
@@ -863,8 +824,8 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     report.pop("problem_moves")
     report["repair_rounds"] = rnd
     if not passes:
-        raise InputError("nothing left to cut: every pass failed verification (try --lead 0, a larger --max-tilt "
-                         "or other tools)")
+        raise NothingToCut("nothing left to cut: every pass failed verification (try lead 0, a larger max_tilt or "
+                         "other tools)", ("lead", "max_tilt"))
     seconds["verify"] = time.perf_counter() - t
 
     cut_all = np.zeros(len(tip), bool)
@@ -898,7 +859,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         contacts, contact_status = np.zeros((0, 3)), np.zeros(0, np.int64)
     point_status = np.r_[status, contact_status].astype(np.int64)
     raster_reach = shallow.spacing if shallow is not None else 0.0
-    areas = surface_areas(mesh, kern, radii, params.tol, params.max_tilt, params.sample,
+    areas = surface_areas(mesh, kern, radii, params.tolerance, params.max_tilt, params.sample,
                           np.vstack([con.points, contacts]), point_status, npts if shallow is not None else None,
                           raster_reach)
     if scallop is not None:
@@ -913,7 +874,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "order": params.order,
         "safe_z": safe_z,
         "tolerance": tolerance,
-        "tolerance_kept": params.tol,
+        "tolerance_kept": params.tolerance,
         "clearance": params.clearance,
         "stock": rapid_stock.summary(),
         "levels": int(len(np.unique(con.z))),

@@ -34,13 +34,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import replace
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, NothingToCut
 from ..geometry.shapes import box
-from ..kernels.backend import solid_kernels
+from ..kernels.backend import resolve, solid_kernels
+from ..params import PlungeParams
 from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE
 from ..toolpath.model import Toolpath
 from ..pathing.dropcutter import pick_tool
@@ -48,28 +49,6 @@ from ..pathing.verify import DEFAULT_STEP, StockCheck, verify_toolpath
 
 ARC_STEP = math.radians(5.0)  # largest angle of a chord of the 5-axis linking moves
 REACH_SAMPLES = 64  # positions along a plunge line looked at before the first contact is bisected
-
-
-@dataclass
-class PlungeParams:
-    """Plunge roughing settings, mm (steps of the 5-axis hemisphere in degrees)."""
-
-    radial_step: float
-    engagement: float
-    allowance: float
-    clearance: float = 5.0
-    theta_step: float = 15.0
-    delta_step: float = 30.0
-    regions: int = 0
-    device: str = "cpu"  # where the drop-cutter and the verification run: "cpu" or "cuda"
-
-    def check(self):
-        for name, v, low in (("--radial-step", self.radial_step, 1e-3), ("--engagement", self.engagement, 1e-3),
-                             ("--allowance", self.allowance, 0.0), ("--clearance", self.clearance, 0.0)):
-            if not (math.isfinite(v) and v >= low):
-                raise InputError(f"{name} must be a number of mm >= {low:g}, got {v}")
-        if not (isinstance(self.regions, int) and self.regions >= 0):
-            raise InputError(f"--regions must be a whole number >= 0, got {self.regions}")
 
 
 def tool_frame(u) -> tuple[np.ndarray, np.ndarray]:
@@ -225,7 +204,8 @@ def _verified(mesh, tools, index, tips, axes, rapid, say, device, stock: BoxStoc
     """The tool path of the plunges and its verification report (a clear error when empty): rapids
     keep out of the stock's box."""
     if not tips:
-        raise InputError("no plunge removes stock: the part fills its box (nothing to rough) or the allowance is too large")
+        raise NothingToCut("nothing to cut: no plunge removes stock (the part fills its box, or the allowance is too "
+                          "large)", "allowance")
     tp = Toolpath(np.array(tips, np.float64), np.array(axes, np.float64), np.array(rapid),
                   np.full(len(tips), index, np.int64))
     say("verify")
@@ -275,23 +255,35 @@ def _turned_drop(mesh, tool, allowance, centre, u, floor, device):
     return frame, grown_tool_drop(tool, allowance, solid_kernels(turned, device, bottom), floor)
 
 
-def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None, stock_box=None):
-    """3-axis plunge roughing of ``mesh`` from its box, or from ``stock_box (2, 3)`` (mm, a stock
-    box holding the part: plunges cover its XY and start at its top). Returns ``(toolpath,
-    summary)``."""
-    params.check()
+def stock_box(stock, mesh) -> np.ndarray:
+    """``(2, 3)``: the box of ``stock`` (a :class:`~meshmill.simulation.stock.Stock`, a closed
+    mesh, or None: the part's box) around ``mesh``."""
+    from ..simulation.stock import Stock
+
+    stock = Stock.of(stock)
+    if stock is None:
+        return mesh.bounds
+    solid, allowance, _ = stock.material(mesh)
+    return solid.bounds if solid is not None else mesh.bounds + np.array([[-1.0], [1.0]]) * allowance
+
+
+def plunge3(mesh, tools, tool_name, params: PlungeParams, progress=None):
+    """3-axis plunge roughing of ``mesh`` from the box of ``params.stock`` (default: the part's
+    box; plunges cover its XY and start at its top). Returns ``(toolpath, summary)``."""
     say = progress or (lambda stage: None)
+    params = replace(params, device=resolve(params.device))
     index, tool = pick_tool(tools, tool_name)
     t0 = time.perf_counter()
-    bounds = mesh.bounds if stock_box is None else np.asarray(stock_box, float)
+    bounds = stock_box(params.stock, mesh)
     z_min, z_max = float(mesh.bounds[0, 2]), float(bounds[1, 2])
     if params.engagement > 2 * tool.radius:
-        raise InputError(f"--engagement {params.engagement:g} mm is wider than the tool ({tool.diameter:g} mm): "
-                         "stock would be left between the contours")
+        raise InputError(f"engagement {params.engagement:g} mm is wider than the tool ({tool.diameter:g} mm): "
+                         "stock would be left between the contours", "engagement")
     rings = contours(bounds, params.engagement, params.radial_step)
     n_points = sum(len(r) for r in rings)
     if n_points > 5_000_000:
-        raise InputError(f"{n_points:,} plunge points: use a larger --radial-step or --engagement")
+        raise InputError(f"{n_points:,} plunge points: use a larger radial_step or engagement",
+                         ("radial_step", "engagement"))
     say(f"{len(rings)} contours, {n_points} plunge points")
     drop = grown_tool_drop(tool, params.allowance, solid_kernels(mesh, params.device), z_min)
     stock = BoxStock(bounds, tool, params.device)
@@ -357,8 +349,8 @@ def plunge5(mesh, tools, tool_name, params: PlungeParams, progress=None):
     """5-axis plunge roughing from the hemisphere of directions. Returns ``(toolpath, summary)``."""
     from ..geometry.analysis import hemisphere
 
-    params.check()
     say = progress or (lambda stage: None)
+    params = replace(params, device=resolve(params.device))
     index, tool = pick_tool(tools, tool_name)
     t0 = time.perf_counter()
     lo, hi = mesh.bounds

@@ -12,55 +12,21 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
 from .. import memory
-from ..errors import InputError
+from ..errors import InputError, NothingToCut
 from ..kernels.backend import solid_kernels
 from ..geometry.mesh import Mesh
-from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
 from ..pathing.scallop import stepover
-from ..pathing.dropcutter import (ToolDrop, body_grow, check_stock_params, drop_refined_on, drop_refined_pieces,
-                                  pick_tool, safe_height, stock_check, verified_path)
+from ..params import RasterParams
+from ..pathing.dropcutter import ToolDrop, drop_refined_on, drop_refined_pieces, pick_tool, stock_for, verified_path
 from ..pathing.rest import REST_JOIN, REST_LEAD, in_material, material_runs
 from ..pathing.verify import DEFAULT_STEP
 
 CL_BYTES = 200  # one dropped point of a pass, its contact and its share of the tool path and verification
-
-
-@dataclass
-class RasterParams:
-    stepover: float | None = None
-    scallop: float | None = None
-    angle: float = 0.0  # degrees from X
-    sample: float = 0.5
-    tol: float = GOUGE_TOL
-    stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
-    clearance: float = HOLDER_CLEARANCE  # mm rapids keep from the stock
-    allowance: float = 0.0  # mm of material left on the part (the tool kept that far from it)
-    rest: float | None = None  # mm: with a stock, leave out the pass pieces that remove less (rest machining)
-
-    def check(self):
-        if (self.stepover is None) == (self.scallop is None):
-            raise InputError("give exactly one of --stepover and --scallop")
-        for name in ("stepover", "scallop", "sample"):
-            v = getattr(self, name)
-            if v is not None and not (math.isfinite(v) and v > 0):
-                raise InputError(f"--{name} must be a positive number, got {v}")
-        if not math.isfinite(self.angle):
-            raise InputError(f"--angle must be a finite number, got {self.angle}")
-        if not (math.isfinite(self.tol) and self.tol > 0):
-            raise InputError(f"--tolerance must be a positive number, got {self.tol}")
-        check_stock_params(self)
-        if self.sample < 1e-3:
-            raise InputError("--sample must be at least 0.001 mm")
-        if not (math.isfinite(self.allowance) and self.allowance >= 0):
-            raise InputError(f"--allowance must be a number of mm >= 0, got {self.allowance}")
-        if self.rest is not None and not (math.isfinite(self.rest) and self.rest >= 0):
-            raise InputError(f"--rest must be a depth of material >= 0 mm, got {self.rest}")
 
 
 def effective_radius(tool) -> float:
@@ -70,7 +36,8 @@ def effective_radius(tool) -> float:
         return tool.radius
     if tool.type == "bull":
         return tool.corner_radius
-    raise InputError(f"tool '{tool.name}' is flat: its scallop height is not defined, use --stepover")
+    raise InputError(f"tool '{tool.name}' is flat: its scallop height is not defined, give stepover instead of scallop",
+                     ("stepover", "scallop"))
 
 
 def stepover_for_scallop(scallop: float, r_eff: float) -> float:
@@ -106,19 +73,15 @@ def raster_lines(bounds, radius, stepover, angle_deg, sample):
     return pieces, n_lines, float((t1 - t0) / max(n_lines - 1, 1))
 
 
-def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=None,
-           device: str = "cpu", stock=None, rest_stock=None, cluster=None):
+def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=None, device: str = "cpu", cluster=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary)``.
-    ``stock``: a closed :class:`Mesh` of the material it starts from (else the part with
-    ``params.stock_allowance`` on it), which rapids keep ``params.clearance`` from; with
+    ``params.stock``: the material it starts from (:func:`~meshmill.pathing.dropcutter.stock_for`),
+    which rapids keep ``params.clearance`` from; with
     ``params.rest`` only the pieces of the passes that remove more than that depth of it are cut
     (:mod:`meshmill.pathing.rest`), with a lead of 1.5 samples on each side; ``cluster``: a
-    ``distributed.Client`` the passes are dropped on in pieces (the same path); ``rest_stock`` (a closed Mesh) is the surface those
-    depths are measured from when it is not ``stock`` (the job's: the stock's own surface, where
-    ``stock`` is a hull around it)."""
-    params.check()
-    if params.rest is not None and stock is None:
-        raise InputError("--rest needs --stock: the material the operation starts from")
+    ``distributed.Client`` the passes are dropped on in pieces (the same path); the depths are
+    measured from the stock's surface."""
+    params, rapid_stock, grow, safe_z, rest_kern = stock_for(mesh, params, device)
     say = progress or (lambda stage: None)
     index, tool = pick_tool(tools, tool_name)
     seconds = {}
@@ -128,7 +91,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     bounds = mesh.bounds
     extent = bounds[1, :2] - bounds[0, :2] + 2 * tool.radius
     estimate = (extent.max() * 1.5 / stepover + 1) * (extent.max() * 1.5 / params.sample + 1)
-    memory.check(CL_BYTES * estimate, f"about {estimate:.3g} CL points", "use a larger --stepover or --sample")
+    memory.check(CL_BYTES * estimate, f"about {estimate:.3g} CL points", "use a larger stepover or sample", ("stepover", "sample"))
     say("index")
     t = time.perf_counter()
     kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device from here on
@@ -139,16 +102,14 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     xy = np.concatenate(pieces)
     if cluster is not None:  # pieces of the passes dropped on the workers: the same tips
         shared = dict(part=mesh, tool=tool, floor=float(bounds[0, 2]), grow=params.allowance,
-                      body_grow=body_grow(stock, params), chord_tol=0.5 * params.tol, min_step=params.sample / 64,
+                      body_grow=grow, chord_tol=0.5 * params.tolerance, min_step=params.sample / 64,
                       device=device)
         tips = drop_refined_on(cluster, xy, shared, say)
     else:
         tips = drop_refined_pieces(xy, ToolDrop(tool, kern, float(bounds[0, 2]), grow=params.allowance,
-                                                body_grow=body_grow(stock, params)), 0.5 * params.tol,
+                                                body_grow=grow), 0.5 * params.tolerance,
                                    params.sample / 64, say)
     dropped = len(tips)
-    rapid_stock = stock_check(stock, params, device)
-    rest_kern = solid_kernels(rest_stock, device) if rest_stock is not None else rapid_stock.kern
     passes, rest = [tips], None
     if params.rest is not None:
         inside = in_material(tips, tool, rest_kern, params.rest)
@@ -156,12 +117,14 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
         kept = sum(len(p) for p in passes)
         rest = {"min_depth": params.rest, "points_in_material": int(inside.sum()), "points_left_out": int(dropped - kept),
                 "runs": len(passes)}
-    passes = [simplify_polyline(p, 0.5 * params.tol) for p in passes]
+        if not passes:
+            raise NothingToCut(f"nothing to cut: no piece of the passes removes more than rest {params.rest:g} mm of the "
+                               "stock", "rest")
+    passes = [simplify_polyline(p, 0.5 * params.tolerance) for p in passes]
     seconds["drop"] = time.perf_counter() - t
-    safe_z = safe_height(mesh, stock, params)
     say("verify")
     t = time.perf_counter()
-    tp, report, passes = verified_path(passes, index, tools, kern, safe_z, params.tol, DEFAULT_STEP, rapid_stock,
+    tp, report, passes = verified_path(passes, index, tools, kern, safe_z, params.tolerance, DEFAULT_STEP, rapid_stock,
                                        say)
     seconds["verify"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
@@ -173,7 +136,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
         "stepover_used": spacing,
         "scallop": params.scallop,
         "sample": params.sample,
-        "tolerance": params.tol,
+        "tolerance": params.tolerance,
         "allowance": params.allowance,
         "safe_z": safe_z,
         "stock": rapid_stock.summary(),

@@ -23,16 +23,17 @@ import numpy as np
 from .. import memory
 from ..cluster import PIECES_PER_WORKER, check_workers, share, submit, wait, worker_cached, workers
 from ..progress import ranges
-from ..geometry import shapes
 from ..kernels.backend import MeshKernels
 from ..kernels.bvh import build_bvh
 from ..kernels.cpu_dexel import TILE
 from ..simulation import cut as cutting
-from ..simulation.deviation import join_measures, measure_lines, nearest_end
+from ..params import OUTPUTS
+from ..simulation.deviation import join_measures, measure_lines, measured, nearest_end
 from ..simulation.dexel import LINE_BYTES, TRIANGLE_BYTES, cast_rows, lattice, lattice_summary, material_mesh, \
     uneven_lines_warning
 from ..simulation.surface import empty_field, field_rows, field_surface, mesh_grid, outward, snap_lines
-from .simulate import OUTPUTS, cut_figures, measured, path_moves, prepare, simulate_summary
+from ..simulation.stock import cut_figures, path_moves
+from .simulate import prepare, simulate_summary
 
 HELD_LINE_BYTES = 200  # a line kept on a worker: its design, stock and cut dexels (CSR, about two each)
 SAMPLE_BYTES = 64  # a machined dexel gathered for deviation.npz: its two ends (points and deviations)
@@ -113,18 +114,19 @@ def snap_block(shared: dict, block: Block, cut: tuple, verts) -> tuple:
     return snap_lines(verts, shared["lo"], shared["n"], shared["step"], block.a, *cut[:2], block.first_row)
 
 
-def simulate_on(client, design, toolpath, tools, step, stock="box", allowance=None, tolerance=0.01, mode="sweep",
-                progress=None, device="cpu", outputs=OUTPUTS):
+def simulate_on(client, design, toolpath, tools, step, stock, tolerance=0.01, mode="sweep", progress=None,
+                device="cpu", outputs=OUTPUTS):
     """:func:`meshmill.ops.simulate.simulate` by blocks of lines on the workers of ``client`` (a
-    ``distributed.Client``): the same arguments and results, but the machined model is None
-    (this process never holds it)."""
+    ``distributed.Client``) from a described ``stock``: the same arguments and results, but the
+    stock after it is None (this process never holds it)."""
     say = progress or (lambda _: None)
     t0 = time.perf_counter()
-    bounds, warnings = prepare(design, toolpath, tools, step, stock, allowance, tolerance, outputs)
+    bounds, warnings = prepare(design, toolpath, tools, step, stock, tolerance, outputs)
     floor = float(bounds[0, 2])
     lo, n = lattice(bounds, step)
     material = material_mesh(design, floor)
-    stock_part = None if allowance is not None else (shapes.box(*design.bounds) if stock == "box" else stock)
+    allowance = stock.allowance if stock.kind == "offset" else None
+    stock_part = stock.solid(design)
     stock_mesh = None if stock_part is None else material_mesh(stock_part, floor)
     count = PIECES_PER_WORKER * workers(client)
     pieces = [(a, rows) for a in range(3) for rows in ranges(-(-int(n[(a + 1) % 3]) // TILE), count)]
@@ -137,7 +139,7 @@ def simulate_on(client, design, toolpath, tools, step, stock="box", allowance=No
     check_workers(client, 1.5 * HELD_LINE_BYTES * lines / workers(client) + LINE_BYTES * block
                   + TRIANGLE_BYTES * triangles + cutting.MOVE_BYTES * len(moves),
                   f"simulating {len(moves):,} moves over {lines:,} dexel lines in blocks",
-                  "use more workers, or a coarser --step")
+                  "use more workers, or a coarser step")
     handle = share(client, dict(design=(material, design), stock=None if stock_part is None else (stock_mesh, stock_part),
                                 allowance=allowance, lo=lo, n=n, step=float(step), device=device))
     blocks = [submit(client, block_models, handle, p) for p in pieces]
@@ -169,7 +171,7 @@ def simulate_on(client, design, toolpath, tools, step, stock="box", allowance=No
     samples = "deviation" in outputs
     if samples:
         memory.check(SAMPLE_BYTES * sum(d for d, _ in done), "gathering the deviation of every machined dexel end",
-                     "leave deviation out of --outputs (say --outputs summary,mesh)")
+                     "leave deviation out of outputs (say outputs summary,mesh)", ("outputs",))
     parts = [submit(client, measure_block, handle, b, c, tolerance, samples) for b, c in zip(blocks, cuts)]
     wait(parts, say, "measuring")
     parts = client.gather(parts)

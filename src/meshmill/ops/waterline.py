@@ -18,20 +18,19 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 
 import numba
 import numpy as np
 
 from ..progress import Meter
 from .. import memory
-from ..errors import InputError
+from ..errors import InputError, NothingToCut
 from ..kernels.backend import solid_kernels
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import z_levels
-from ..tolerances import GOUGE_TOL, HOLDER_CLEARANCE, STOCK_ALLOWANCE
 from ..toolpath.linking import simplify_polyline
-from ..pathing.dropcutter import ToolDrop, body_grow, check_stock_params, pick_tool, safe_height, stock_check, verified_path
+from ..params import WaterlineParams
+from ..pathing.dropcutter import ToolDrop, pick_tool, stock_for, verified_path
 from ..pathing.rest import REST_JOIN, REST_LEAD, densify, in_material, loop_runs
 from ..pathing.dropgrid import DropGrid
 from ..pathing.verify import DEFAULT_STEP
@@ -39,30 +38,6 @@ from ..pathing.verify import DEFAULT_STEP
 REFINE_ROUNDS = 8  # chord refinement rounds of a loop
 NODE_BYTES = 64  # one node of the drop grid: heights, contacts, bounds and the level masks
 PROBES = np.array([0.5, 0.25, 0.75, 0.125, 0.375, 0.625, 0.875])  # where chords are checked
-
-
-@dataclass
-class WaterlineParams:
-    step_down: float
-    sample: float = 0.5
-    tol: float = GOUGE_TOL
-    stock_allowance: float = STOCK_ALLOWANCE  # mm earlier operations left on the part: rapids keep clear of it
-    clearance: float = HOLDER_CLEARANCE  # mm rapids keep from the stock
-    allowance: float = 0.0  # mm of material left on the part (the tool kept that far from it)
-    rest: float | None = None  # mm: with a stock, leave out the loop pieces that remove less (rest machining)
-
-    def check(self):
-        for name in ("step_down", "sample", "tol"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise InputError(f"--{name.replace('_', '-').replace('tol', 'tolerance')} must be a positive number, got {v}")
-        if self.sample < 1e-3 or self.step_down < 1e-4:
-            raise InputError("--sample must be at least 0.001 mm and --step-down at least 0.0001 mm")
-        check_stock_params(self)
-        if not (math.isfinite(self.allowance) and self.allowance >= 0):
-            raise InputError(f"--allowance must be a number of mm >= 0, got {self.allowance}")
-        if self.rest is not None and not (math.isfinite(self.rest) and self.rest >= 0):
-            raise InputError(f"--rest must be a depth of material >= 0 mm, got {self.rest}")
 
 
 @numba.njit(cache=True)
@@ -276,34 +251,31 @@ def level_piece(shared: dict, levels) -> list:
     return found
 
 
-def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progress=None,
-              device: str = "cpu", stock=None, rest_stock=None, cluster=None):
+def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progress=None, device: str = "cpu",
+              cluster=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, passes)`` with ``passes`` a list of
     ``(z, (k, 3) array)`` from the top level down: closed loops (first point repeated at the end),
-    or pieces of loops where a stretch could not be cut without gouging. ``stock``: a closed
-    :class:`Mesh` of the material it starts from (else the part with ``params.stock_allowance`` on
-    it), which rapids keep ``params.clearance`` from; with ``params.rest`` only the pieces of the
-    loops that remove more than that depth of it are cut (:mod:`meshmill.pathing.rest`), with a
-    lead of 1.5 samples on each side, measured from ``rest_stock`` (a closed Mesh) where given
-    (the job's: the stock's own surface, where ``stock`` is a hull around it); ``cluster``: a
-    ``distributed.Client`` groups of levels are found on (the same loops)."""
-    params.check()
-    if params.rest is not None and stock is None:
-        raise InputError("--rest needs --stock: the material the operation starts from")
+    or pieces of loops where a stretch could not be cut without gouging. ``params.stock``: the
+    material it starts from (:func:`~meshmill.pathing.dropcutter.stock_for`), which rapids keep
+    ``params.clearance`` from; with ``params.rest`` only the pieces of the loops that remove more
+    than that depth of it are cut (:mod:`meshmill.pathing.rest`), with a lead of 1.5 samples on
+    each side, measured from its surface; ``cluster``: a ``distributed.Client`` groups of levels
+    are found on (the same loops)."""
+    params, rapid_stock, grow, safe_z, rest_kern = stock_for(mesh, params, device)
     say = progress or (lambda stage: None)
     index, tool = pick_tool(tools, tool_name)
     reach = max(tool.radius, 0.5 * tool.shank_diameter, 0.5 * tool.holder_diameter)  # outside it: no contact
     bounds = mesh.bounds
     levels = z_levels(bounds[0, 2], bounds[1, 2], params.step_down)
     if len(levels) == 0:
-        raise InputError(f"--step-down {params.step_down:g} is larger than the part height "
-                         f"{bounds[1, 2] - bounds[0, 2]:g} mm: no level")
+        raise NothingToCut(f"step_down {params.step_down:g} is larger than the part height "
+                         f"{bounds[1, 2] - bounds[0, 2]:g} mm: no level", "step_down")
     spacing = params.sample
     lo = bounds[0, :2] - reach - 2 * spacing
     hi = bounds[1, :2] + reach + 2 * spacing
     nx = int(math.ceil((hi[0] - lo[0]) / spacing)) + 1
     ny = int(math.ceil((hi[1] - lo[1]) / spacing)) + 1
-    memory.check(NODE_BYTES * float(nx) * ny, f"{nx:,} x {ny:,} grid points", "use a larger --sample")
+    memory.check(NODE_BYTES * float(nx) * ny, f"{nx:,} x {ny:,} grid points", "use a larger sample", ("sample",))
     seconds = {}
     t_all = time.perf_counter()
     say("index")
@@ -315,7 +287,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     xs = lo[0] + (hi[0] - lo[0]) * np.arange(nx) / (nx - 1)
     ys = lo[1] + (hi[1] - lo[1]) * np.arange(ny) / (ny - 1)
     drop = ToolDrop(tool, kern, float(bounds[0, 2]) - 1.0, grow=params.allowance,
-                    body_grow=body_grow(stock, params))
+                    body_grow=grow)
     grid = DropGrid(drop, xs, ys)
     cx = 0.5 * (xs[:-1] + xs[1:])
     cy = 0.5 * (ys[:-1] + ys[1:])
@@ -329,7 +301,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
         from ..progress import ranges
 
         shared = dict(part=mesh, device=device, tool=tool, floor=float(bounds[0, 2]) - 1.0, grow=params.allowance,
-                      body_grow=body_grow(stock, params), xs=xs, ys=ys, tol=params.tol, spacing=spacing)
+                      body_grow=grow, xs=xs, ys=ys, tol=params.tolerance, spacing=spacing)
         groups = [levels[a:b] for a, b in ranges(len(levels), PIECES_PER_WORKER * workers(cluster))]
         for found in run_pieces(cluster, level_piece, shared, groups, say, "levels"):
             loops += found
@@ -337,13 +309,11 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
         centre_cache = {}
         meter = Meter(say, "levels", len(levels))
         for z in levels:
-            found, grid_s = _level_loops(z, grid, drop, cx, cy, centre_cache, params.tol, spacing)
+            found, grid_s = _level_loops(z, grid, drop, cx, cy, centre_cache, params.tolerance, spacing)
             loops += found
             seconds["grid"] += grid_s
             meter.done()
     seconds["levels"] = time.perf_counter() - t_levels - seconds["grid"]
-    rapid_stock = stock_check(stock, params, device)
-    rest_kern = solid_kernels(rest_stock, device) if rest_stock is not None else rapid_stock.kern
     rest = None
     if params.rest is not None:  # the pieces of the loops in the stock's material, at sample spacing
         dense = [densify(p, params.sample) for _, p in loops]
@@ -355,14 +325,17 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
             if i.all():
                 pieces.append((z, p))  # as it was: whole in material
             else:
-                pieces += [(z, simplify_polyline(r, 0.25 * params.tol)) for r in loop_runs(d, i, REST_LEAD * params.sample, REST_JOIN * tool.diameter)]
+                pieces += [(z, simplify_polyline(r, 0.25 * params.tolerance)) for r in loop_runs(d, i, REST_LEAD * params.sample, REST_JOIN * tool.diameter)]
         rest = {"min_depth": params.rest, "points_in_material": n_in, "points_tested": n_all, "runs": len(pieces),
                 "loops_before": len(loops)}
         loops = pieces
-    safe_z = safe_height(mesh, stock, params)
+    if not loops:
+        why = f"removes more than rest {params.rest:g} mm of the stock" if params.rest is not None else \
+            "meets the part at any level"
+        raise NothingToCut(f"nothing to cut: no loop {why}", "rest" if params.rest is not None else ())
     say("verify")
     t = time.perf_counter()
-    tp, report, kept = verified_path([p for _, p in loops], index, tools, kern, safe_z, params.tol, DEFAULT_STEP,
+    tp, report, kept = verified_path([p for _, p in loops], index, tools, kern, safe_z, params.tolerance, DEFAULT_STEP,
                                      rapid_stock, say)
     loops = [(float(p[0, 2]), p) for p in kept]
     seconds["verify"] = time.perf_counter() - t
@@ -373,7 +346,7 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
         "step_down": params.step_down,
         "sample": params.sample,
         "grid_spacing": spacing,
-        "tolerance": params.tol,
+        "tolerance": params.tolerance,
         "allowance": params.allowance,
         "safe_z": safe_z,
         "stock": rapid_stock.summary(),

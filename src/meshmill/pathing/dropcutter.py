@@ -1,7 +1,6 @@
 """The whole 3-axis tool dropped onto a mesh: cutter, shank and holder together."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
@@ -19,36 +18,49 @@ TOUCH_ROUNDS = 80
 REPAIR_ROUNDS = 3
 
 
-def check_stock_params(params):
-    """Refuse a negative or non-finite ``stock_allowance`` or ``clearance`` of an operation's params."""
-    for name in ("stock_allowance", "clearance"):
-        v = getattr(params, name)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
-            raise InputError(f"--{name.replace('_', '-')} must be a number of mm >= 0, got {v}")
+def stock_check(solid, allowance: float, clearance: float, device) -> StockCheck:
+    """What the rapids of an operation keep clear of: the ``solid`` stock mesh if given (with the
+    design itself), else the design with ``allowance`` mm on it; ``clearance`` mm away."""
+    if solid is not None:
+        return StockCheck(allowance=0.0, kern=solid_kernels(solid, device), clearance=clearance)
+    return StockCheck(allowance=allowance, clearance=clearance)
 
 
-def stock_check(stock, params, device) -> StockCheck:
-    """What the rapids of an operation keep clear of: the ``stock`` mesh if given (with the design
-    itself), else the design with ``params.stock_allowance`` on it; ``params.clearance`` away."""
-    from ..kernels.backend import solid_kernels
-
-    if stock is not None:
-        return StockCheck(allowance=0.0, kern=solid_kernels(stock, device), clearance=params.clearance)
-    return StockCheck(allowance=params.stock_allowance, clearance=params.clearance)
-
-
-def body_grow(stock, params) -> float:
+def body_grow(solid, allowance: float) -> float:
     """How far a 3-axis operation's shank and holder keep from the design: out of the material
-    ``params.stock_allowance`` on it (a ``stock`` mesh is left to the check and repair of
+    ``allowance`` mm on it (a ``solid`` stock mesh is left to the check and repair of
     :func:`verified_path`)."""
-    return 0.0 if stock is not None else float(params.stock_allowance)
+    return 0.0 if solid is not None else float(allowance)
 
 
-def safe_height(mesh, stock, params) -> float:
+def safe_height(mesh, solid, allowance: float, clearance: float) -> float:
     """The plane of a 3-axis operation's rapids: ``SAFE_ABOVE`` over the part, and at least the
-    clearance and 1 mm over the stock."""
-    top = max(mesh.bounds[1, 2], stock.bounds[1, 2]) if stock is not None else mesh.bounds[1, 2] + params.stock_allowance
-    return float(max(mesh.bounds[1, 2] + SAFE_ABOVE, top + params.clearance + 1.0))
+    clearance and 1 mm over the stock (``solid``, else the part with ``allowance`` on it)."""
+    top = max(mesh.bounds[1, 2], solid.bounds[1, 2]) if solid is not None else mesh.bounds[1, 2] + allowance
+    return float(max(mesh.bounds[1, 2] + SAFE_ABOVE, top + clearance + 1.0))
+
+
+def stock_for(mesh, params, device):
+    """A 3-axis operation's ``params.stock`` (a :class:`~meshmill.simulation.stock.Stock`, default
+    the part with ``STOCK_ALLOWANCE`` on it) as it uses it: ``(params with the clearance grown by
+    the stock's margin, what rapids keep clear of (StockCheck), how far the shank and holder keep
+    from the design, the safe plane, the kernels ``params.rest`` depths are measured from or None)``."""
+    from dataclasses import replace
+
+    from ..simulation.stock import Stock
+
+    stock = Stock.of(params.stock, "offset")
+    solid, allowance, margin = stock.material(mesh)
+    params = replace(params, clearance=params.clearance + margin)
+    check = stock_check(solid, allowance, params.clearance, device)
+    rest_kern = None
+    if params.rest is not None:
+        surface = stock.rest_surface(mesh)
+        if surface is None:
+            raise InputError("rest needs a stock to measure depths from: a mesh, a box, or a saved or in-process stock "
+                             "(not the part offset)", ("rest", "stock"))
+        rest_kern = check.kern if surface is solid else solid_kernels(surface, device)
+    return params, check, body_grow(solid, allowance), safe_height(mesh, solid, allowance, params.clearance), rest_kern
 
 
 def pick_tool(tools, name):
@@ -56,7 +68,7 @@ def pick_tool(tools, name):
     for i, t in enumerate(tools):
         if t.name == name:
             return i, t
-    raise InputError(f"no tool named '{name}' in the table (have: {', '.join(t.name for t in tools)})")
+    raise InputError(f"tool: no tool named '{name}' in the table (have: {', '.join(t.name for t in tools)})", "tool")
 
 
 class ToolDrop:

@@ -127,7 +127,7 @@ def sample_moves(tp: Toolpath, tools, step: float):
         cosang = np.clip(np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1]), -1.0, 1.0)
         dang[1:] = np.arccos(cosang) * reach[1:]
     n = np.maximum(1, np.ceil(np.maximum(dtip, dang) / step))
-    memory.check(POSE_BYTES * float(n.sum()), f"{n.sum():,.0f} poses {step:g} mm apart", "use a larger --step")
+    memory.check(POSE_BYTES * float(n.sum()), f"{n.sum():,.0f} poses {step:g} mm apart", "use a larger step", ("step",))
     n = n.astype(np.int64)
     n[0] = 1
     move = np.repeat(np.arange(k), n)

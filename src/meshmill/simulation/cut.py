@@ -453,7 +453,7 @@ def _cut_on(client, stock: Stock, moves: Moves, boxes, hit, progress, device) ->
             peak = max(peak, 16.0 * (l1 - l0) + 2 * 16.0 * (len(iv) + SLACK * (l1 - l0)) + 24.0 * len(iv))
     # and the moves with, per direction it cuts, their frame, constants, boxes and tiles
     check_workers(client, peak + MOVE_BYTES * len(moves), f"cutting {len(moves):,} moves in blocks of dexel lines",
-                  "use more workers, or a coarser --step")
+                  "use more workers, or a coarser step")
     pieces.sort(key=lambda p: -len(p[3]))  # the largest blocks first: the slow ones do not come last
     shared = dict(moves=moves, boxes=boxes, lo=stock.lo, n=stock.n, step=stock.step, device=device)
     done = run_pieces(client, cut_rows, shared, pieces, progress, "cutting")

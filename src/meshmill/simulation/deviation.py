@@ -33,8 +33,12 @@ import numpy as np
 
 from ..kernels.bvh import build_bvh
 from ..kernels.backend import MeshKernels
-from .dexel import DexelModel
+from ..progress import PIECES, Meter, ranges
+from .dexel import DexelModel, line_rows, material_mesh
 from .exactsum import ROOM, expansion, grow, total
+
+DEVIATION_KEYS = ("Sa", "Sq", "Sp", "Sv", "Sz", "gouge_max", "excess_max", "within_tolerance",
+                  "removed_volume", "remaining_volume")
 
 
 @numba.njit(cache=True)
@@ -313,3 +317,67 @@ def surface_parameters(points: np.ndarray, e: np.ndarray, tolerance: float) -> d
         "excess_samples": int(np.sum(e > tolerance)),
         "samples": int(len(e)),
     }
+
+
+def measure(machined, start_model, design, design_model, floor, tolerance, step, device="cpu", samples=True,
+            progress=None):
+    """The machined dexel model against the design: ``(deviation dict, volumes dict (mm^3),
+    warnings, (points (k, 3), e (k,)))`` the dexel ends and their signed deviations (mm; None
+    without ``samples``). The stock's own ends inside the design (``start_model`` short of it) are
+    not counted as gouges; ``floor`` is the Z an open design's solid reaches down to. Measured in
+    blocks of lattice rows (the same figures), the share done told to ``progress``."""
+    # an open design: deviations to the solid it bounds (its sheets, curtains and floor)
+    material = material_mesh(design, floor)
+    kern = MeshKernels(build_bvh(material.vertices, material.faces), device)
+    lo, n = machined.lo, machined.n
+    blocks = [(machined.start[a], machined.iv[a]) for a in range(3)]
+    cuts = [(a, i0, i1) for a in range(3) for i0, i1 in ranges(int(n[(a + 1) % 3]), PIECES // 3)]
+    meter = Meter(progress, "measuring", sum(len(m.iv[a]) for m in (machined, design_model) for a in range(3)))
+    parts = []
+    for a, i0, i1 in cuts:
+        def rows(m):
+            return line_rows(m.start[a], m.iv[a], int(n[(a + 2) % 3]), i0, i1)
+
+        cut, design_rows = rows(machined), rows(design_model)
+        parts.append(measure_lines(lo, n, step, a, i0, cut, rows(start_model), design_rows, kern, tolerance, samples))
+        meter.done(len(cut[1]) + len(design_rows[1]))
+    away, depth = (np.concatenate([p[k] for p in parts]) for k in ("away_points", "away_depth"))
+    nearest = np.min([nearest_end(lo, n, step, a, 0, blocks[a], away, depth) for a in range(3)],
+                     axis=0) if len(away) else None
+    deviation, volumes, warnings = measured(join_measures(parts, nearest, step), tolerance, step)
+    return deviation, volumes, warnings, ((np.concatenate([p["points"] for p in parts]),
+                                           np.concatenate([p["e"] for p in parts])) if samples else (None, None))
+
+
+def measured(m: dict, tolerance: float, step: float) -> tuple[dict, dict, list]:
+    """``(deviation, volumes, warnings)`` of the summary from :func:`~meshmill.simulation.deviation.join_measures`."""
+    warnings = []
+    vol = m["volumes"]
+    outside = vol["design_outside_stock"]
+    if outside > 1e-6 * max(vol["design"], 1.0):
+        warnings.append(f"{outside:.3f} mm^3 of the design lies outside the stock: the stock is short of the design "
+                        "there (not counted as gouged by the path)")
+    removed = vol["stock"] - vol["machined"]
+    gouged = max(0.0, vol["design_cut"] - outside)
+    deviation = {k: m[k] for k in DEVIATION_KEYS[:8]}
+    deviation.update(removed_volume=removed, remaining_volume=vol["remaining"])
+    cut_pts, cut_depth = m["away_points"], m["away_depth"]
+    deep = int(np.argmax(cut_depth)) if len(cut_depth) else -1
+    short, short_low = m["short"], m["short_low"]
+    deviation.update(units="mm, mm^3", tolerance=tolerance, gouge_at=m["gouge_at"], excess_at=m["excess_at"],
+                     gouged_volume=gouged, samples=m["samples"], stock_short_ends=short,
+                     stock_short_max=-short_low[0] if short else 0.0,
+                     stock_short_at=short_low[1].round(6).tolist() if short else None,
+                     design_ends_cut_away=int(len(cut_depth)),
+                     cut_away_depth_max=float(cut_depth[deep]) if deep >= 0 else 0.0,
+                     cut_away_at=cut_pts[deep].round(6).tolist() if deep >= 0 else None)
+    if short and -short_low[0] > tolerance:
+        warnings.append(f"the stock lies inside the design at {short} dexel end(s) the path does not cut, "
+                        f"up to {-short_low[0]:.3f} mm at {deviation['stock_short_at']}: the stock is short of the "
+                        "design there (not a gouge of this path)")
+    if deep >= 0 and cut_depth[deep] > max(tolerance, step):
+        warnings.append(f"{len(cut_depth)} design dexel end(s) cut away, up to {cut_depth[deep]:.3f} mm deep at "
+                        f"{cut_pts[deep].round(3).tolist()} (a bound; gouged volume {gouged:.3f} mm^3)")
+    volumes = {"design": vol["design"], "stock": vol["stock"], "machined": vol["machined"],
+               "removed": removed, "remaining": vol["remaining"], "gouged": gouged}
+    return deviation, volumes, warnings

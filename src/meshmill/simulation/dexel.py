@@ -90,15 +90,15 @@ def lattice(bounds: np.ndarray, step: float, pad: int = 1) -> tuple[np.ndarray, 
     """``(lo (3,), n (3,))``: a lattice of ``step`` cells centred on ``bounds (2, 3)`` with ``pad``
     empty cells on every side."""
     if not (math.isfinite(step) and step > 0):
-        raise InputError(f"--step must be a positive number of mm, got {step}")
+        raise InputError(f"step must be a positive number of mm, got {step}", "step")
     bounds = np.asarray(bounds, float)
     ext = bounds[1] - bounds[0]
     n = np.ceil(ext / step).astype(np.int64) + 2 * pad
     n = np.maximum(n, 1)
     lo = 0.5 * (bounds[0] + bounds[1]) - 0.5 * n * step
     lines = int(n[1] * n[2] + n[2] * n[0] + n[0] * n[1])
-    memory.check(LINE_BYTES * float(lines), f"--step {step:g} mm: {lines:,} dexel lines over a {ext[0]:.1f} x "
-                 f"{ext[1]:.1f} x {ext[2]:.1f} mm box", "use a larger --step")
+    memory.check(LINE_BYTES * float(lines), f"step {step:g} mm: {lines:,} dexel lines over a {ext[0]:.1f} x "
+                 f"{ext[1]:.1f} x {ext[2]:.1f} mm box", "use a larger step", ("step",))
     return lo, n
 
 
@@ -132,9 +132,9 @@ def mesh_index(mesh, index="bvh", partitions=1, init="k-means++", minibatch=Fals
         bvh = build_bvh(mesh.vertices, mesh.faces)
         return ("bvh", bvh.arrays), {"index": "bvh", "nodes": int(len(bvh.node_lo))}
     if index not in ("cells", "kmeans"):
-        raise InputError(f"--index must be bvh, cells or kmeans, got '{index}'")
+        raise InputError(f"index must be bvh, cells or kmeans, got {index!r}", "index")
     if not (isinstance(partitions, int) and 1 <= partitions <= MAX_PARTITIONS):
-        raise InputError(f"--partitions must be a whole number from 1 to {MAX_PARTITIONS}, got {partitions}")
+        raise InputError(f"partitions must be a whole number from 1 to {MAX_PARTITIONS}, got {partitions}", "partitions")
     cent = tris.reshape(-1, 3, 3).mean(axis=1)
     if index == "cells":
         labels = partition.cell_labels(cent, partitions)
@@ -313,7 +313,7 @@ def _dexelize_on(client, mesh, source, lo, n, step, index, progress, device) -> 
     from ..progress import ranges
 
     if index != "bvh":
-        raise InputError("--workers and --scheduler cast lines through the BVH index only (leave --index out)")
+        raise InputError("a cluster casts lines through the BVH index only (leave index out)", ("cluster", "index"))
     t1 = time.perf_counter()
     count = PIECES_PER_WORKER * workers(client)
     pieces = [(a, i0, i1) for a in range(3) for i0, i1 in ranges(int(n[(a + 1) % 3]), count)]
@@ -321,7 +321,7 @@ def _dexelize_on(client, mesh, source, lo, n, step, index, progress, device) -> 
     block = max((i1 - i0) * int(n[(a + 2) % 3]) for a, i0, i1 in pieces)
     check_workers(client, LINE_BYTES * block + TRIANGLE_BYTES * len(mesh.faces),
                   f"casting {sum(int(n[(a + 1) % 3] * n[(a + 2) % 3]) for a in range(3)):,} dexel lines in blocks",
-                  "use more workers, or a coarser --step")
+                  "use more workers, or a coarser step")
     shared = dict(mesh=(mesh, source), lo=lo, n=n, step=step, device=device)
     blocks = run_pieces(client, cast_block, shared, pieces, progress, "dexel lines")
     starts, ivs, odd = [], [], {}

@@ -51,7 +51,7 @@ def kmeans_labels(centroids: np.ndarray, k: int, init="k-means++", minibatch=Fal
     from sklearn.cluster import KMeans, MiniBatchKMeans
 
     if k > len(centroids):
-        raise InputError(f"--partitions {k} is more than the {len(centroids)} triangles")
+        raise InputError(f"partitions {k} is more than the {len(centroids)} triangles", "partitions")
     if minibatch:
         km = MiniBatchKMeans(n_clusters=k, init=init, n_init=1, random_state=seed, tol=1e-6,
                              batch_size=1024, max_iter=300)

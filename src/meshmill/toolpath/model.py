@@ -50,9 +50,26 @@ class Toolpath:
         return Toolpath(self.tip[start:stop], self.axis[start:stop], self.rapid[start:stop], self.tool[start:stop],
                         self.line[start:stop], self.feed[start:stop], self.source)
 
+    def lifted_to(self, z: float) -> "Toolpath":
+        """The path starting and ending on the plane ``z``: a rapid down from above its first point
+        and a rapid up from its last, along the tool axis (:func:`lift`)."""
+        if not len(self):
+            return self
+        first, last = lift(self.tip[0], self.axis[0], z), lift(self.tip[-1], self.axis[-1], z)
+        return Toolpath(np.vstack([first, self.tip, last]), np.vstack([self.axis[:1], self.axis, self.axis[-1:]]),
+                        np.r_[True, self.rapid, True], np.r_[self.tool[:1], self.tool, self.tool[-1:]],
+                        np.r_[0, self.line, 0], np.r_[np.nan, self.feed, np.nan], self.source, list(self.warnings))
+
     def cutting_length(self) -> float:
         """Length of the feed moves, mm."""
         if len(self) < 2:
             return 0.0
         seg = np.linalg.norm(np.diff(self.tip, axis=0), axis=1)
         return float(seg[~self.rapid[1:]].sum())
+
+
+def lift(tip, axis, z):
+    """The tip ``(3,)`` moved along ``axis`` up to height ``z`` (or straight up where the axis is flat)."""
+    if tip[2] >= z:
+        return tip.copy()
+    return tip + axis * ((z - tip[2]) / axis[2]) if axis[2] > 1e-6 else np.array([tip[0], tip[1], z])
