@@ -166,7 +166,7 @@ def _as_tools(o, v, values):
 def _as_machine(o, v, values):
     from .machine.model import Machine
 
-    values["machine reads"] = o.role == "machine"  # a timing machine reads G-code only, not a CL file
+    values["machine reads"] = o.role == "machine"  # the machine a path is for (post, time) reads G-code only
     if v is None or isinstance(v, Machine):
         return v
     if _is_file(v):
@@ -269,7 +269,7 @@ def _as_fixtures(o, v, values):
 
 
 CONVERT = {"path": _as_path, "origin": _as_origin, "part": _as_part, "surface": _as_surface, "tools": _as_tools, "machine": _as_machine,
-           "timing_machine": _as_machine, "toolpath": _as_toolpath, "cl": _as_toolpath, "stock": _as_stock, "cluster": _as_cluster, "progress": _as_progress,
+           "target_machine": _as_machine, "toolpath": _as_toolpath, "cl": _as_toolpath, "stock": _as_stock, "cluster": _as_cluster, "progress": _as_progress,
            "outputs": _as_outputs, "folders": _as_folders, "fixtures": _as_fixtures}
 ROLES = tuple(CONVERT)  # the order objects are converted in: a tool path is read with its tools and machine
 

@@ -380,7 +380,7 @@ class PostParams(Params):
 
     toolpath: object = option("object", "APT CL file (.cl); in Python also a Toolpath", role="cl", positional=True)
     machine: object = _machine(REQUIRED, "TOML machine file, or a shipped one: generic-3axis, linuxcnc-3axis, "
-                                         "grbl-3axis, table-table-ac, head-table-bc, head-head-ca")
+                                         "grbl-3axis, table-table-ac, head-table-bc, head-head-ca", "target_machine")
     tools: object = _tools(None, " (default: the tools.toml beside the tool path, as choose writes it)")
     feed: float | None = option("number", "feed for the moves the path gives none (default: the machine's)", None,
                                 unit="mm/min", above=0.0)
@@ -402,7 +402,7 @@ class TimeParams(Params):
 
     toolpath: object = _toolpath()
     machine: object = _machine(REQUIRED, "TOML machine file, or a shipped one: generic-3axis, seed-002",
-                               "timing_machine")
+                               "target_machine")
     tools: object = _tools(None, " (default: the tools.toml beside the tool path, as choose writes it)")
     feed: float | None = option("number", "cutting feed for every feed move (default: as programmed, else the "
                                           "machine's)", None, unit="mm/min", above=0.0)
