@@ -212,3 +212,24 @@ def test_a_model_scale_after_the_units():
     assert m.summary()["setup"]["model_scale"] == 0.05 and m.summary()["setup"]["scale"] == 50.0
     with pytest.raises(InputError, match="^scale must be"):
         Setup(scale=0).check()
+
+
+def test_what_the_step_reader_prints_becomes_our_warning(tmp_path, capfd):
+    """OpenCASCADE prints its complaints (coloured, on the standard output) while it reads: they
+    become the part's warnings, and ``--json`` stays JSON."""
+    pytest.importorskip("cascadio")
+    import json
+
+    from meshmill.cli import main
+
+    text = step_box((0, 0, 0), (20, 10, 5), "MILLI")
+    text = text.replace("ENDSEC;\nEND-ISO", "#9000=PRODUCT_RELATED_PRODUCT_CATEGORY('part','',(#9999));\n"
+                                            "ENDSEC;\nEND-ISO")  # a reference to nothing
+    (tmp_path / "ref.step").write_text(text)
+    m = load_mesh(tmp_path / "ref.step")
+    said = capfd.readouterr()
+    assert m.closed and len(m.faces) == 12 and not said.out and not said.err
+    assert any("STEP reader says" in w for w in m.warnings), m.warnings
+    assert main(["dexel", str(tmp_path / "ref.step"), "--step", "2", "--out", str(tmp_path / "d.npz"), "--json"]) == 0
+    out = capfd.readouterr()
+    assert json.loads(out.out)["operation"] == "dexel" and not out.err

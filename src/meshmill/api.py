@@ -274,6 +274,15 @@ CONVERT = {"path": _as_path, "origin": _as_origin, "part": _as_part, "surface": 
 ROLES = tuple(CONVERT)  # the order objects are converted in: a tool path is read with its tools and machine
 
 
+def check_interrupted() -> None:
+    """Raise KeyboardInterrupt where the command line was interrupted although no
+    KeyboardInterrupt came through (see :data:`meshmill.runfiles.interrupted`)."""
+    from .runfiles import interrupted
+
+    if interrupted[0]():
+        raise KeyboardInterrupt
+
+
 def resolve_device(device) -> str:
     """``"cpu"`` or ``"cuda"`` for ``device`` (cpu, cuda, auto: the GPU when a usable one is present)."""
     from .kernels.backend import resolve
@@ -307,6 +316,9 @@ _part_entry, _tools_file = part_entry, tools_file
 
 
 def _path_result(operation, tp, summary, mesh, tools, device, arrays=None):
+    if not len(tp) or tp.rapid.all():
+        raise NothingToCut(f"nothing to cut: the {operation} path has no feed move (verified: every move that would "
+                           "cut was left out)")
     summary["device"] = device
     summary["tools_file"] = tools_file(tools)
     summary["part"] = part_entry(mesh)

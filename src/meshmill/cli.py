@@ -10,13 +10,14 @@ exits 1 when it finds problems.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import signal
 import sys
 import time
 
-from . import __version__, memory
+from . import __version__, memory, runfiles
 from .errors import InputError
 from .options import Option
 from .runfiles import RunFiles
@@ -31,6 +32,8 @@ class _Parser(argparse.ArgumentParser):
 _status_line = [False]  # a progress line is open on the terminal (to be ended before other text)
 _run = [None]  # the result files of the command running (RunFiles): earlier results go at once
 _interrupted = [False]  # SIGINT came: whatever exception follows is the interrupt's
+_finished = [False]  # the command has ended (its result written, or its error said): SIGINT has nothing to stop
+_held = [False]  # in a block that must not be cut short: SIGINT is remembered, and raised when it ends
 
 
 def _quiet(args):
@@ -58,6 +61,8 @@ def _progress(args):
     tty = sys.stderr.isatty()
 
     def stage(name):
+        if _interrupted[0]:  # a Ctrl-C that a library swallowed (trimesh's imports catch BaseException)
+            raise KeyboardInterrupt
         if _quiet(args):
             return
         count[0] += 1
@@ -295,7 +300,11 @@ def cmd_job(args):
     res = job.run(progress=_progress(args), cluster=args.options.get("cluster"))
     res.save(folder, report=not args.no_report, progress=_progress(args))
     s = res.summary
+    for w in s.get("warnings", []):
+        _say(args, f"warning: {w}")
     for op in s["operations"]:
+        if op.get("skipped"):
+            continue
         c = op["cutting_mm"]
         _say(args, f"{op['folder']}: {'OK' if op['ok'] else 'PROBLEMS'}, removed {op['removed_mm3']:.0f} mm^3, "
                    f"{op['left_over_design_mm3']:.0f} mm^3 left over the part; cutting {c['in_material']:.0f} mm in "
@@ -592,9 +601,26 @@ def _flag(name: str) -> str:
 
 def _on_interrupt(signum, frame):
     """SIGINT: remember it (whatever exception it leaves, a numba kernel's included, is the
-    interrupt's) and stop the Python code running."""
+    interrupt's) and stop the Python code running; once the command has ended, nothing."""
+    if _finished[0]:
+        return
     _interrupted[0] = True
-    raise KeyboardInterrupt
+    if not _held[0]:
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _uninterrupted():
+    """A block a Ctrl-C must not cut short (it is raised when the block ends): importing trimesh,
+    whose imports catch BaseException, so that a KeyboardInterrupt inside an extension module's
+    initialisation would leave that module half made (and a crash when trimesh touches it)."""
+    _held[0] = True
+    try:
+        yield
+    finally:
+        _held[0] = False
+    if _interrupted[0]:
+        raise KeyboardInterrupt
 
 
 def _caused_by_interrupt(exc) -> bool:
@@ -610,8 +636,9 @@ def _caused_by_interrupt(exc) -> bool:
 def main(argv=None) -> int:
     _status_line[0] = False
     _run[0] = None
-    _interrupted[0] = False
+    _interrupted[0] = _finished[0] = _held[0] = False
     previous = signal.signal(signal.SIGINT, _on_interrupt) if _main_thread() else None
+    runfiles.interrupted[0] = lambda: _interrupted[0]
     try:
         return _main(argv)
     except BaseException as exc:  # an interrupt, however it surfaces (in a numba kernel: a SystemError)
@@ -623,6 +650,8 @@ def main(argv=None) -> int:
     finally:
         if _run[0] is not None and not _run[0].done:
             _run[0].abort()  # a run that did not complete leaves no result behind
+        _finished[0] = True
+        runfiles.interrupted[0] = lambda: False
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
 
@@ -648,6 +677,9 @@ def _main(argv) -> int:
     try:
         if args.command in FOLDER_OUTPUTS:
             _results([os.path.join(args.out, n) for n in FOLDER_OUTPUTS[args.command]])  # earlier results go now
+        if args.command not in ("post", "time"):  # the commands that read meshes
+            with _uninterrupted():
+                import trimesh  # noqa: F401
         args.options = _options_given(args, args.spec) if args.spec is not None else \
             {k: v for k, v in vars(args).items() if k in ("jobfile", "device", "cluster")}
         return args.func(args)
@@ -662,5 +694,16 @@ def _main(argv) -> int:
         return 2
 
 
+def entry():
+    """The ``meshmill`` command: :func:`main`, then out at once. A finished run exits without
+    waiting on anything (numba's thread pools, Dask's) and a Ctrl-C after its result is written
+    does not turn it into an interrupted one."""
+    signal.signal(signal.SIGINT, _on_interrupt)  # from the start (main puts back this one when it ends)
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

@@ -33,19 +33,26 @@ def connect(cluster):
         yield None
         return
     try:
-        from distributed import Client, LocalCluster
+        with _sigint_blocked():  # Dask's threads, started now, keep SIGINT blocked (and its processes)
+            from distributed import Client, LocalCluster
     except ImportError:
         raise InputError("cluster: a Dask cluster needs Dask: pip install 'meshmill[cluster]'", "cluster") from None
     if isinstance(cluster, Client):
         yield cluster
         return
     if isinstance(cluster, bool) or not isinstance(cluster, (int, str)):
-        raise InputError(f"cluster must be a number of workers, a scheduler address or a Client, got {cluster!r}")
+        raise InputError(f"cluster must be a number of workers, a scheduler address or a Client, got {cluster!r}",
+                         "cluster")
     if isinstance(cluster, int):
         if cluster < 1:
             raise InputError(f"cluster must be at least 1 worker, got {cluster}", "cluster")
-        with LocalCluster(n_workers=cluster, threads_per_worker=1, processes=True, dashboard_address=None,
-                          env=worker_env(cluster)) as lc, Client(lc) as client:
+        import logging
+
+        logging.getLogger("distributed").setLevel(logging.ERROR)  # the nannies' notes of workers stopped
+        with _sigint_blocked():  # the worker processes start with it blocked: Ctrl-C is the command's alone
+            lc = LocalCluster(n_workers=cluster, threads_per_worker=1, processes=True, dashboard_address=None,
+                              env=worker_env(cluster), preload=[__name__])
+        with lc, Client(lc) as client:
             yield client
         return
     try:
@@ -54,6 +61,35 @@ def connect(cluster):
         raise InputError(f"cluster {cluster}: cannot reach the scheduler ({exc})", "cluster") from None
     with client:
         yield client
+
+
+@contextlib.contextmanager
+def _sigint_blocked():
+    """SIGINT blocked in this thread (and so in the threads and processes started meanwhile, which
+    keep the mask), and delivered when the block ends if it came meanwhile (on the main thread)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def dask_setup(worker) -> None:
+    """In each local worker process (a Dask preload): Ctrl-C in the terminal reaches the whole
+    process group, but only the command stops the work (and closes its cluster): the workers
+    ignore SIGINT (they start with it blocked, :func:`_sigint_blocked`) rather than each print its
+    traceback, and keep Dask's notes of the tasks cancelled then to themselves (errors show)."""
+    import logging
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    logging.getLogger("distributed").setLevel(logging.ERROR)
 
 
 def worker_env(n: int) -> dict:

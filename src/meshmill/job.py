@@ -213,6 +213,7 @@ class JobFolder:
         """The file ``name`` of the folder with ``text``, put in place when complete."""
         final = os.path.join(self.path, name)
         tmp = os.path.join(self.path, f".{name}.partial-{os.getpid()}")
+        api.check_interrupted()
         try:
             with open(tmp, "w") as fh:
                 fh.write(text)
@@ -460,7 +461,7 @@ class Job:
         try:
             res = self._path(op, label, stock if self.in_process else None, device, stage, client)
         except NothingToCut as exc:
-            return self._nothing(op, label, str(exc))
+            return self._nothing(op, label, exc)
         tp, fixtures = res.toolpath.lifted_to(safe_z), None
         stage("verify against the part and the fixtures")
         if self.fixtures:
@@ -477,7 +478,8 @@ class Job:
         cut_s = time.perf_counter() - t_cut
         removed = stock.volume - cut.stock.volume
         if removed < REMOVES_NOTHING:
-            return self._nothing(op, label, f"its path removes nothing of the stock ({removed:.3g} mm^3)")
+            return self._nothing(op, label, NothingToCut(f"nothing to cut: its path removes nothing of the stock "
+                                                         f"({removed:.3g} mm^3)"))
         timed = api.machining_time(tp, self.machine, self.tools).summary
         s = cut.summary
         errors = list(s["errors"])
@@ -505,11 +507,12 @@ class Job:
         }
         return OperationResult(op, res, cut)
 
-    def _nothing(self, op, label, why) -> OperationResult:
-        """An operation that finds nothing to cut: skipped, or the job refused."""
+    def _nothing(self, op, label, exc: NothingToCut) -> OperationResult:
+        """An operation that finds nothing to cut (``exc`` says why): skipped, or the job refused."""
         if self.nothing_to_cut == "refuse":
-            raise NothingToCut(f"{label}: {why} (nothing_to_cut = \"skip\" goes on without it)", "nothing_to_cut")
-        return OperationResult(op, None, None, skipped=why)
+            raise NothingToCut(f"{label}: {exc} (the job's nothing_to_cut = \"skip\" would go on without it)",
+                               exc.params, label)
+        return OperationResult(op, None, None, skipped=str(exc))
 
     def _path(self, op: Operation, label, stock, device, stage, client):
         """The operation's :class:`~meshmill.results.PathResult` from the part (and the in-process
@@ -532,8 +535,10 @@ class Job:
                 res = run(self.part, tools=tools, device=device, progress=stage, **params)
             else:
                 res = run(self.part, tools, device=device, progress=stage, **params)
+        except NothingToCut:
+            raise
         except InputError as exc:
-            raise type(exc)(f"{label}: {exc}", exc.params, label) from None
+            raise exc.within(label) from None
         if res.tools is not self.tools:  # the path's tools numbered as the job's table
             import numpy as np
 
@@ -567,6 +572,10 @@ class Job:
             "machining_s": timed["total"]["total_s"], "time": timed,
             "seconds": {"total": round(time.perf_counter() - t_job, 3)},
         }
+        skipped = [f"operation {k + 1} ({r.operation.name}) skipped: {r.skipped}" for k, r in enumerate(results)
+                   if r.skipped]
+        if skipped:  # (job.json has warnings where there are some)
+            summary["warnings"] = skipped
         return JobResult(self, results, posted.lines, posted.report, summary)
 
 

@@ -13,6 +13,11 @@ import os
 
 from .errors import InputError
 
+# Whether the run was interrupted although no KeyboardInterrupt reached here (a library that
+# catches BaseException while it imports can swallow one): the command line sets it; no result
+# of an interrupted run is committed.
+interrupted = [lambda: False]
+
 
 class RunFiles:
     """Result files ``paths`` (the summary, if any, last) of one run."""
@@ -53,6 +58,8 @@ class RunFiles:
 
     def commit(self):
         """Rename every written file into place, in the order of :attr:`paths` (summary last)."""
+        if interrupted[0]():
+            raise KeyboardInterrupt
         for p in self.paths:
             part = self.partial.get(p)
             if part is not None and os.path.exists(part):

@@ -12,7 +12,9 @@ are read with trimesh.
 """
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -344,8 +346,10 @@ def read_mesh(path, flip=False, setup: Setup | None = None) -> Mesh:
     if ext in BREP:
         if setup is not None and setup.units != "mm":
             raise InputError(f"{path}: a {BREP[ext].upper()} file states its own units (read in mm): leave units out", "units")
-        vertices, faces = _read_brep(path, BREP[ext])
-        return mesh_from_arrays(vertices, faces, name, flip, setup)
+        vertices, faces, said = _read_brep(path, BREP[ext])
+        mesh = mesh_from_arrays(vertices, faces, name, flip, setup)
+        mesh.warnings[:0] = said
+        return mesh
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -359,8 +363,10 @@ def read_mesh(path, flip=False, setup: Setup | None = None) -> Mesh:
 
 
 def _read_brep(path, kind):
-    """``(vertices (n, 3) mm, faces (m, 3))`` of a STEP or IGES file, every solid and surface
-    tessellated within ``TESSELLATION_TOL`` (OpenCASCADE, through cascadio: ``meshmill[step]``)."""
+    """``(vertices (n, 3) mm, faces (m, 3), warnings)`` of a STEP or IGES file, every solid and
+    surface tessellated within ``TESSELLATION_TOL`` (OpenCASCADE, through cascadio:
+    ``meshmill[step]``); what OpenCASCADE prints while reading becomes ``warnings`` (one line per
+    kind of message), not text on our standard output."""
     import io
 
     import trimesh
@@ -371,7 +377,8 @@ def _read_brep(path, kind):
         raise InputError(f"{path}: reading {kind.upper()} needs the step extra: pip install 'meshmill[step]'") from None
     with open(path, "rb") as fh:
         data = fh.read()
-    glb = cascadio.load(data, file_type=kind, tol_linear=TESSELLATION_TOL, tol_angular=TESSELLATION_ANGLE)
+    with _captured_output() as said:
+        glb = cascadio.load(data, file_type=kind, tol_linear=TESSELLATION_TOL, tol_angular=TESSELLATION_ANGLE)
     if not glb:
         raise InputError(f"{path}: not a readable {kind.upper()} file (no solid or surface in it)")
     try:
@@ -385,4 +392,42 @@ def _read_brep(path, kind):
         raise InputError(f"{path}: no solid or surface in the {kind.upper()} file")
     # glTF is in metres, in float32: back to mm, rounded to 10 nm so that a CAD dimension (20 mm, not
     # 19.99999955) and the planes it puts vertices on come back exact
-    return np.round(np.asarray(loaded.vertices, np.float64) * 1000.0, 5), faces
+    return np.round(np.asarray(loaded.vertices, np.float64) * 1000.0, 5), faces, _reader_warnings(path, kind, said)
+
+
+@contextlib.contextmanager
+def _captured_output():
+    """What C libraries write to the standard output and error in the block, captured at the file
+    descriptors (OpenCASCADE prints there): a list that holds the text when the block ends."""
+    import tempfile
+
+    said = []
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    with tempfile.TemporaryFile() as tmp:
+        try:
+            os.dup2(tmp.fileno(), 1)
+            os.dup2(tmp.fileno(), 2)
+            yield said
+        finally:
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+            tmp.seek(0)
+            said.append(tmp.read().decode("utf-8", "replace"))
+
+
+def _reader_warnings(path, kind, said) -> list[str]:
+    """Our warnings of what a CAD reader printed (colour codes and star frames taken off, each
+    kind of line once with its count)."""
+    import re
+
+    counts = {}
+    for line in "".join(said).splitlines():
+        text = re.sub(r"\x1b\[[0-9;]*m", "", line).strip().strip("*").strip()
+        if text:
+            counts[text] = counts.get(text, 0) + 1
+    return [f"{os.path.basename(path)}: the {kind.upper()} reader says: {text}" + (f" ({n} times)" if n > 1 else "")
+            for text, n in counts.items()]

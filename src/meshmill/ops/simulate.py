@@ -30,7 +30,7 @@ def dexel_model(mesh, step, index="bvh", partitions=1, init="k-means++", minibat
     summary["operation"] = "dexel"
     summary.update(model.summary())
     summary["index"] = model.info
-    summary["warnings"] = uneven_lines_warning(model.info.get("uneven_lines"))
+    summary["warnings"] = uneven_lines_warning(model.info.get("uneven_lines"), mesh)
     return model, summary
 
 
@@ -62,7 +62,7 @@ def simulate(design, toolpath, tools, step, stock=None, tolerance=0.01, mode="sw
     if stock.kind != "dexels":
         stock = stock.dexels(design, step, bounds, device)
         design_model = stock.state.design
-        warnings += uneven_lines_warning(design_model.info.get("uneven_lines"))
+        warnings += uneven_lines_warning(design_model.info.get("uneven_lines"), design)
         say(f"design: {sum(design_model.dexel_count(a) for a in range(3)):,} dexels")
     build_s = time.perf_counter() - t0
     after, cuts = stock.cut(toolpath, tools, tolerance, mode, device, cluster, say)

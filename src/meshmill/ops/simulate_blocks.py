@@ -146,7 +146,7 @@ def simulate_on(client, design, toolpath, tools, step, stock, tolerance=0.01, mo
     wait(blocks, say, "design and stock lines")
     infos = client.gather([submit(client, block_info, b) for b in blocks])
     odd = {"XYZ"[a]: sum(i[2] for i in infos if i[0] == a) for a in range(3)}
-    warnings = warnings + uneven_lines_warning({k: v for k, v in odd.items() if v})
+    warnings = warnings + uneven_lines_warning({k: v for k, v in odd.items() if v}, design)
     say(f"design: {sum(i[1] for i in infos):,} dexels")
     mlo, mhi = np.full(3, np.inf), np.full(3, -np.inf)
     for a, _, _, span in infos:

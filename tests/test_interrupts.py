@@ -1,0 +1,124 @@
+"""Interrupts and exits, as a user meets them: Ctrl-C (SIGINT to the whole process group, as a
+terminal sends it) at any moment of a command, a job or a run on a cluster ends with one line,
+``meshmill: interrupted``, exit code 130 and no result left that could pass for this run's; a
+run that has written its result exits at once."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+import meshmill
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+DATA = os.path.join(ROOT, "src", "meshmill", "data")
+MESHMILL = [sys.executable, "-c", "from meshmill.cli import entry; entry()"]
+
+
+@pytest.fixture(scope="module")
+def path(tmp_path_factory):
+    """A raster of the vase written as a CL file (what simulate cuts)."""
+    folder = tmp_path_factory.mktemp("path")
+    part, tools = meshmill.load_part(os.path.join(DATA, "vase.stl")), meshmill.load_tools(os.path.join(DATA, "tools.toml"))
+    meshmill.raster(part, tools, tool="B4", stepover=1.0, device="cpu").save(folder)
+    return str(folder / "toolpath.cl")
+
+
+def interrupted(argv, when, env=None):
+    """Run ``meshmill argv`` in a session of its own, send SIGINT to its process group ``when``
+    (seconds after the start, or the text of a progress line after which to send it), and
+    return ``(returncode, stderr lines, whether the signal was sent)``."""
+    p = subprocess.Popen([*MESHMILL, *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True, env={**os.environ, **(env or {})})
+    sent, lines = False, []
+    if isinstance(when, str):
+        for line in p.stderr:  # progress lines, as they come
+            lines.append(line.rstrip("\n"))
+            if when in line:
+                os.killpg(p.pid, signal.SIGINT)
+                sent = True
+                break
+    else:
+        try:
+            p.wait(timeout=when)
+        except subprocess.TimeoutExpired:
+            os.killpg(p.pid, signal.SIGINT)
+            sent = True
+    _, err = p.communicate(timeout=120)
+    return p.returncode, lines + err.splitlines(), sent
+
+
+def ends_interrupted(rc, lines, sent):
+    """Interrupted cleanly: 130 and one line of ours (no traceback), or finished before the signal."""
+    text = "\n".join(lines)
+    assert "Traceback" not in text and "Error" not in text.replace("meshmill: error", ""), text[-3000:]
+    if sent and rc != 0:
+        assert rc == 130 and lines[-1] == "meshmill: interrupted", (rc, text[-2000:])
+    return rc == 130
+
+
+@pytest.mark.slow
+def test_ctrl_c_at_any_moment_of_a_command(path, tmp_path):
+    out = tmp_path / "sim"
+    argv = ["simulate", "--design", os.path.join(DATA, "vase.stl"), "--toolpath", path, "--tools",
+            os.path.join(DATA, "tools.toml"), "--step", "0.25", "--out", str(out)]
+    # a complete earlier result, which must not survive as this run's
+    assert subprocess.run([*MESHMILL, *argv, "--quiet"], capture_output=True).returncode in (0, 1)
+    assert (out / "summary.json").exists()
+    stopped = 0
+    # while starting (imports: trimesh's catch BaseException), loading, and inside the numba kernels
+    for when in (0.3, 0.9, 1.6, "cutting ", "cutting lines along Y", "measuring"):
+        rc, lines, sent = interrupted(argv, when)
+        stopped += ends_interrupted(rc, lines, sent)
+        if rc == 130:
+            assert not any(os.path.exists(out / n) for n in ("summary.json", "deviation.json", "machined.stl")), when
+    assert stopped >= 5
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_a_job_and_leaves_none_of_its_files(tmp_path):
+    out = tmp_path / "job"
+    argv = ["job", os.path.join(DATA, "vase-job.toml"), "--out", str(out), "--no-report"]
+    (out / "01-rough").mkdir(parents=True)  # an earlier job's results
+    for name in ("job.json", "program.nc"):
+        (out / name).write_text("{}")
+    (out / "01-rough" / "summary.json").write_text("{}")
+    for when in ("the in-process stock", "operation 1 (rough): verify", "operation 2 (semi-finish): waterline"):
+        rc, lines, sent = interrupted(argv, when)
+        assert sent and ends_interrupted(rc, lines, sent)
+        assert sorted(os.listdir(out)) == [], when  # the earlier job's went at the start; nothing of this one
+
+
+@pytest.mark.slow
+def test_ctrl_c_on_a_cluster_is_one_line_too(path, tmp_path):
+    pytest.importorskip("distributed")
+    argv = ["simulate", "--design", os.path.join(DATA, "vase.stl"), "--toolpath", path, "--tools",
+            os.path.join(DATA, "tools.toml"), "--step", "0.5", "--workers", "2", "--out", str(tmp_path / "sim")]
+    for when in (1.2, "cutting "):  # while the workers start (their SIGINT blocked), and while they cut
+        rc, lines, sent = interrupted(argv, when)
+        assert ends_interrupted(rc, lines, sent) or not sent
+
+
+def test_a_finished_run_exits_at_once(path, tmp_path):
+    """The result written, the process is gone: no thread pool (numba's, Dask's) keeps it alive."""
+    argv = ["simulate", "--design", os.path.join(DATA, "vase.stl"), "--toolpath", path, "--tools",
+            os.path.join(DATA, "tools.toml"), "--step", "1.0", "--outputs", "summary", "--out", str(tmp_path / "s")]
+    for _ in range(3):
+        p = subprocess.Popen([*MESHMILL, *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for line in p.stderr:
+            if line.startswith("wrote "):
+                t = time.perf_counter()
+                break
+        p.wait(timeout=60)
+        assert p.returncode in (0, 1) and time.perf_counter() - t < 2.0
+
+
+def test_the_threading_layer_is_pinned_to_one_that_shuts_down():
+    code = ("import numpy as np, numba\nimport meshmill.kernels\n"
+            "from meshmill.simulation.dexel import dexelize\nfrom meshmill.geometry.shapes import box\n"
+            "dexelize(box((0, 0, 0), (1, 1, 1)), 0.25)\nprint(numba.threading_layer())")
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_THREADING_LAYER")}
+    layer = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout
+    assert layer.strip() in ("omp", "workqueue")
