@@ -62,18 +62,20 @@ VARIANTS = (("stock+rest", True, 0.05), ("stock", True, False), ("alone", False,
 
 def run(name, spec, variant, in_process, rest):
     from meshmill import api
-    from meshmill.job import Job, Operation, Stock
+    from meshmill.job import Job, Operation
 
     part = api.load_part(**{k if k != "file" else "path": v for k, v in spec["part"].items()})
     tools = api.load_tools(os.path.join(DATA, "tools.toml"))
     ops = [Operation.from_dict(o, k + 1, rest) for k, o in enumerate(spec["operations"])]
-    job = Job(part=part, tools=tools, operations=ops, stock=Stock.from_dict(spec["stock"]), machine=spec["machine"],
+    job = Job(part=part, tools=tools, operations=ops, stock=api.Stock.from_dict(spec["stock"]), machine=spec["machine"],
               step=spec["step"], in_process=in_process, name=name)
     t = time.perf_counter()
     res = job.run()
     wall = time.perf_counter() - t
     rows = []
     for op in res.operations:
+        if op.skipped:
+            continue
         j = op.path.summary["job"]
         rows.append({"part": name, "variant": variant, "operation": op.operation.name,
                      "air_share": round(j["cutting_mm"]["air_share"], 4),

@@ -120,7 +120,7 @@ def _as_path(o, v, values):
 
 
 def _as_part(o, v, values):
-    if _is_mesh(v):
+    if _is_mesh(v) or v is None and o.default is None:
         return v
     if _is_file(v):
         return load_part(v)
@@ -268,10 +268,11 @@ def _as_fixtures(o, v, values):
     return out
 
 
-CONVERT = {"path": _as_path, "origin": _as_origin, "part": _as_part, "surface": _as_surface, "tools": _as_tools, "machine": _as_machine,
-           "target_machine": _as_machine, "toolpath": _as_toolpath, "cl": _as_toolpath, "stock": _as_stock, "cluster": _as_cluster, "progress": _as_progress,
-           "outputs": _as_outputs, "folders": _as_folders, "fixtures": _as_fixtures}
-ROLES = tuple(CONVERT)  # the order objects are converted in: a tool path is read with its tools and machine
+CONVERT = {"cluster": _as_cluster, "progress": _as_progress, "outputs": _as_outputs, "folders": _as_folders,
+           "origin": _as_origin, "path": _as_path, "part": _as_part, "surface": _as_surface, "tools": _as_tools,
+           "machine": _as_machine, "target_machine": _as_machine, "toolpath": _as_toolpath, "cl": _as_toolpath,
+           "stock": _as_stock, "fixtures": _as_fixtures}
+ROLES = tuple(CONVERT)  # the order objects are converted in: values first, then files (a path with its tools)
 
 
 def check_interrupted() -> None:

@@ -595,8 +595,24 @@ def _spelled(argv, parser) -> list:
     return out
 
 
-def _flag(name: str) -> str:
-    return "--" + name.replace("_", "-")
+def _flags_of(parser, command):
+    """``spell(name)``: a parameter's flag on ``command``'s command line (``step_down`` is
+    ``--step-down``; ``cluster`` is ``--workers/--scheduler``), the name itself where the command
+    has no such flag (a job file's key)."""
+    sp = parser._subparsers._group_actions[0].choices[command]
+    flags = {}
+    for a in sp._actions:
+        if not a.option_strings:
+            flags[a.dest] = [a.dest]
+        elif "|" in a.dest:  # an alias (--stock-allowance): errors of its value name it
+            flags[a.option_strings[0][2:].replace("-", "_")] = [a.option_strings[0]]
+        else:
+            flags.setdefault(a.dest, []).append(a.option_strings[0])
+
+    def spell(name):
+        return "/".join(f for f in flags.get(name, [name]) if f.startswith("--") or f == name)
+
+    return spell
 
 
 def _on_interrupt(signum, frame):
@@ -685,7 +701,7 @@ def _main(argv) -> int:
         return args.func(args)
     except InputError as exc:
         _end_status()
-        print(f"meshmill: error: {exc.text(_flag)}", file=sys.stderr)
+        print(f"meshmill: error: {exc.text(_flags_of(parser, args.command))}", file=sys.stderr)
         return 2
     except MemoryError:  # an estimate fell short: still one line, and nothing written
         _end_status()

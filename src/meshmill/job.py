@@ -328,7 +328,9 @@ class Job:
         try:
             settings = JobParams.checked({k: v for k, v in d.items() if k not in JOB_TABLES and k not in
                                           ("tools", "machine")} | {"tools": "file"}, "a job")
-            part_d = dict(_table(d.get("part"), "part", "[part] with file = ..."))
+            if "part" not in d:
+                raise InputError("no [part] (the part: [part] with file = ...)", "part")
+            part_d = dict(_table(d["part"], "part", "[part] with file = ..."))
             if "file" not in part_d:
                 raise InputError("[part] needs file", "file")
             part_file = part_d.pop("file")
@@ -424,7 +426,10 @@ class Job:
         """Run the operations in order from the stock; returns the :class:`JobResult`.
         ``cluster`` (local workers, a Dask scheduler's address or a Client): the operations and
         the cutting of the in-process stock split there, as each operation splits (the same job)."""
-        self._check()
+        try:
+            self._check()
+        except InputError as exc:
+            raise exc.within(f"job '{self.name}'") from None
         with api.connect(cluster) as client:
             return self._run(progress or (lambda stage: None), client)
 

@@ -25,6 +25,12 @@ class _Saved:
                 run.abort()
         return [p for p in run.paths if os.path.exists(p)]
 
+    def _save_folder(self, folder, kind, write):
+        """The files of a ``kind`` of run folder (:data:`~meshmill.runfolder.FOLDER_OUTPUTS`) into
+        ``folder``: ``write(at)`` writes each to ``at(name)``."""
+        return self._save([os.path.join(folder, n) for n in FOLDER_OUTPUTS[kind]],
+                          lambda run: write(lambda name: run.tmp(os.path.join(folder, name))))
+
 
 @dataclass
 class PathResult(_Saved):
@@ -47,17 +53,16 @@ class PathResult(_Saved):
         """Write the command's files into ``folder``; returns their paths."""
         from .toolpath.cldata import write_apt
 
-        def write(run):
+        def write(at):
             import numpy as np
 
             if self.arrays:
-                np.savez_compressed(run.tmp(os.path.join(folder, "contours.npz")), **self.arrays)
-            partno = os.path.basename(self.part.source or "part")
-            write_apt(run.tmp(os.path.join(folder, "toolpath.cl")), self.toolpath, self.tools, partno=partno)
-            write_part(run.tmp(os.path.join(folder, "part.stl")), self.part)
-            write_json(run.tmp(os.path.join(folder, "summary.json")), self.summary)
+                np.savez_compressed(at("contours.npz"), **self.arrays)
+            write_apt(at("toolpath.cl"), self.toolpath, self.tools, partno=os.path.basename(self.part.source or "part"))
+            write_part(at("part.stl"), self.part)
+            write_json(at("summary.json"), self.summary)
 
-        return self._save([os.path.join(folder, n) for n in FOLDER_OUTPUTS[self.operation]], write)
+        return self._save_folder(folder, self.operation, write)
 
 
 @dataclass
@@ -124,18 +129,17 @@ class SimulateResult(_Saved):
         machined.stl into ``folder`` (an earlier run's files there are removed)."""
         import numpy as np
 
-        def write(run):
+        def write(at):
             if self.samples is not None:
-                np.savez_compressed(run.tmp(os.path.join(folder, "deviation.npz")), points=self.samples["points"],
-                                    e=self.samples["e"])
+                np.savez_compressed(at("deviation.npz"), points=self.samples["points"], e=self.samples["e"])
             if self.machined is not None and len(self.machined[1]):
                 import trimesh
 
-                trimesh.Trimesh(*self.machined, process=False).export(run.tmp(os.path.join(folder, "machined.stl")))
-            write_json(run.tmp(os.path.join(folder, "deviation.json")), self.deviation)
-            write_json(run.tmp(os.path.join(folder, "summary.json")), self.summary)
+                trimesh.Trimesh(*self.machined, process=False).export(at("machined.stl"))
+            write_json(at("deviation.json"), self.deviation)
+            write_json(at("summary.json"), self.summary)
 
-        return self._save([os.path.join(folder, n) for n in FOLDER_OUTPUTS["simulate"]], write)
+        return self._save_folder(folder, "simulate", write)
 
 
 @dataclass
@@ -148,11 +152,11 @@ class AnalysisResult(_Saved):
     def save(self, folder) -> list:
         import numpy as np
 
-        def write(run):
-            np.savez_compressed(run.tmp(os.path.join(folder, "analysis.npz")), **self.arrays)
-            write_json(run.tmp(os.path.join(folder, "summary.json")), self.summary)
+        def write(at):
+            np.savez_compressed(at("analysis.npz"), **self.arrays)
+            write_json(at("summary.json"), self.summary)
 
-        return self._save([os.path.join(folder, n) for n in FOLDER_OUTPUTS["analyze"]], write)
+        return self._save_folder(folder, "analyze", write)
 
 
 @dataclass
@@ -175,15 +179,14 @@ class ChooseResult(PathResult):
         from .tools.table import write_tools
         from .toolpath.cldata import write_apt
 
-        def write(run):
+        def write(at):
             self.summary["tools_file"] = os.path.abspath(os.path.join(folder, "tools.toml"))
-            write_tools(run.tmp(os.path.join(folder, "tools.toml")), self.tools)
-            write_apt(run.tmp(os.path.join(folder, "toolpath.cl")), self.toolpath, self.tools,
-                      partno=os.path.basename(self.part))
-            np.savez_compressed(run.tmp(os.path.join(folder, "zones.npz")), **self.zones)
-            write_json(run.tmp(os.path.join(folder, "summary.json")), self.summary)
+            write_tools(at("tools.toml"), self.tools)
+            write_apt(at("toolpath.cl"), self.toolpath, self.tools, partno=os.path.basename(self.part))
+            np.savez_compressed(at("zones.npz"), **self.zones)
+            write_json(at("summary.json"), self.summary)
 
-        return self._save([os.path.join(folder, n) for n in FOLDER_OUTPUTS["choose"]], write)
+        return self._save_folder(folder, "choose", write)
 
 
 @dataclass
