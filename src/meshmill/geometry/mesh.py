@@ -4,7 +4,7 @@ A :class:`Mesh` is an indexed triangle mesh in mm with welded vertices. Its wind
 where neighbouring faces disagree (they traverse their shared edge the same way), the faces of the
 smaller share of each connected piece's area are turned to agree with the rest; a consistently
 wound mesh is never turned over, closed or open, unless asked (``flip``). A closed mesh wound
-inside out (negative volume) is refused, pointing to ``--flip``; an open surface whose normals
+inside out (negative volume) is refused, pointing to ``flip``; an open surface whose normals
 face mostly away from the spindle (-Z) is named in a warning. Each piece is closed, a solid with
 holes, or a sheet (:mod:`meshmill.geometry.solid`, which builds the solid the checks take as
 material). STL (ASCII and binary, also binary files whose header starts with "solid"), OBJ and PLY
