@@ -85,7 +85,7 @@ MACHINES = ("table-table-ac", "head-table-bc")
 def band_shares(out, sim, tools_file, scallop, tol, max_tilt, spacing):
     """Shares of the design's surface area, from points spread over it (``spacing`` mm apart),
     each taking the deviation of the nearest dexel end of the simulation and its status
-    (:func:`meshmill.ops.finish.surface_status`: facing down beyond ``max_tilt``, no ball of the
+    (:func:`meshmill.ops.finish_areas.surface_status`: facing down beyond ``max_tilt``, no ball of the
     table fits there, else the finish's status of the nearest CC point or raster contact):
     ``reachable`` (cut, or left out in short runs or by the repair, or flat and not reached by the
     raster: a ball gets there), ``no_ball``, ``no_axis``, ``facing_down``, and ``within`` (deviation in
@@ -97,7 +97,7 @@ def band_shares(out, sim, tools_file, scallop, tol, max_tilt, spacing):
     from meshmill.geometry.analysis import sample_surface
     from meshmill.geometry.mesh import load_mesh
     from meshmill.kernels.backend import solid_kernels
-    from meshmill.ops.finish import AREA_STATUS, surface_status
+    from meshmill.ops.finish_areas import AREA_STATUS, surface_status
     from meshmill.tools.table import load_tools
 
     mesh = load_mesh(os.path.join(out, "part.stl"))

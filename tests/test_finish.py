@@ -299,7 +299,7 @@ def test_scallop_is_met_on_the_surface_the_balls_reach_by_simulation(tools):
     from scipy.spatial import cKDTree
 
     from meshmill.geometry.analysis import sample_surface
-    from meshmill.ops.finish import AREA_STATUS, surface_status
+    from meshmill.ops.finish_areas import AREA_STATUS, surface_status
     from meshmill.ops.simulate import simulate
 
     m, t, top = _frustum_column(32)
@@ -325,12 +325,12 @@ def test_scallop_is_met_on_the_surface_the_balls_reach_by_simulation(tools):
 
 
 def test_a_run_takes_the_largest_ball_stretch_by_stretch(tools):
-    from meshmill.ops.finish import _stretch_ranks
+    from meshmill.ops.finish_balls import stretch_ranks
 
     s = np.arange(12) * 0.5
     # a long stretch of ball 0, a narrow spot (one point) for ball 2, a long stretch of ball 1
     best = np.array([0, 0, 0, 0, 0, 2, 1, 1, 1, 1, 1, 1])
-    r = _stretch_ranks(best, s, 1.0)
+    r = stretch_ranks(best, s, 1.0)
     assert (r >= best).all()  # never a larger ball than fits
     assert r[0] == 0 and r[-1] == 1 and r[5] == 2
     two = np.flatnonzero(r == 2)  # the narrow spot's ball spreads to one stretch of 1 mm
@@ -341,14 +341,14 @@ def test_a_run_takes_the_largest_ball_stretch_by_stretch(tools):
         n = int(rng.integers(2, 60))
         s_ = np.cumsum(rng.uniform(0.01, 0.8, n))
         b = rng.integers(0, 4, n)
-        r = _stretch_ranks(b, s_, 1.0)
+        r = stretch_ranks(b, s_, 1.0)
         starts = np.r_[0, np.flatnonzero(np.diff(r)) + 1]
         ends = np.r_[starts[1:], n]
         assert (r >= b).all()
         assert len(starts) == 1 or (s_[ends - 1] - s_[starts] >= 1.0 - 1e-12).all()
     # a short stretch of a larger ball between smaller ones takes theirs
-    assert (_stretch_ranks(np.array([1, 1, 1, 1, 0, 1, 1, 1]), s[:8], 1.0) == 1).all()
-    assert (_stretch_ranks(np.array([0, 0, 0, 0]), s[:4], 1.0) == 0).all()
+    assert (stretch_ranks(np.array([1, 1, 1, 1, 0, 1, 1, 1]), s[:8], 1.0) == 1).all()
+    assert (stretch_ranks(np.array([0, 0, 0, 0]), s[:4], 1.0) == 0).all()
 
 
 def test_axis_search_keeps_a_shank_bottom_hovering_over_the_part_out_of_the_allowance():
@@ -381,7 +381,7 @@ def test_axis_search_keeps_a_shank_bottom_hovering_over_the_part_out_of_the_allo
 
 def test_no_move_swings_the_axis_past_the_pole_of_the_machine(tmp_path, tools_file, capsys):
     from meshmill.cli import main
-    from meshmill.ops.finish import POLE_MARGIN, POLE_STEP, _pole_distance, around_pole
+    from meshmill.ops.finish_pole import POLE_MARGIN, POLE_STEP, _pole_distance, around_pole
     from meshmill.toolpath.cldata import write_apt
     from meshmill.toolpath.model import Toolpath
     from meshmill.tools.table import load_tools
@@ -443,7 +443,7 @@ def test_the_summary_says_how_much_surface_was_cut_and_why_the_rest_was_not(tool
 
 def test_leaving_the_pole_the_axis_tilts_out_where_c_is_held_and_turns_gently(tmp_path, tools_file, capsys):
     from meshmill.cli import main
-    from meshmill.ops.finish import POLE_STEP, gentle_turns
+    from meshmill.ops.finish_pole import POLE_STEP, gentle_turns
     from meshmill.toolpath.cldata import write_apt
     from meshmill.toolpath.model import Toolpath
     from meshmill.tools.table import load_tools
@@ -553,3 +553,82 @@ def test_axis_search_with_witnesses_finds_the_first_clear_candidate():
                 break
         assert found[i] == first
     assert (found > 0).sum() > 20 and (found < 0).sum() > 5 and (found == 0).sum() > 5
+
+
+# --- the stages alone ------------------------------------------------------------------------------
+
+def _stage_setup(mesh, tools, **kw):
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.ops.finish import ContourWork, finish_setup
+
+    setup = finish_setup(mesh, tools, FinishParams(**kw))
+    kern = solid_kernels(mesh)
+    return setup, kern, ContourWork(kern, mesh)
+
+
+def test_the_contours_stage_slices_a_sphere(tools):
+    """CC points of a sphere of radius 10 every 2 mm from the top: on the sphere (within its facets'
+    chordal error), outward normals along the radius, one closed contour per level at the level's
+    height, the points at most a sample apart."""
+    from meshmill.ops.finish import contours
+
+    m = sphere(10.0, rings=96, segments=192)
+    setup, kern, _ = _stage_setup(m, tools, step_down=2.0, sample=0.5)
+    con, scallop = contours(m, kern, setup)
+    assert scallop is None and len(con) == len(setup.levels) and con.closed.all()
+    assert np.array_equal(np.sort(con.z)[::-1], setup.levels)
+    r = np.linalg.norm(con.points, axis=1)
+    assert np.all(r <= 10.0 + 1e-9) and np.all(r >= 10.0 * math.cos(math.pi / 96) - 1e-9)
+    assert np.all(np.einsum("ij,ij->i", con.normals, con.points / r[:, None]) > math.cos(math.radians(3.0)))
+    assert np.allclose(con.points[:, 2], np.repeat(con.z, np.diff(con.offsets)))
+    for c in range(len(con)):
+        p = con.points[con.offsets[c]:con.offsets[c + 1]]
+        assert np.linalg.norm(np.diff(np.r_[p, p[:1]], axis=0), axis=1).max() <= 0.5 + 1e-9
+
+
+def test_the_balls_stage_takes_a_smaller_ball_in_a_slot(tools):
+    """Two blocks 8 mm apart: on the walls of the slot between them no ball wider than the slot
+    fits (B20 and B10 would reach the other wall), B6 does; on the outer walls B20 does. Each run
+    takes its points' balls."""
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.geometry.shapes import box
+    from meshmill.ops.finish import contours, point_balls
+
+    a, b = box([0, 0, 0], [20, 30, 20]), box([28, 0, 0], [48, 30, 20])
+    m = mesh_from_arrays(np.r_[a.vertices, b.vertices], np.r_[a.faces, b.faces + len(a.vertices)], "slot")
+    setup, kern, work = _stage_setup(m, tools, step_down=5.0, sample=1.0)
+    assert [t.name for t in setup.balls] == ["B20", "B10", "B6", "B2"]
+    con, _ = contours(m, kern, setup)
+    balls = point_balls(con, setup, work)
+    x, y = con.points[:, 0], con.points[:, 1]
+    in_slot = (np.isclose(x, 20.0) | np.isclose(x, 28.0)) & (y > 3.0) & (y < 27.0)  # 3 mm off the slot's ends
+    outside = (np.isclose(x, 0.0) | np.isclose(x, 48.0)) & (y > 10.0) & (y < 20.0)
+    assert in_slot.sum() > 50 and outside.sum() > 20
+    assert (balls.best[in_slot] == 2).all() and (balls.best[outside] == 0).all()
+    assert (balls.point_tool[in_slot] == 2).all() and (balls.point_tool[outside] == 0).all()
+    assert (balls.point_tool >= balls.best).all()  # a run never takes a larger ball than a point's own
+
+
+def test_the_verify_and_repair_stage_splits_a_pass_at_a_bad_move(tools):
+    """A pass over a block's top whose middle point dips 1 mm into it: the two moves to and from
+    that point gouge; one round of repairs splits the pass around them, and the path of the two
+    pieces verifies clean."""
+    from meshmill.geometry.shapes import box
+    from meshmill.ops.finish import Passes, path_builder, path_check, verify_and_repair
+
+    m = box([0, 0, 0], [40, 20, 10])
+    setup, kern, _ = _stage_setup(m, tools, step_down=5.0, lead=0.0)
+    tip = np.c_[np.linspace(10, 30, 7), np.full(7, 10.0), np.full(7, 10.0)]
+    tip[3, 2] = 9.0  # the known bad point
+    up = np.tile([0.0, 0.0, 1.0], (7, 1))
+    b6 = next(i for i, t in enumerate(tools) if t.name == "B6")
+    passes = [dict(contour=0, tool=b6, rank=2, idx=np.arange(7), entry=2, exit=2, first_link=2, shallow=False)]
+    cut = Passes(passes, tip, up, tip + 3.0 * up, np.tile([0.0, -1.0, 0.0], (7, 1)), 7, 0)
+    rapid_stock = setup.stock_check()
+    build = path_builder(cut, setup, tools, kern, rapid_stock).build
+    first = path_check(m, kern, setup, tools, rapid_stock)(build(passes)[0])
+    assert not first["ok"] and len(first["problem_moves"]) == 2
+    done = verify_and_repair(passes, build, path_check(m, kern, setup, tools, rapid_stock))
+    assert done.report["ok"] and done.report["repair_rounds"] == 1 and done.dropped == 0
+    assert [list(p["idx"]) for p in done.passes] == [[0, 1, 2], [4, 5, 6]]
+    assert done.path.tip[:, 2].min() >= 10.0 - 1e-9

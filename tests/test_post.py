@@ -336,7 +336,7 @@ def test_five_axis_blocks_stay_on_the_cl_path(tmp_path, tools, name):
         assert inverse_time == machine.gcode.inverse_time
     assert worst <= tolerance
     assert report["linearisation"]["max_deviation_mm"] <= tolerance
-    assert report["linearisation"]["blocks_added"] > 0 and report["linearisation"]["blocks_over_tolerance"] == 0
+    assert report["linearisation"]["blocks_added"] > 0
     # every CL pose is a block's end
     ends = np.array([forward(machine, b[1][None], length(b[3]))[0][0] for b in blocks])
     for i in np.flatnonzero(cut):
@@ -498,7 +498,7 @@ def test_a_rapid_that_turns_the_rotaries_is_linearised(tools):
     machine = load_machine("head-table-bc")
     tolerance = 0.005
     lines, report = post_program(tp, tools, machine, tolerance=tolerance)
-    assert report["linearisation"]["blocks_over_tolerance"] == 0
+    assert report["linearisation"]["max_deviation_mm"] <= tolerance
     blocks = _blocks(lines, machine)
     length = tools[1].spindle_length
     tips = forward(machine, np.array([b[1] for b in blocks]), length)[0]
@@ -536,7 +536,8 @@ def test_g94_joint_programs_warn_that_f_is_not_the_tips():
     tp = Toolpath(tip=np.array([[0.0, 0, 5], [5.0, 0, 0], [10.0, 0, 0]]), axis=axis,
                   rapid=np.array([True, False, False]), tool=np.zeros(3, np.int64))
     _, report = post_program(tp, tools, g94)
-    assert report["feed_mode"].startswith("G94") and any("inverse_time = true or TCP" in w for w in report["warnings"])
+    assert report["feed_mode"].startswith("G94") and any(
+        "set inverse_time = true in its [gcode]" in w and 'tcp = "G43.4 H{number}"' in w for w in report["warnings"])
     _, report = post_program(tp, tools, machine)
     assert not any("G94" in w for w in report["warnings"])
 
@@ -666,8 +667,7 @@ def test_an_unwind_at_the_end_of_travel_leaves_room_for_the_pose_before(tools, n
     rapid[0] = True
     tp = Toolpath(tip, axis, rapid, np.ones(len(tip), int))
     lines, report = post_program(tp, tools, load_machine("head-table-bc"))
-    assert report["rewinds"] >= 1 and report["linearisation"]["blocks_over_tolerance"] == 0
-    assert report["linearisation"]["max_deviation_mm"] <= 0.005
+    assert report["rewinds"] >= 1 and report["linearisation"]["max_deviation_mm"] <= 0.005
 
 
 def _ax(tilt, azimuth):
@@ -685,7 +685,7 @@ def test_long_flutes_are_measured_against_the_curve_of_each_half():
     for name in ("table-table-ac", "head-table-bc"):
         _, report = post_program(tp, [tool], load_machine(name))
         lin = report["linearisation"]
-        assert lin["blocks_over_tolerance"] == 0 and lin["max_deviation_mm"] <= 0.005 and lin["blocks_added"] < 200
+        assert lin["max_deviation_mm"] <= 0.005 and lin["blocks_added"] < 200
 
 
 @pytest.mark.parametrize("name", ["table-table-ac", "head-table-bc", "head-head-ca"])
@@ -727,3 +727,115 @@ def test_a_turn_across_the_end_of_a_one_turn_travel_is_refused(tools):
                   np.ones(len(phi) + 1, int))
     with pytest.raises(InputError, match=r"move \d+: the rotaries turn 35\d\.\d deg .* check the rotaries' travel"):
         post_program(tp, tools, machine)
+
+
+def _near_pole_path(first):
+    """From vertical, through a pose ``first`` deg off the pole (at azimuth 0), to 2, 4, 6 deg at
+    azimuth 90, the tip 150 mm off C's axis, fed 2 mm a move."""
+    tip = np.c_[np.full(6, 150.0), np.arange(6) * 2.0, np.r_[10, 0, 0, 0, 0, 0]]
+    return Toolpath(tip, _ax([0, 0, first, 2, 4, 6], [0, 0, 0, 90, 90, 90]), np.array([1, 0, 0, 0, 0, 0], bool),
+                    np.zeros(6, int))
+
+
+def _read_back_stray(lines, machine, tool, tp):
+    """mm: how far the program's joint-linear feed blocks (65 poses each) leave the CL feed moves
+    of ``tp``, at the tip (from the segments) and ``tool.flute_length`` up the axis (from the
+    flutes' top on the CL moves: the tip on its segment, the axis on the great circle, 400 pieces a
+    move), read back through the kinematics."""
+    length = tool.spindle_length if machine.chain.head_pivot else 0.0
+    feed = np.flatnonzero(~tp.rapid[1:]) + 1
+    g = np.linspace(0.0, 1.0, 401)[:, None]
+    tops = []
+    for i in feed:
+        a0, a1 = tp.axis[i - 1], tp.axis[i]
+        angle = np.arccos(np.clip(a0 @ a1, -1, 1))
+        w0, w1 = (np.sin((1 - g) * angle) / np.sin(angle), np.sin(g * angle) / np.sin(angle)) if angle > 1e-12 \
+            else (1 - g, g)
+        axes = w0 * a0 + w1 * a1
+        tops.append(tp.tip[i - 1] + g * (tp.tip[i] - tp.tip[i - 1]) + tool.flute_length * axes)
+    s = np.linspace(0.0, 1.0, 65)[:, None]
+    blocks = _blocks(lines, machine)
+    worst = 0.0
+    for b in range(1, len(blocks)):
+        if blocks[b][0][0] != 1:
+            continue
+        tip, axis = forward(machine, blocks[b - 1][1] + s * (blocks[b][1] - blocks[b - 1][1]), length)
+        off_tip = _segment_distance(tip, tp.tip[feed - 1], tp.tip[feed]).min(axis=1)
+        off_top = np.min([_segment_distance(tip + tool.flute_length * axis, c[:-1], c[1:]).min(axis=1) for c in tops],
+                         axis=0)
+        worst = max(worst, off_tip.max(), off_top.max())
+    return worst
+
+
+@pytest.mark.parametrize("name", ["table-table-ac", "head-table-bc", "head-head-ca"])
+@pytest.mark.parametrize("first", [0.1, 0.3])
+def test_a_cut_near_the_pole_is_split_until_it_holds_the_tolerance(name, first):
+    """`first` deg off the pole, outside its 0.05 deg cone, with 20 mm flutes: midpoints that kept C
+    from swinging left the axis up to 0.05 deg off, and blocks 0.0065 (0.1 deg) and 0.0092 mm (0.3
+    deg) off the CL path however often they were halved (written, with a warning); such moves are
+    now split again with the axis of every midpoint on the CL move's: the program read back holds
+    the 0.005 mm tolerance."""
+    machine = load_machine(name)
+    tool = Tool("B6", "ball", 6.0, 3.0, 20.0, 60.0, 6.0, holder_diameter=30, holder_length=40, number=1)
+    tp = _near_pole_path(first)
+    lines, report = post_program(tp, [tool], machine, feed=10.0)
+    assert report["linearisation"]["max_deviation_mm"] <= 0.005
+    assert _read_back_stray(lines, machine, tool, tp) <= 0.005 + 1e-5
+
+
+@pytest.mark.parametrize("name", ["table-table-ac", "head-table-bc", "head-head-ca"])
+def test_a_pose_the_pole_hold_leaves_beyond_the_tolerance_is_refused(name):
+    """0.04 deg off the pole, inside its 0.05 deg cone, where the machine holds C: the pose's own
+    axis is off by 0.04 deg, 0.014 mm at the top of 20 mm flutes, which no split mends (it was
+    written with a warning, 0.0140 mm over a 0.005 mm tolerance). The post refuses it, naming the
+    move and what holds; at the tolerance it gives, the program read back holds it."""
+    machine = load_machine(name)
+    tool = Tool("B6", "ball", 6.0, 3.0, 20.0, 60.0, 6.0, holder_diameter=30, holder_length=40, number=1)
+    tp = _near_pole_path(0.04)
+    with pytest.raises(InputError) as refused:
+        post_program(tp, [tool], machine, feed=10.0)
+    message = str(refused.value)
+    assert "the most 0.0140 mm at move 4" in message and "0.040 deg from the pole" in message
+    assert "give tolerance 0.014 (which holds)" in message and "TCP" in message and "2 deg away from the pole" in message
+    assert refused.value.params == ("tolerance",)
+    lines, report = post_program(tp, [tool], machine, feed=10.0, tolerance=0.014)
+    assert report["linearisation"]["max_deviation_mm"] <= 0.014
+    assert _read_back_stray(lines, machine, tool, tp) <= 0.014 + 1e-5
+    if machine.gcode.tcp:
+        return
+    tcp = replace(machine, gcode=replace(machine.gcode, tcp="G43.4 H{number}"))
+    assert post_program(tp, [tool], tcp, feed=10.0)[1]["mode"] == "5-axis TCP"
+
+
+def test_a_swing_warning_says_what_clearance_to_give():
+    """Without a clearance the tool swings over above the path's highest tip; the warning names
+    the parameter and the Z to give: that tip where the path's rapids travel there, else that tip
+    plus 5 mm."""
+    machine = load_machine("table-table-ac")
+    tool = Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, holder_diameter=30.0, holder_length=40.0, number=1)
+    tilt = np.radians([20.0, 25.0, 35.0, 40.0])
+    axis = np.column_stack([np.zeros(4), np.sin(tilt), np.cos(tilt)])  # A beyond +30: the other solution
+    tip = np.array([[-45.0, -56.6, 30.2], [-45.0, -56.6, 10.2], [-40.0, -56.6, 10.2], [-35.0, -56.6, 10.2]])
+    for rapid, give in (([True, False, False, False], "give clearance 30.2 where nothing"),
+                        ([False] * 4, "give clearance 35.2 (that tip plus 5 mm) where nothing")):
+        tp = Toolpath(tip=tip, axis=axis, rapid=np.array(rapid), tool=np.zeros(4, np.int64))
+        swing = [w for w in post_program(tp, [tool], machine)[1]["warnings"] if "swings over" in w]
+        assert len(swing) == 1 and give in swing[0] and "--clearance" not in swing[0], swing
+
+
+def test_the_program_stages_alone():
+    """post_mode says how a machine is posted for; program_blocks gives the blocks before their
+    text: on a 5-axis machine, a cut whose axis turns is split, one whose axis stays is not."""
+    from meshmill.machine.post import post_mode, program_blocks
+
+    trunnion = load_machine("table-table-ac")
+    assert post_mode(load_machine("generic-3axis")) == "3-axis" and post_mode(trunnion) == "5-axis joints"
+    with pytest.raises(InputError, match="no \\[gcode\\] 'tcp' text"):
+        post_mode(trunnion, tcp=True)
+    tool = Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, number=1)
+    tip = np.array([[0.0, 0, 20], [0, 0, 0], [40, 0, 0], [80, 0, 0]])
+    tp = Toolpath(tip, _ax([10, 10, 10, 30], [0, 0, 0, 0]), np.array([1, 0, 0, 0], bool), np.zeros(4, int))
+    program = program_blocks(tp, [tool], np.full(4, 10.0), trunnion, "5-axis joints", 0.005)
+    (run,) = program.runs
+    assert program.rewinds == 0 and 0 < program.largest <= 0.005 and program.blocks_added == run.added.sum() > 0
+    assert set(run.move[run.added]) == {3}  # only the move whose axis turns

@@ -222,3 +222,27 @@ def test_rest_waterline_cuts_only_the_loops_in_the_stock(cutters):
     _, s_full, *_ = simulate(design, full, tools, 0.5, stock=stock)
     _, s_rest, *_ = simulate(design, rest, tools, 0.5, stock=stock)
     assert s_rest["volumes_mm3"]["removed"] == pytest.approx(s_full["volumes_mm3"]["removed"], rel=1e-9, abs=1e-6)
+
+
+def test_the_waterline_stages_alone_on_a_sphere(cutters):
+    """waterline_setup, drop_grid and level_loops on a sphere of radius 10: at level z the tip of a
+    ball of radius 3 touching it runs on the circle of radius sqrt(13² - (z + 3)²), or 13 where its
+    centre is below the equator (from above, the ball's side meets the equator first), one closed
+    loop a level, never inside it (the facets lie inside the sphere: at most their chordal error
+    of the sphere's radius, and the loop's own chords, inside the circle) and at most 1e-4 mm
+    outside it (how closely a crossing is found where the drop height jumps at the equator)."""
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.ops.waterline import drop_grid, level_loops, waterline_setup
+
+    m = sphere(10.0, rings=96, segments=192)
+    setup = waterline_setup(m, cutters, "B6", WaterlineParams(step_down=4.0, sample=0.5))
+    assert np.allclose(setup.levels, [6.0, 2.0, -2.0, -6.0])
+    drop, grid = drop_grid(m, solid_kernels(m), setup)
+    loops, _ = level_loops(setup, drop, grid)
+    assert [z for z, _ in loops] == list(setup.levels)
+    chord = 10.0 * (1.0 - math.cos(math.pi / 96)) + setup.params.tolerance
+    for z, loop in loops:
+        assert np.array_equal(loop[0], loop[-1]) and np.allclose(loop[:, 2], z)
+        r = np.hypot(loop[:, 0], loop[:, 1])
+        want = math.sqrt(13.0 ** 2 - max(z + 3.0, 0.0) ** 2)
+        assert r.max() <= want + 1e-4 and r.min() >= want - chord

@@ -380,7 +380,7 @@ def finish(p) -> PathResult:
     import numpy as np
 
     from .cluster import connect
-    from .ops.finish import AREA_STATUS
+    from .ops.finish_areas import AREA_STATUS
     from .ops.finish import finish as run
 
     device = _device(p.device)

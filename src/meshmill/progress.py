@@ -7,6 +7,7 @@ pieces are large enough (:data:`PIECES` a stage) for the kernels' threads to sta
 """
 from __future__ import annotations
 
+import contextlib
 import time
 
 PIECES = 16  # pieces a long stage is done in on one machine
@@ -40,6 +41,22 @@ class Meter:
         self.told = now
         left = f", about {(now - self.t0) * (1.0 - share) / share:.0f} s left" if 0.0 < share < 1.0 else ""
         self.say(f"{self.what}: {100.0 * share:.0f} %{left}")
+
+
+class StageClock:
+    """The stages of an operation in order: ``with clock("contours"):`` tells ``say`` the stage as
+    it starts and puts its wall time (s) in ``seconds[key]`` (``key``: default the stage's name)."""
+
+    def __init__(self, say=None):
+        self.say = say or (lambda stage: None)
+        self.seconds = {}
+
+    @contextlib.contextmanager
+    def __call__(self, stage: str, key: str | None = None):
+        self.say(stage)
+        t = time.perf_counter()
+        yield
+        self.seconds[key or stage] = time.perf_counter() - t
 
 
 def in_pieces(func, cuts, say, what: str, weight=None) -> list:

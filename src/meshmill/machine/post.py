@@ -13,8 +13,9 @@ Three modes, by the machine's chain and ``tcp``:
   :func:`meshmill.machine.motion.inverse`. The control moves the joints linearly from block to
   block, so where the rotaries turn the tip leaves the straight CL move; feed moves are split
   (:class:`_Linearisation`) until the tip of the joint-linear motion stays within the tolerance of
-  the CL segment. A rapid that turns a rotary is linearised too and written as G1 at the rapid
-  rate (pure linear rapids stay G0). Feeds in G93 inverse time where ``gcode.inverse_time`` (F = 1 / the block's
+  the CL segment; a program that no split keeps within it is refused (:func:`_stray_error`). A
+  rapid that turns a rotary is linearised too and written as G1 at the rapid rate (pure linear
+  rapids stay G0). Feeds in G93 inverse time where ``gcode.inverse_time`` (F = 1 / the block's
   minutes), else G94 with the tip's feed. table-table: the tool stays vertical, so the tool length
   is the control's (``tool_length``); head-table: the program is computed for the tool length (tip to
   the spindle's gauge line: the tool's ``gauge_length + holder_length``), said in a comment, and no
@@ -54,7 +55,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -64,8 +65,10 @@ from ..toolpath.cldata import MAX_COORDINATE
 from .kinematics import VERTICAL_TOLERANCE, AxisLimitError, angle_step, forward, inverse, machine_xyz
 
 SAMPLES = 16  # points inside a block where the joint-linear tip is compared with the CL segment
-MAX_DEPTH = 10  # one CL move is halved at most this deep (1024 blocks); beyond, the deviation is reported
-GROSS_STRAY = 1.0  # mm: a block that still strays this far after MAX_DEPTH halvings is refused
+MAX_DEPTH = 10  # one CL move is halved at most this deep (1024 blocks) ...
+DEEPEST = 16  # ... and on to this depth where a halving still leaves no more than FALLS of the deviation
+FALLS = 0.75
+GROSS_STRAY = 1.0  # mm: a block that still strays this far is blamed on the pole or the rotaries' travel
 POLE_REACH = 10.0  # within this many pole cones (chain.singular) a midpoint may keep C from swinging
 POLE_WARNING_DEG = 2.0  # a refused move whose axis passes this near the pole is blamed on the pole
 MIN_BLOCK_S = 0.006  # s: the shortest G93 block time written (F <= 10000 / min; one interpolation cycle or so)
@@ -73,6 +76,8 @@ CURVE_PIECES = 8  # the path of the flutes' top in a CL move (a curve) is checke
 SWING_SAMPLES = 65  # poses of a rotary jump checked for its lowest tip
 SWING_ROUNDS = 8  # retracts raised at most this many times until the jump clears
 DEVIATION_CHUNK = 8192  # blocks checked per call of forward (memory: chunk x (SAMPLES + 2) poses)
+SWING_MARGIN = 5.0  # mm: a clearance suggested for a swing above a path top that no rapid travels at
+TCP_HINT = 'the machine\'s [gcode] tcp text, e.g. tcp = "G43.4 H{number}"'  # how to post for TCP
 SPINDLE_STOP = "M5"  # RS-274, the same in every dialect: before a tool change
 OPERATOR_STOP = "M0"  # a machine without a tool changer pauses for the operator to change the tool
 
@@ -93,6 +98,31 @@ class _Run:
     move: np.ndarray
     added: np.ndarray
     rewind: np.ndarray
+
+
+@dataclass
+class _Program:
+    """A program's blocks before they are written: the ``mode`` ("3-axis", "5-axis joints",
+    "5-axis TCP"), one :class:`_Run` per tool, and what linearisation and the rotaries' jumps did:
+    ``blocks_added``, ``largest`` mm (the largest deviation of a block from its CL move),
+    ``rewinds``, ``clearance`` (the Z mm the tool stays above where the rotaries jump; None on a
+    3-axis machine) and their ``warnings``."""
+
+    mode: str
+    runs: list
+    blocks_added: int = 0
+    largest: float = 0.0
+    rewinds: int = 0
+    clearance: float | None = None
+    warnings: list = field(default_factory=list)
+
+    @property
+    def tcp(self) -> bool:
+        return self.mode == "5-axis TCP"
+
+    def inverse_time(self, machine) -> bool:
+        """Whether feed blocks are written in G93 (5-axis joints mode, where the machine asks so)."""
+        return self.mode == "5-axis joints" and machine.gcode.inverse_time
 
 
 def format_number(value, decimals) -> str:
@@ -140,7 +170,7 @@ def _move_feeds(feed, k, machine):
     out = np.broadcast_to(np.asarray(feed, np.float64), (k,)).copy()
     given = ~np.isnan(out)
     if not (np.isfinite(out[given]).all() and (out[given] > 0).all()):
-        raise InputError("feed must be a positive finite number of mm/s (or NaN: the machine's feed)")
+        raise InputError("feed must be a positive finite number of mm/s (or NaN: the machine's feed)", "feed")
     out[~given] = nominal
     return out
 
@@ -180,7 +210,8 @@ def _three_axis_runs(tp, feed, machine):
         a = tp.axis[i]
         raise InputError(f"{_where(tp, i)}: the tool axis ({a[0]:.4f}, {a[1]:.4f}, {a[2]:.4f}) is tilted "
                          f"{math.degrees(tilt[i]):.3f} deg from +Z, and {machine.name} is a 3-axis machine: "
-                         f"post this path for a 5-axis machine ({len(bad)} tilted move(s))")
+                         f"post this path for a 5-axis machine, e.g. machine table-table-ac ({len(bad)} tilted "
+                         "move(s))", "machine")
     runs = []
     for tool, a, b in _tool_runs(tp.tool):
         rapid = tp.rapid[a:b].copy()
@@ -234,8 +265,6 @@ class _Linearisation:
     def __init__(self, machine, tp, tool_length, tcp, tolerance, flutes, rapid=False):
         self.machine, self.tp, self.rapid = machine, tp, rapid
         self.tool_length, self.tcp, self.tolerance, self.flutes = tool_length, tcp, tolerance, flutes
-        self.largest = 0.0  # mm, over every accepted block
-        self.over = 0  # blocks left beyond the tolerance at MAX_DEPTH
 
     def deviation(self, ja, jb, p0, p1, a0, a1, s0=None, s1=None):
         """Largest distance (m,) mm of the joint-linear motion ``ja (m, n)`` -> ``jb (m, n)`` (at
@@ -263,39 +292,23 @@ class _Linearisation:
             out[c:c + DEVIATION_CHUNK] = np.maximum(_peak(_off_segment(tip, q0, q1)), _peak(off))
         return out
 
-    def accept(self, deviation, move, turn=0.0):
-        """Count a block of CL move ``move`` that strays ``deviation`` mm; a block that strays
-        more than :data:`GROSS_STRAY` after every halving is an InputError: the rotaries turn
-        ``turn`` deg in the move where the tip cannot follow (near the pole, or across the end of
-        a rotary's travel), which more blocks would not fix."""
-        if deviation > GROSS_STRAY:
-            a0, a1 = self.tp.axis[move - 1], self.tp.axis[move]
-            circle = _great_circle_path(a0[None] / np.linalg.norm(a0), a1[None] / np.linalg.norm(a1),
-                                        np.linspace(0.0, 1.0, 65))[0]
-            pole = float(np.degrees(np.arccos(np.clip(np.abs(circle[:, 2]), 0.0, 1.0))).min())
-            why = (f"the tool axis passes {pole:.3f} deg from the pole of the rotaries, where C must swing: tilt "
-                   "the path away from it (a lead or tilt angle) or post with TCP" if pole < POLE_WARNING_DEG else
-                   "check the rotaries' travel (a move across the end of a travel under two turns cannot unwind)")
-            raise InputError(f"{_where(self.tp, move)}: the rotaries turn {turn:.1f} deg in this move and its "
-                             f"joint-linear motion strays {deviation:.3f} mm from it after {MAX_DEPTH} halvings: {why}")
-        self.largest = max(self.largest, float(deviation))
-        self.over += int(deviation > self.tolerance)
-
-    def split(self, moves, a0, a1, j0, j1):
+    def split(self, moves, a0, a1, j0, j1, strict=False):
         """Poses inserted into the CL feed moves ``moves (r,)`` (tips ``tp.tip[move - 1]`` ->
         ``tp.tip[move]``, unit axes ``a0`` -> ``a1`` (r, 3)) whose joints ``j0`` -> ``j1`` (r, n)
-        stray beyond the tolerance: per move ``(s (q,), joints (q, n))`` in order, ``s`` the
-        fractions of the move (see :meth:`_midpoint`), each half split again while it strays,
-        MAX_DEPTH deep. The halvings of all moves are measured together,
-        one depth at a time."""
+        stray beyond the tolerance: per move ``(s (q,), joints (q, n), largest)`` in order, ``s``
+        the fractions of the move (see :meth:`_midpoint`, ``strict`` passed on), ``largest`` mm
+        the largest deviation of its blocks. Each half is split again while it strays, MAX_DEPTH
+        deep, and on to DEEPEST while a halving still leaves no more than ``FALLS`` of its half's
+        deviation. The halvings of all moves are measured together, one depth at a time."""
         inserted = [[] for _ in moves]
-        turn = np.abs(j1[:, 3:] - j0[:, 3:]).max(axis=1)  # deg, the rotaries' change over each move
-        # open intervals: (index into moves, s0, s1, joints at s0, joints at s1)
-        open_ = [(k, 0.0, 1.0, j0[k], j1[k]) for k in range(len(moves))]
-        for depth in range(1, MAX_DEPTH + 1):
+        largest = np.zeros(len(moves))
+        # open intervals: (index into moves, s0, s1, joints at s0, joints at s1, deviation)
+        open_ = [(k, 0.0, 1.0, j0[k], j1[k], np.inf) for k in range(len(moves))]
+        for depth in range(1, DEEPEST + 1):
             if not open_:
                 break
-            mids = [self._midpoint(moves[k], a0[k], a1[k], 0.5 * (s0 + s1), ja, jb) for k, s0, s1, ja, jb in open_]
+            mids = [self._midpoint(moves[k], a0[k], a1[k], 0.5 * (s0 + s1), ja, jb, strict)
+                    for k, s0, s1, ja, jb, _ in open_]
             ks = np.array([o[0] for o in open_])
             ja = np.array([o[3] for o in open_])
             jb = np.array([o[4] for o in open_])
@@ -307,30 +320,30 @@ class _Linearisation:
                                   np.r_[a0[ks], a0[ks]], np.r_[a1[ks], a1[ks]], np.r_[lo, mid], np.r_[mid, hi])
             left, right = both[:len(open_)], both[len(open_):]
             still = []
-            for (k, s0, s1, ja_, jb_), j, dl, dr in zip(open_, mids, left, right):
+            for (k, s0, s1, ja_, jb_, whole), j, dl, dr in zip(open_, mids, left, right):
                 sm = 0.5 * (s0 + s1)
                 inserted[k].append((sm, j))
-                for d, half in ((dl, (k, s0, sm, ja_, j)), (dr, (k, sm, s1, j, jb_))):
-                    if d > self.tolerance and depth < MAX_DEPTH:
+                for d, half in ((dl, (k, s0, sm, ja_, j, dl)), (dr, (k, sm, s1, j, jb_, dr))):
+                    if d > self.tolerance and (depth < MAX_DEPTH or (depth < DEEPEST and d <= FALLS * whole)):
                         still.append(half)
                     else:
-                        self.accept(d, int(moves[k]), float(turn[k]))
+                        largest[k] = max(largest[k], d)
             open_ = still
         out = []
-        for pieces in inserted:
+        for pieces, worst in zip(inserted, largest):
             pieces.sort(key=lambda sj: sj[0])
-            out.append((np.array([sj[0] for sj in pieces]), np.array([sj[1] for sj in pieces])))
+            out.append((np.array([sj[0] for sj in pieces]), np.array([sj[1] for sj in pieces]), float(worst)))
         return out
 
-    def _midpoint(self, move, a0, a1, sm, ja, jb):
+    def _midpoint(self, move, a0, a1, sm, ja, jb, strict=False):
         """The joints (n,) at fraction ``sm`` of CL move ``move``, the middle of the interval whose
         ends are ``ja`` and ``jb`` (n,): the rotaries halfway between them and X Y Z putting the tip
         on the CL segment, when that keeps the axis within half the tolerance (at the flutes' top),
-        or, within POLE_REACH pole cones of the pole, within the cone's angle (``chain.singular``,
-        the axis error the pole hold allows), of the great circle from ``a0`` to ``a1`` (always for
-        a rapid, whose axis is free); else
-        the pose with its axis on the great circle, solved next to ``ja`` (near the pole of the
-        rotaries the first keeps C from swinging where the axis hardly moves)."""
+        or, within POLE_REACH pole cones of the pole and not ``strict``, within the cone's angle
+        (``chain.singular``, the axis error the pole hold allows), of the great circle from ``a0``
+        to ``a1`` (always for a rapid, whose axis is free); else the pose with its axis on the
+        great circle, solved next to ``ja`` (near the pole of the rotaries the first keeps C from
+        swinging where the axis hardly moves; ``strict`` where that left the flutes astray)."""
         p0, p1 = self.tp.tip[move - 1], self.tp.tip[move]
         target = p0 + sm * (p1 - p0)
         jm = 0.5 * (ja + jb)
@@ -341,7 +354,7 @@ class _Linearisation:
         want = _great_circle(a0, a1, [sm])[0]
         off = np.linalg.norm(axis[0] - want)  # rad, about
         near_pole = math.acos(min(1.0, abs(want[2]))) < POLE_REACH * self.machine.chain.singular
-        if self.flutes * off <= 0.5 * self.tolerance or (near_pole and off <= self.machine.chain.singular):
+        if self.flutes * off <= 0.5 * self.tolerance or (near_pole and not strict and off <= self.machine.chain.singular):
             return jm
         return _solve(self.machine, self.tp, move, target[None], want[None], self.tool_length, self.tcp, ja)[0][0]
 
@@ -411,89 +424,221 @@ def _off_segment(points, q0, q1):
     return np.linalg.norm(rel - t[..., None] * d[:, None, :], axis=2)
 
 
-def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp, clearance=None):
-    """``(runs, stats, clearance_z)``: one :class:`_Run` per tool from the inverse kinematics,
-    feed moves linearised (joints mode), and a retract-unwind-return where the rotaries jump (see
-    :func:`post_program`); ``stats``: blocks added, largest deviation, blocks over the tolerance,
-    rewinds, warnings. ``clearance``: Z mm above which the rotaries jump (None: the path's
-    highest tip)."""
+@dataclass
+class _ToolPoses:
+    """One tool's CL moves ``first`` to ``stop - 1`` (m of them) as joints: ``joints (m, n)`` as
+    written, ``rewound (m,)`` where the rotaries jump before the pose (never the first, reached
+    from the tool change), ``before (m - 1, n)`` the joints move i starts from (``before[i - 1]``:
+    pose i - 1, or where the rotaries jump, pose i - 1 solved next to pose i); ``tool_length`` mm
+    the kinematics took (tip to gauge line; 0 where the control compensates it)."""
+
+    first: int
+    stop: int
+    joints: np.ndarray
+    rewound: np.ndarray
+    before: np.ndarray
+    tool_length: float
+
+
+def _tool_poses(tp, machine, first, stop, tool, tcp, start) -> _ToolPoses:
+    """The :class:`_ToolPoses` of ``tool``'s CL moves ``first`` to ``stop - 1`` by the inverse
+    kinematics, from ``start`` (the joints before them, or None)."""
+    length = tool.spindle_length if machine.chain.head_pivot else 0.0
+    tip, axis = tp.tip[first:stop], tp.axis[first:stop]
+    joints, rewound = _solve(machine, tp, first, tip, axis, length, tcp, start)
+    rewound[0] = False  # the first pose of a tool is reached from the tool change
+    before = joints[:-1].copy()
+    for i in np.flatnonzero(rewound):
+        before[i - 1] = _solve(machine, tp, first + i - 1, tip[i - 1:i], axis[i - 1:i], length, tcp, joints[i])[0][0]
+    return _ToolPoses(first, stop, joints, rewound, before, length)
+
+
+def _move_kinds(tp, poses: _ToolPoses, feed, machine, tcp):
+    """``(rapid (m,), turns (m,), feed (m,))`` of one tool's CL moves: which are written G0; which
+    are rapids that turn a rotary (joints mode: interpolated joint-linearly, so linearised like feed
+    moves and written G1 at the rapid rate); each move's feed mm/s (the rapid rate for those, and
+    for rapids that a dog-leg G0 would take off their line, written G1 along it)."""
+    a, b, joints, before = poses.first, poses.stop, poses.joints, poses.before
+    turned = np.r_[False, np.abs(joints[1:, 3:] - before[:, 3:]).max(axis=1) > 0.0]
+    turns = tp.rapid[a:b] & turned if not tcp else np.zeros(b - a, bool)
+    straight = tp.rapid[a:b] & np.r_[False, _dogleg_corner(joints[1:], machine, before)] & ~turns
+    rapid = tp.rapid[a:b] & ~turns & ~straight
+    return rapid, turns, np.where(turns | straight, machine.motion.rapid, feed[a:b])
+
+
+@dataclass
+class _Linearised:
+    """One tool's CL moves as linearised: ``splits`` {i: (s (q,), joints (q, n))} the poses put
+    into its move i at the fractions s; ``largest (m,)`` mm each move's largest deviation of its
+    blocks from it (0 for G0); ``turn (m,)`` deg the rotaries' largest change in each move."""
+
+    splits: dict
+    largest: np.ndarray
+    turn: np.ndarray
+
+
+def _linearise(tp, poses: _ToolPoses, rapid, turns, machine, tcp, tolerance, flutes) -> _Linearised:
+    """The :class:`_Linearised` of one tool's CL moves (joints mode; nothing is split in TCP mode):
+    the moves not written G0 (``rapid``) that stray beyond ``tolerance`` mm at the tip or
+    ``flutes`` mm up the axis are split (:meth:`_Linearisation.split`); a rapid that turns the
+    rotaries (``turns``) keeps only its tip on the CL segment (as a feed move, where the axis's
+    great circle lies between its ends' joints; where it needs the other solution of the rotaries,
+    the rotaries turn joint-linearly instead). A move whose blocks still stray is split again, the
+    better of the two kept: a rapid with its tip alone on the CL segment, a feed move with every
+    midpoint's axis on the CL move's (``strict``)."""
+    a, b, joints, before, length = poses.first, poses.stop, poses.joints, poses.before, poses.tool_length
+    tip, axis = tp.tip[a:b], tp.axis[a:b]
+    lin = _Linearisation(machine, tp, length, tcp, tolerance, flutes)
+    cut = np.flatnonzero(~rapid[1:]) + 1 if not tcp else np.zeros(0, np.int64)
+    deviation = np.zeros(b - a)
+    unit = axis / np.linalg.norm(axis, axis=1, keepdims=True)
+    deviation[cut] = lin.deviation(before[cut - 1], joints[cut], tip[cut - 1], tip[cut], unit[cut - 1], unit[cut])
+    lin_rapid = _Linearisation(machine, tp, length, tcp, tolerance, 0.0, rapid=True)
+    linear_turn = np.zeros(b - a, bool)
+    for i in np.flatnonzero(turns):
+        ja = before[i - 1]
+        for g in np.linspace(0.0, 1.0, 33)[1:]:  # follow the great circle's solutions from the start
+            ja = _solve(machine, tp, a + i, tip[i - 1:i] + g * (tip[i:i + 1] - tip[i - 1:i]),
+                        _great_circle(unit[i - 1], unit[i], [g]), length, tcp, ja)[0][0]
+        linear_turn[i] = np.abs(ja[3:] - joints[i, 3:]).max() > 1e-3
+    fast = np.flatnonzero(linear_turn)
+    deviation[fast] = lin_rapid.deviation(before[fast - 1], joints[fast], tip[fast - 1], tip[fast],
+                                          unit[fast - 1], unit[fast])
+    splits, largest = {}, np.where(rapid, 0.0, deviation)
+
+    def split(how, need, strict=False):  # keeps the split of each move that strays least
+        found = how.split(a + need, unit[need - 1], unit[need], before[need - 1], joints[need], strict)
+        for i, (s, j, worst) in zip(need.tolist(), found):
+            if i not in splits or worst < largest[i]:
+                splits[i], largest[i] = (s, j), worst
+
+    for how, mask in ((lin, ~linear_turn), (lin_rapid, linear_turn)):
+        split(how, np.flatnonzero(~rapid & (deviation > tolerance) & mask))
+    # what still strays, again: a rapid with its tip alone on the CL segment (its axis is free), a
+    # feed move with the axis of every midpoint on the CL move's
+    again = np.flatnonzero(largest > tolerance)
+    split(lin_rapid, again[turns[again] & ~linear_turn[again]])
+    split(lin, again[~turns[again]], strict=True)
+    return _Linearised(splits, largest, np.r_[0.0, np.abs(joints[1:, 3:] - before[:, 3:]).max(axis=1)])
+
+
+def _tool_blocks(tp, tool_index, tool, poses: _ToolPoses, rapid, feed, lin: _Linearised, machine, clearance,
+                 tcp) -> _Run:
+    """The :class:`_Run` of tool ``tool_index`` (``tool``) over its CL moves: the first pose by
+    G0 from the tool change, then per move its blocks: a retract-unwind-return (:func:`_rewind`)
+    where the rotaries jump, then G0 (``rapid``) or G1 at ``feed (m,)`` mm/s through the poses
+    ``lin`` put in."""
+    a, b, joints, before = poses.first, poses.stop, poses.joints, poses.before
+    step = np.r_[0.0, np.linalg.norm(np.diff(tp.tip[a:b], axis=0), axis=1)]  # mm, the tip's travel of each move
+    blocks = _Blocks(tool_index)
+    blocks.add(joints[0], True, np.nan, 0.0, a)
+    for i in range(1, b - a):
+        move, f = a + i, feed[i]
+        if poses.rewound[i]:
+            _rewind(blocks, tp, machine, move, joints[i - 1], before[i - 1], f, clearance, tool, poses.tool_length, tcp)
+        if rapid[i]:
+            blocks.add(joints[i], True, np.nan, 0.0, move)
+            continue
+        done = 0.0
+        for sj, j in zip(*lin.splits.get(i, ((), ()))):
+            blocks.add(j, False, f, (sj - done) * step[i], move, added=True)
+            done = sj
+        blocks.add(joints[i], False, f, (1.0 - done) * step[i], move)
+    return blocks.run()
+
+
+def _pole_distance(tp, move) -> float:
+    """deg: how near the tool axis comes to the pole of the rotaries (+Z or -Z) in CL move
+    ``move`` (its great circle from the axis before it)."""
+    a0, a1 = tp.axis[move - 1], tp.axis[move]
+    circle = _great_circle_path(a0[None] / np.linalg.norm(a0), a1[None] / np.linalg.norm(a1),
+                                np.linspace(0.0, 1.0, 65))[0]
+    return float(np.degrees(np.arccos(np.clip(np.abs(circle[:, 2]), 0.0, 1.0))).min())
+
+
+def _check_gross(tp, first, lin: _Linearised):
+    """InputError for the first of one tool's moves (from CL move ``first``) whose blocks stray
+    more than :data:`GROSS_STRAY` from it however finely it is split: the rotaries turn where the
+    tip cannot follow (near the pole, or across the end of a rotary's travel), which more blocks
+    would not fix."""
+    gross = np.flatnonzero(lin.largest > GROSS_STRAY)
+    if not len(gross):
+        return
+    i = int(gross[0])
+    move = first + i
+    pole = _pole_distance(tp, move)
+    why = (f"the tool axis passes {pole:.3f} deg from the pole of the rotaries, where C must swing: tilt the path "
+           f"at least {POLE_WARNING_DEG:g} deg away from it (a lead or tilt angle) or post for TCP ({TCP_HINT})"
+           if pole < POLE_WARNING_DEG else
+           "check the rotaries' travel (a move across the end of a travel under two turns cannot unwind)")
+    raise InputError(f"{_where(tp, move)}: the rotaries turn {lin.turn[i]:.1f} deg in this move and its joint-linear "
+                     f"motion strays {lin.largest[i]:.3f} mm from it however finely it is split: {why}")
+
+
+def _stray_error(tp, machine, tolerance, moves, largest) -> InputError:
+    """The error for CL ``moves (k,)`` whose blocks stray up to ``largest (k,)`` mm (more than
+    ``tolerance``) however finely they are split: the move that strays most, why (near the pole of
+    the rotaries C is held, and the axis then off by up to ``chain.singular``), and what holds: a
+    tolerance of the largest stray (rounded up), TCP, or a path tilted away from the pole."""
+    worst = int(np.argmax(largest))
+    move = int(moves[worst])
+    holds = math.ceil(float(largest[worst]) * 1e4 - 1e-6) / 1e4  # mm: the largest stray, rounded up
+    pole = _pole_distance(tp, move)
+    near = (f", where the tool axis passes {pole:.3f} deg from the pole of the rotaries ({machine.name} holds C within "
+            f"{math.degrees(machine.chain.singular):g} deg of it, the axis off by up to that angle)"
+            if pole < POLE_WARNING_DEG else "")
+    away = f", or tilt the path at least {POLE_WARNING_DEG:g} deg away from the pole (a lead or tilt angle)" \
+        if pole < POLE_WARNING_DEG else ""
+    return InputError(f"{len(moves)} CL move(s) stray from the path by more than the {tolerance:g} mm tolerance "
+                      f"however finely they are split, the most {largest[worst]:.4f} mm at {_where(tp, move)}{near}: "
+                      f"give tolerance {holds:g} (which holds), post for TCP ({TCP_HINT}){away}", "tolerance")
+
+
+def _five_axis_runs(tp, tools, feed, machine, tolerance, tcp, clearance=None) -> _Program:
+    """The :class:`_Program` of a 5-axis machine: one :class:`_Run` per tool from the inverse
+    kinematics (:func:`_tool_poses`), moves linearised (joints mode, :func:`_linearise`), and a
+    retract-unwind-return where the rotaries jump (see :func:`post_program`; ``clearance``: Z mm
+    above which they do, None: the path's highest tip). A move whose blocks still stray beyond
+    ``tolerance`` is an InputError (:func:`_check_gross`, :func:`_stray_error`)."""
     clearance_given = clearance is not None
     clearance = float(clearance) if clearance_given else float(tp.tip[:, 2].max())
-    stats = {"blocks_added": 0, "largest": 0.0, "over": 0, "rewinds": 0, "warnings": []}
-    runs, start = [], None
-    tilt = machine.axes.index(machine.chain.rotary[0])
+    out = _Program("5-axis TCP" if tcp else "5-axis joints", [], clearance=clearance)
+    start, strays = None, []
     for tool, a, b in _tool_runs(tp.tool):
-        length = tools[tool].spindle_length if machine.chain.head_pivot else 0.0
-        tip, axis = tp.tip[a:b], tp.axis[a:b]
-        joints, rewound = _solve(machine, tp, a, tip, axis, length, tcp, start)
-        rewound[0] = False  # the first pose of a tool is reached from the tool change
-        lin = _Linearisation(machine, tp, length, tcp, tolerance, tools[tool].flute_length)
-        # the joints each move i starts from: where the rotaries jump, pose i-1 solved next to pose i
-        before = joints[:-1].copy()
-        for i in np.flatnonzero(rewound):
-            before[i - 1] = _solve(machine, tp, a + i - 1, tip[i - 1:i], axis[i - 1:i], length, tcp, joints[i])[0][0]
-        # joints mode: rapids that turn a rotary are interpolated joint-linearly too, so they are
-        # linearised like feed moves and written as G1 at the rapid rate; pure linear rapids stay G0
-        turned = np.r_[False, np.abs(joints[1:, 3:] - before[:, 3:]).max(axis=1) > 0.0]
-        turns = tp.rapid[a:b] & turned if not tcp else np.zeros(b - a, bool)
-        # a dog-leg G0 would leave the CL line: G1 along it at the rapid rate
-        straight = tp.rapid[a:b] & np.r_[False, _dogleg_corner(joints[1:], machine, before)] & ~turns
-        rapid = tp.rapid[a:b] & ~turns & ~straight
-        f_move = np.where(turns | straight, machine.motion.rapid, feed[a:b])
-        cut = np.flatnonzero(~rapid[1:]) + 1 if not tcp else np.zeros(0, np.int64)
-        deviation = np.zeros(b - a)
-        unit = axis / np.linalg.norm(axis, axis=1, keepdims=True)
-        deviation[cut] = lin.deviation(before[cut - 1], joints[cut], tip[cut - 1], tip[cut], unit[cut - 1], unit[cut])
-        # a rapid prescribes no axis between its ends: only its tip is kept on the CL segment
-        # (as a feed move, where the axis's great circle lies between its ends' joints; where it
-        # needs the other solution of the rotaries, the rotaries turn joint-linearly instead)
-        lin_rapid = _Linearisation(machine, tp, length, tcp, tolerance, 0.0, rapid=True)
-        linear_turn = np.zeros(b - a, bool)
-        for i in np.flatnonzero(turns):
-            ja = before[i - 1]
-            for g in np.linspace(0.0, 1.0, 33)[1:]:  # follow the great circle's solutions from the start
-                ja = _solve(machine, tp, a + i, tip[i - 1:i] + g * (tip[i:i + 1] - tip[i - 1:i]),
-                            _great_circle(unit[i - 1], unit[i], [g]), length, tcp, ja)[0][0]
-            linear_turn[i] = np.abs(ja[3:] - joints[i, 3:]).max() > 1e-3
-        fast = np.flatnonzero(linear_turn)
-        deviation[fast] = lin_rapid.deviation(before[fast - 1], joints[fast], tip[fast - 1], tip[fast],
-                                              unit[fast - 1], unit[fast])
-        step = np.r_[0.0, np.linalg.norm(np.diff(tip, axis=0), axis=1)]  # mm, the tip's travel of each move
-        splits = {}  # i -> (s, joints) inserted into move i
-        for how, mask in ((lin, ~linear_turn), (lin_rapid, linear_turn)):
-            need = np.flatnonzero(~rapid & (deviation > tolerance) & mask)
-            splits.update(zip(need.tolist(), how.split(a + need, unit[need - 1], unit[need], before[need - 1], joints[need])))
-        blocks = _Blocks(tool)
-        blocks.add(joints[0], True, np.nan, 0.0, a)
-        for i in range(1, b - a):
-            move, f = a + i, f_move[i]
-            if rewound[i]:
-                stats["rewinds"] += 1
-                _rewind(blocks, tp, machine, move, joints[i - 1], before[i - 1], f, clearance, tools[tool], length, tcp)
-                if abs(before[i - 1, tilt] - joints[i - 1, tilt]) > 1e-6 and not clearance_given:
-                    stats["warnings"].append(
-                        f"{_where(tp, move)}: the tool swings over to the other side ({machine.axes[tilt]} "
-                        f"{format_number(joints[i - 1, tilt], 3)} -> {format_number(before[i - 1, tilt], 3)}) in one block, "
-                        f"the whole tool kept above Z {clearance:g}, the path's highest tip: give --clearance (the "
-                        "part's top plus a margin) unless the path's top clears the part")
-            if rapid[i]:
-                blocks.add(joints[i], True, np.nan, 0.0, move)
-                continue
-            done = 0.0
-            how = lin_rapid if linear_turn[i] else lin
-            if i in splits:
-                for sj, j in zip(*splits[i]):
-                    blocks.add(j, False, f, (sj - done) * step[i], move, added=True)
-                    done = sj
-            else:
-                how.accept(deviation[i], move)
-            blocks.add(joints[i], False, f, (1.0 - done) * step[i], move)
-        runs.append(blocks.run())
-        stats["blocks_added"] += int(runs[-1].added.sum())
-        stats["largest"] = max(stats["largest"], lin.largest, lin_rapid.largest)
-        stats["over"] += lin.over + lin_rapid.over
-        start = joints[-1]
-    return runs, stats, clearance
+        poses = _tool_poses(tp, machine, a, b, tools[tool], tcp, start)
+        rapid, turns, f_move = _move_kinds(tp, poses, feed, machine, tcp)
+        lin = _linearise(tp, poses, rapid, turns, machine, tcp, tolerance, tools[tool].flute_length)
+        _check_gross(tp, a, lin)
+        out.runs.append(_tool_blocks(tp, tool, tools[tool], poses, rapid, f_move, lin, machine, clearance, tcp))
+        out.rewinds += int(poses.rewound.sum())
+        if not clearance_given:
+            out.warnings += _swing_warnings(tp, poses, machine, clearance)
+        out.blocks_added += int(out.runs[-1].added.sum())
+        out.largest = max(out.largest, float(lin.largest.max()))
+        strays += [(a + i, lin.largest[i]) for i in np.flatnonzero(lin.largest > tolerance)]
+        start = poses.joints[-1]
+    if strays:
+        raise _stray_error(tp, machine, tolerance, *(np.array(x) for x in zip(*strays)))
+    return out
+
+
+def _swing_warnings(tp, poses: _ToolPoses, machine, clearance) -> list[str]:
+    """Warnings for the moves of one tool before which the tool swings over to the other side (the
+    tilt changes where the rotaries jump) above ``clearance``, the path's highest tip (none was
+    given), each with the clearance to give: that Z where the path's rapids travel at it (they
+    clear the part where they pass), else that Z plus :data:`SWING_MARGIN`."""
+    tilt = machine.axes.index(machine.chain.rotary[0])
+    joints, before = poses.joints, poses.before
+    if tp.rapid.any() and float(tp.tip[tp.rapid, 2].max()) >= clearance:
+        advice = f"the height the path's own rapids travel at: give clearance {clearance:g}"
+    else:
+        advice = f"which none of the path's rapids reaches: give clearance {clearance + SWING_MARGIN:g} (that tip plus " \
+                 f"{SWING_MARGIN:g} mm)"
+    return [f"{_where(tp, poses.first + i)}: the tool swings over to the other side ({machine.axes[tilt]} "
+            f"{format_number(joints[i - 1, tilt], 3)} -> {format_number(before[i - 1, tilt], 3)}) in one block, the "
+            f"whole tool kept above Z {clearance:g}, the path's highest tip, {advice} where nothing of the part or its "
+            "fixtures stands higher, else the part's top plus a margin"
+            for i in np.flatnonzero(poses.rewound) if abs(before[i - 1, tilt] - joints[i - 1, tilt]) > 1e-6]
 
 
 def _rewind(blocks, tp, machine, move, joints, unwound, feed, clearance, tool, tool_length, tcp):
@@ -681,6 +826,97 @@ def _write(runs, tools, machine, mode, inverse_time):
     return lines, motion_blocks
 
 
+def _checked_arguments(toolpath, tolerance, clearance, origin):
+    """The arguments of :func:`post_program` checked: ``origin`` as an array (3,) mm, or None;
+    InputError for a ``tolerance`` that is no positive number of mm, a path without moves, a ``clearance`` that is no Z within the CL format's range,
+    an ``origin`` that is not three finite numbers."""
+    if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
+        raise InputError(f"tolerance (the linearisation's) must be a positive number of mm, got {tolerance}",
+                         "tolerance")
+    if len(toolpath) == 0:
+        raise InputError("the tool path has no moves")
+    if clearance is not None and (isinstance(clearance, bool) or not isinstance(clearance, numbers.Real)
+                                  or not abs(clearance) <= MAX_COORDINATE):
+        raise InputError(f"the clearance must be a Z in mm (|Z| <= {MAX_COORDINATE:g}), got {clearance}", "clearance")
+    if origin is None:
+        return None
+    origin = np.asarray(origin, np.float64)
+    if origin.shape != (3,) or not np.isfinite(origin).all():
+        raise InputError(f"the origin must be three finite numbers X,Y,Z (mm), got {origin.tolist()}", "origin")
+    return origin
+
+
+def post_mode(machine, tcp=None) -> str:
+    """How a program for ``machine`` is written: "3-axis", "5-axis joints" or, with ``tcp`` (None:
+    where the machine's ``gcode.tcp`` text is not empty), "5-axis TCP"; InputError for TCP on a
+    3-axis machine or without a ``gcode.tcp`` text."""
+    tcp = bool(machine.gcode.tcp) if tcp is None else bool(tcp)
+    if machine.chain.type == "3-axis":
+        if tcp:
+            raise InputError(f"TCP needs a 5-axis machine; {machine.name} is a 3-axis machine")
+        return "3-axis"
+    if tcp and not machine.gcode.tcp:
+        raise InputError(f"{machine.name} has no [gcode] 'tcp' text to switch TCP on (e.g. \"G43.4 H{{number}}\")")
+    return "5-axis TCP" if tcp else "5-axis joints"
+
+
+def program_blocks(toolpath, tools, feeds, machine, mode, tolerance, clearance=None) -> _Program:
+    """The :class:`_Program` of ``toolpath`` (``feeds (k,)`` mm/s per move) on ``machine`` in
+    ``mode`` (:func:`post_mode`): the tips as they are (3-axis), else :func:`_five_axis_runs`."""
+    if mode == "3-axis":
+        return _Program(mode, _three_axis_runs(toolpath, feeds, machine))
+    return _five_axis_runs(toolpath, tools, feeds, machine, tolerance, mode == "5-axis TCP", clearance)
+
+
+def program_warnings(toolpath, tools, machine, program: _Program, given=None) -> list[str]:
+    """The warnings about a ``program`` besides its own (the swings'): a clearance ``given`` (Z mm)
+    that a 3-axis machine does not use or that lies below the path's highest tip, tools without a
+    holder on a head that tilts them, joint moves fed in G94, feed blocks the rotaries slow, and
+    tool changes left to the operator."""
+    g, runs, warnings = machine.gcode, program.runs, []
+    top = float(toolpath.tip[:, 2].max())
+    joints_mode = program.mode == "5-axis joints"
+    if given is not None and program.mode == "3-axis":
+        warnings.append(f"the clearance (Z {given:g}) is not used on a 3-axis machine: it has no rotaries to jump")
+    elif given is not None and given < top and program.rewinds:
+        warnings.append(f"the clearance Z {given:g} is below the path's highest tip (Z {top:g}): where the rotaries "
+                        "jump, the tool stays above it, lower than the path's own rapids")
+    if joints_mode and machine.chain.head_pivot:
+        warnings += [w for w in (tools[i].spindle_length_warning() for i in sorted({r.tool for r in runs})) if w]
+    if joints_mode and not program.inverse_time(machine):
+        warnings.append(f"{machine.name} writes 5-axis joint moves in G94: F is the tip's feed, but the control applies "
+                        "it to the axes' motion, so blocks that turn the rotaries run at another speed; set "
+                        f"inverse_time = true in its [gcode] (G93, F = 1 / the block's minutes) or post for TCP "
+                        f"({TCP_HINT})")
+    slow = _rotary_limited(runs, toolpath, machine) if joints_mode else None
+    warnings += [slow] if slow else []
+    if len(runs) > 1 and not g.tool_change:
+        warnings.append(f"{machine.name} has no tool changer: the program stops ({OPERATOR_STOP}) at each of the "
+                        f"{len(runs) - 1} tool change(s) for the operator")
+    return warnings
+
+
+def program_report(toolpath, tools, machine, program: _Program, lines, blocks, tolerance, origin, origin_range,
+                   warnings) -> dict:
+    """The report of a program (see :func:`post_program`): its ``lines`` and motion ``blocks``,
+    the ``program``'s figures, the ``origin`` and the ``origin_range``, the ``warnings``."""
+    joints = np.concatenate([run.joints for run in program.runs])
+    return {
+        "machine": machine.name, "machine_file": machine.summary()["file"], "dialect": machine.gcode.dialect,
+        "kinematics": machine.chain.type, "mode": program.mode,
+        "feed_mode": "G93 inverse time" if program.inverse_time(machine) else "G94 mm/min",
+        "moves": len(toolpath), "blocks": blocks, "lines": len(lines),
+        "linearisation": {"tolerance_mm": float(tolerance), "blocks_added": program.blocks_added,
+                          "max_deviation_mm": None if program.tcp else program.largest},
+        "axis_ranges": {letter: [float(joints[:, n].min()) + 0.0, float(joints[:, n].max()) + 0.0]
+                        for n, letter in enumerate(machine.axes)},
+        "rewinds": program.rewinds, "clearance_z_mm": program.clearance,
+        "origin": None if origin is None else [float(v) for v in origin], "origin_range": origin_range,
+        "tools": list(dict.fromkeys(tools[run.tool].name for run in program.runs)),
+        "tool_changes": len(program.runs) - 1, "warnings": warnings,
+    }
+
+
 def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None, origin=None,
                  clearance=None) -> tuple[list[str], dict]:
     """The NC program of ``toolpath`` on ``machine`` (see the module's docstring for the layout).
@@ -710,78 +946,24 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
     Returns ``(lines, report)``: the program's lines (no line ends) and a dict: ``machine``,
     ``dialect``, ``kinematics``, ``mode``, ``feed_mode``, ``moves`` (in), ``blocks`` (motion
     blocks out), ``lines``, ``linearisation`` (``tolerance_mm``, ``blocks_added``,
-    ``max_deviation_mm``: largest tip deviation measured, None in TCP mode where the control
-    interpolates; ``blocks_over_tolerance``: left so at the depth limit), ``axis_ranges``
-    ({letter: [low, high]} as written), ``rewinds`` and ``clearance_z_mm`` (what the tool stays above where the rotaries jump),
-    ``tools`` (names in order of use), ``tool_changes`` (after the first tool), ``warnings``.
-    Raises :class:`~meshmill.errors.InputError` for a tilted axis on a 3-axis machine, a block
-    beyond the travel, or a TCP program without a ``gcode.tcp`` text.
+    ``max_deviation_mm``: the largest deviation of a block from its CL move, at most the
+    tolerance; None in TCP mode, where the control interpolates), ``axis_ranges`` ({letter: [low,
+    high]} as written), ``rewinds`` and ``clearance_z_mm`` (what the tool stays above where the
+    rotaries jump), ``tools`` (names in order of use), ``tool_changes`` (after the first tool),
+    ``warnings``. Raises :class:`~meshmill.errors.InputError` for a tilted axis on a 3-axis
+    machine, a block beyond the travel, a TCP program without a ``gcode.tcp`` text, or a move
+    whose blocks stray beyond the tolerance however finely it is split (near the pole of the
+    rotaries, where C is held; the error says the tolerance that holds).
+
+    The stages: :func:`post_mode`, :func:`program_blocks`, the travel (:func:`_check_limits`),
+    the text (:func:`_write`), :func:`program_warnings`, :func:`program_report`.
     """
-    if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
-        raise InputError(f"the linearisation tolerance must be a positive number of mm, got {tolerance}")
-    if len(toolpath) == 0:
-        raise InputError("the tool path has no moves")
-    if clearance is not None and (isinstance(clearance, bool) or not isinstance(clearance, numbers.Real)
-                                  or not abs(clearance) <= MAX_COORDINATE):
-        raise InputError(f"the clearance must be a Z in mm (|Z| <= {MAX_COORDINATE:g}), got {clearance}")
-    if origin is not None:
-        origin = np.asarray(origin, np.float64)
-        if origin.shape != (3,) or not np.isfinite(origin).all():
-            raise InputError(f"the origin must be three finite numbers X,Y,Z (mm), got {origin.tolist()}")
-    g = machine.gcode
-    given = clearance
-    five_axis = machine.chain.type != "3-axis"
-    tcp = bool(g.tcp) if tcp is None else bool(tcp)
-    if tcp and not five_axis:
-        raise InputError(f"TCP needs a 5-axis machine; {machine.name} is a 3-axis machine")
-    if tcp and not g.tcp:
-        raise InputError(f"{machine.name} has no [gcode] 'tcp' text to switch TCP on (e.g. \"G43.4 H{{number}}\")")
-    feeds = _move_feeds(feed, len(toolpath), machine)
-    if five_axis:
-        mode = "5-axis TCP" if tcp else "5-axis joints"
-        runs, stats, clearance = _five_axis_runs(toolpath, tools, feeds, machine, tolerance, tcp, clearance)
-    else:
-        mode = "3-axis"
-        runs = _three_axis_runs(toolpath, feeds, machine)
-        stats = {"blocks_added": 0, "largest": 0.0, "over": 0, "rewinds": 0, "warnings": []}
-    origin_range = _check_limits(runs, toolpath, machine, origin, tcp, tools)
-    inverse_time = mode == "5-axis joints" and g.inverse_time
-    lines, blocks = _write(runs, tools, machine, mode, inverse_time)
-    warnings = stats["warnings"]
-    top = float(toolpath.tip[:, 2].max())
-    if given is not None and not five_axis:
-        warnings.append(f"the clearance (Z {given:g}) is not used on a 3-axis machine: it has no rotaries to jump")
-    elif given is not None and given < top and stats["rewinds"]:
-        warnings.append(f"the clearance Z {given:g} is below the path's highest tip (Z {top:g}): where the rotaries "
-                        "jump, the tool stays above it, lower than the path's own rapids")
-    if mode == "5-axis joints" and machine.chain.head_pivot:
-        warnings += [w for w in (tools[i].spindle_length_warning() for i in sorted({r.tool for r in runs})) if w]
-    if mode == "5-axis joints" and not inverse_time:
-        warnings.append(f"{machine.name} writes 5-axis joint moves in G94: F is the tip's feed, but the control applies "
-                        "it to the axes' motion, so blocks that turn the rotaries run at another speed; use "
-                        "inverse_time = true or TCP")
-    slow = _rotary_limited(runs, toolpath, machine) if mode == "5-axis joints" else None
-    warnings += [slow] if slow else []
-    if stats["over"]:
-        warnings.append(f"{stats['over']} block(s) still stray up to {stats['largest']:.4f} mm from the CL path after "
-                        f"{MAX_DEPTH} halvings (more than the {tolerance:g} mm tolerance): a pose near the pole of "
-                        "the rotary axes?")
-    if len(runs) > 1 and not g.tool_change:
-        warnings.append(f"{machine.name} has no tool changer: the program stops ({OPERATOR_STOP}) at each of the "
-                        f"{len(runs) - 1} tool change(s) for the operator")
-    joints = np.concatenate([run.joints for run in runs])
-    names = list(dict.fromkeys(tools[run.tool].name for run in runs))
-    report = {
-        "machine": machine.name, "machine_file": machine.summary()["file"], "dialect": g.dialect, "kinematics": machine.chain.type,
-        "mode": mode, "feed_mode": "G93 inverse time" if inverse_time else "G94 mm/min",
-        "moves": len(toolpath), "blocks": blocks, "lines": len(lines),
-        "linearisation": {"tolerance_mm": float(tolerance), "blocks_added": stats["blocks_added"],
-                          "max_deviation_mm": None if tcp else stats["largest"],
-                          "blocks_over_tolerance": stats["over"]},
-        "axis_ranges": {letter: [float(joints[:, n].min()) + 0.0, float(joints[:, n].max()) + 0.0]
-                        for n, letter in enumerate(machine.axes)},
-        "rewinds": stats["rewinds"], "clearance_z_mm": clearance if five_axis else None,
-        "origin": None if origin is None else [float(v) for v in origin], "origin_range": origin_range,
-        "tools": names, "tool_changes": len(runs) - 1, "warnings": warnings,
-    }
-    return lines, report
+    origin = _checked_arguments(toolpath, tolerance, clearance, origin)
+    mode = post_mode(machine, tcp)
+    program = program_blocks(toolpath, tools, _move_feeds(feed, len(toolpath), machine), machine, mode, tolerance,
+                             clearance)
+    origin_range = _check_limits(program.runs, toolpath, machine, origin, program.tcp, tools)
+    lines, blocks = _write(program.runs, tools, machine, mode, program.inverse_time(machine))
+    warnings = program.warnings + program_warnings(toolpath, tools, machine, program, clearance)
+    return lines, program_report(toolpath, tools, machine, program, lines, blocks, tolerance, origin, origin_range,
+                                 warnings)

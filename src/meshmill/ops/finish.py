@@ -17,6 +17,14 @@
 5. The finished path is verified (:mod:`meshmill.pathing.verify`); moves that fail are repaired by
    splitting passes or changing the link, and whatever cannot be repaired is left out. The path
    written is the verified one.
+
+:func:`finish` runs these as stages, each a function here that takes and returns explicit state
+(lengths in mm): :func:`finish_setup` (the balls, the safe plane, the levels), :func:`contours`
+(1), :func:`point_balls` (2, with :mod:`~meshmill.ops.finish_balls`), :func:`tool_axes` (3),
+:func:`~meshmill.ops.finish_shallow.shallow_fill` (``scallop``'s flat areas),
+:func:`cutting_passes` (4, moves by :class:`~meshmill.ops.finish_path.PathBuilder`, kept from the
+rotaries' pole by :mod:`~meshmill.ops.finish_pole`), :func:`verify_and_repair` (5) and
+:func:`finish_summary` (the surface cut and why not, :mod:`~meshmill.ops.finish_areas`).
 """
 from __future__ import annotations
 
@@ -24,37 +32,29 @@ import dataclasses
 import functools
 import math
 import time
-import numpy as np
-from scipy.spatial import cKDTree
+from dataclasses import dataclass
 
-from ..progress import PIECES, Meter, ranges
+import numpy as np
+
+from ..progress import PIECES, Meter, StageClock, ranges
 from ..errors import InputError, NothingToCut
-from ..geometry.analysis import sample_surface
 from ..geometry.mesh import Mesh
-from ..geometry.slicing import MIN_HALF_COS, concat_contours, contour_runs, slice_contours, z_levels
+from ..geometry.slicing import concat_contours, contour_runs, slice_contours, z_levels
 from ..kernels.backend import solid_kernels
 from ..params import FinishParams
 from ..simulation.stock import Stock
 from ..tolerances import FLOAT32_ROUNDING, WRITE_ROUNDING
 from ..tools.table import pack_cylinders
 from ..toolpath.model import Toolpath
+from .finish_areas import surface_areas
+from .finish_balls import balls_piece, contour_balls, largest_balls, run_balls, smaller_balls
 from .finish_levels import added_contours
-from .finish_shallow import shallow_facets, shallow_fill
+from .finish_path import NO_LEAD, PathBuilder, repair_passes
+from .finish_shallow import SCALLOP_MIN_SLOPE, shallow_fill
 from ..pathing.reverify import Reverify
 from ..pathing.verify import DEFAULT_STEP, StockCheck, check_parts, path_pieces, rapid_reach, verify_piece
 
 REPAIR_ROUNDS = 7
-# Ways into and out of a pass, tried in this order: (lead along the outward side, vertical retract
-# instead of one along the tool axis, feed all the way from and to the safe plane). The rapid of
-# the others ends (starts) the approach distance above the lead's end, where the tool is clear of
-# the stock; the approach itself is a feed.
-LINKS = ((True, False, False), (True, True, False), (False, False, False), (False, True, False), (False, False, True),
-         (False, True, True))
-NO_LEAD = 2
-SCALLOP_MIN_SLOPE = 10.0  # deg from the horizontal: flatter surfaces are rastered, not Z-levelled (scallop)
-AREA_SAMPLES = 2_000_000  # most points sampled on the design to say what each status of the CC points stands for
-POLE_MARGIN = 2.0  # deg: for a 5-axis machine, no move swings the axis nearer its rotaries' pole than this ...
-POLE_STEP = 10.0  # ... and C turns at most this much in one move (deg): the azimuth goes round in steps
 MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
 
 
@@ -83,471 +83,6 @@ def _axes(cand, idx, feed, side):
     return u / np.linalg.norm(u, axis=1, keepdims=True)
 
 
-class _PathBuilder:
-    """Turns passes into moves and maps verification problems back onto passes. ``approach``: the
-    distance (mm) above a lead's end where the rapid stops and the feed begins. ``gentle``: the
-    ``singular`` angle (rad) of a 5-axis machine whose C must turn gently (:func:`gentle_turns`), or
-    None. Between passes the axis turns where the last pass left the safe plane, then travels."""
-
-    def __init__(self, tip, axis, side, safe_z, lead, approach, radius, gentle=None, reach=None):
-        self.tip, self.axis, self.side, self.safe_z, self.lead = tip, axis, side, safe_z, lead
-        self.approach, self.radius, self.gentle, self.reach = approach, radius, gentle, reach
-
-    def _reaches(self, passes):
-        """Per pass, the distances ``(in, out)`` down the way to the safe plane to which a rapid
-        may come where its entry (exit) feeds all the way (None: feed all the way): the stock's
-        :func:`~meshmill.pathing.verify.rapid_reach`, at least the approach distance."""
-        out = [[None, None] for _ in passes]
-        if self.reach is None:
-            return out
-        pts, dirs, axes, tools, tops, where = [], [], [], [], [], []
-        for k, ps in enumerate(passes):
-            for side, key, end in ((0, "entry", 0), (1, "exit", -1)):
-                lead, vertical, feed = LINKS[ps[key]]
-                if not feed or not ps.get(("reach_in", "reach_out")[side], True):
-                    continue
-                i = ps["idx"][end]
-                p = self.tip[i] + (self.lead * self.side[i] if lead else 0.0)
-                u = self.axis[i]
-                d = np.array([0.0, 0.0, 1.0]) if vertical or u[2] < 1e-6 else u
-                pts.append(p)
-                dirs.append(d)
-                axes.append(u)
-                tools.append(ps["tool"])
-                tops.append(max(0.0, (self.safe_z - p[2]) / d[2]))
-                where.append((k, side))
-        if pts:
-            t = self.reach(np.array(pts), np.array(dirs), np.array(axes), np.array(tools), np.array(tops))
-            for (k, side), tk, top in zip(where, t, tops):
-                if tk < top - self.approach:
-                    out[k][side] = max(float(tk), self.approach)
-        return out
-
-    def _up(self, p, u, vertical):
-        if vertical or u[2] < 1e-6:
-            return np.array([p[0], p[1], self.safe_z])
-        return p + (self.safe_z - p[2]) / u[2] * u
-
-    @staticmethod
-    def _dir(u, vertical):
-        return np.array([0.0, 0.0, 1.0]) if vertical or u[2] < 1e-6 else u
-
-    def _above(self, p, u, vertical):
-        """``approach`` mm up the way to the safe plane (never past it)."""
-        d = self._dir(u, vertical)
-        return p + min(self.approach, max(0.0, (self.safe_z - p[2]) / d[2])) * d
-
-    def build(self, passes):
-        tips, axes, rapid, tools, owner, role = [], [], [], [], [], []
-
-        def add(p, u, is_rapid, tool, k, r):
-            tips.append(p)
-            axes.append(u)
-            rapid.append(is_rapid)
-            tools.append(tool)
-            owner.append(k)
-            role.append(r)
-
-        reaches = self._reaches(passes)
-        for k, ps in enumerate(passes):
-            idx, tool = ps["idx"], ps["tool"]
-            reach_in, reach_out = reaches[k]
-            t0, u0 = self.tip[idx[0]], self.axis[idx[0]]
-            t1, u1 = self.tip[idx[-1]], self.axis[idx[-1]]
-            lead_in, vertical_in, feed_in = LINKS[ps["entry"]]
-            lead_out, vertical_out, feed_out = LINKS[ps["exit"]]
-            start = t0 + (self.lead * self.side[idx[0]] if lead_in else 0.0)
-            end = t1 + (self.lead * self.side[idx[-1]] if lead_out else 0.0)
-            if tips and float(np.dot(axes[-1], u0)) < 1.0 - 1e-12:  # turn in place, then travel
-                add(tips[-1], u0, True, tool, k, "link_in")
-            add(self._up(start, u0, vertical_in), u0, True, tool, k, "link_in")
-            if not feed_in:
-                add(self._above(start, u0, vertical_in), u0, True, tool, k, "link_in")
-            elif reach_in is not None:  # rapid down to where the stock begins, then feed
-                add(start + reach_in * self._dir(u0, vertical_in), u0, True, tool, k, "link_in")
-            add(start, u0, False, tool, k, "approach_in")
-            if lead_in:
-                add(t0, u0, False, tool, k, "lead_in")
-            for j in range(1, len(idx)):
-                add(self.tip[idx[j]], self.axis[idx[j]], False, tool, k, j)
-            if lead_out:
-                add(end, u1, False, tool, k, "lead_out")
-            if not feed_out:
-                add(self._above(end, u1, vertical_out), u1, False, tool, k, "approach_out")
-                add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
-            elif reach_out is not None:  # feed out of the stock, then rapid
-                add(end + reach_out * self._dir(u1, vertical_out), u1, False, tool, k, "approach_out")
-                add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
-            else:
-                add(self._up(end, u1, vertical_out), u1, False, tool, k, "approach_out")
-        tp = Toolpath(np.array(tips).reshape(-1, 3), np.array(axes).reshape(-1, 3), np.array(rapid, bool),
-                      np.array(tools, np.int64))
-        self.added = 0
-        if self.gentle is not None:
-            n = len(tp)
-            tp, keep = gentle_turns(tp, self.radius, self.gentle)
-            owner, role = [owner[k] for k in keep], [role[k] for k in keep]
-            self.added = len(tp) - n
-        return tp, owner, role
-
-
-def _repair(passes, problem_moves, owner, role):
-    """New pass list after fixing the passes that own the problem moves; returns (passes, dropped).
-
-    A failing entry or exit tries the next of :data:`LINKS` (a failing lead jumps to the first
-    option without one); when none is left the pass is dropped. A failing cutting move splits its
-    pass, and pieces of a single point are left out.
-    """
-    fixes = {}
-    for m in problem_moves:
-        fixes.setdefault(owner[m], set()).add(role[m])
-    out, dropped = [], 0
-    for k, ps in enumerate(passes):
-        if k not in fixes:
-            out.append(ps)
-            continue
-        ps = dict(ps)
-        roles = fixes[k]
-        if "lead_in" in roles:
-            ps["entry"] = max(ps["entry"] + 1, NO_LEAD)
-        elif "link_in" in roles and LINKS[ps["entry"]][2] and ps.get("reach_in", True):
-            ps["reach_in"] = False  # the rapid down to the stock failed: feed all the way
-        elif "link_in" in roles or "approach_in" in roles:
-            ps["entry"] += 1
-        if "lead_out" in roles:
-            ps["exit"] = max(ps["exit"] + 1, NO_LEAD)
-        elif "link_out" in roles and LINKS[ps["exit"]][2] and ps.get("reach_out", True):
-            ps["reach_out"] = False
-        elif "link_out" in roles or "approach_out" in roles:
-            ps["exit"] += 1
-        if ps["entry"] >= len(LINKS) or ps["exit"] >= len(LINKS):
-            dropped += 1
-            continue
-        # split at cutting moves that failed: the move from point j-1 to j is not cut
-        cuts = sorted(r for r in roles if isinstance(r, int))
-        bounds = [0, *cuts, len(ps["idx"])]
-        pieces = [ps["idx"][a:b] for a, b in zip(bounds[:-1], bounds[1:])]
-        for i, piece in enumerate(pieces):
-            if len(piece) < 2:
-                continue
-            new = dict(ps, idx=piece)
-            if i > 0:
-                new["entry"] = ps["first_link"]
-            if i < len(pieces) - 1:
-                new["exit"] = ps["first_link"]
-            out.append(new)
-    return out, dropped
-
-
-def _pole_distance(a0, a1):
-    """Smallest angle (rad, (k,)) between +Z and the great-circle arcs from unit ``a0`` to ``a1``
-    (k, 3), and whether it is reached inside the arc (not at an end)."""
-    n = np.cross(a0, a1)
-    size = np.linalg.norm(n, axis=1)
-    n = n / np.maximum(size, 1e-300)[:, None]
-    p = np.array([0.0, 0.0, 1.0]) - n[:, 2:3] * n  # +Z projected on the arc's plane
-    p /= np.maximum(np.linalg.norm(p, axis=1), 1e-300)[:, None]
-    arc = np.arccos(np.clip(np.einsum("ij,ij->i", a0, a1), -1.0, 1.0))
-    to_p = np.arccos(np.clip(np.einsum("ij,ij->i", a0, p), -1.0, 1.0)) + \
-        np.arccos(np.clip(np.einsum("ij,ij->i", p, a1), -1.0, 1.0))
-    inside = (size > 1e-12) & (to_p <= arc + 1e-9)
-    ends = np.minimum(np.arccos(np.clip(a0[:, 2], -1, 1)), np.arccos(np.clip(a1[:, 2], -1, 1)))
-    return np.where(inside, np.arcsin(np.clip(np.abs(n[:, 2]), 0.0, 1.0)), ends), inside
-
-
-def around_pole(a0, a1, c0, c1, radius, margin=POLE_MARGIN, step=POLE_STEP, through=math.radians(0.025)):
-    """Poses ``(axes (m, 3), ball centres (m, 3))`` to put between the pose (``a0``, centre ``c0``)
-    and (``a1``, ``c1``) of a ball of ``radius`` where the rotaries of a 5-axis machine whose pole is
-    +Z would turn C by more than ``step`` deg in the move: near the pole a small turn of the axis is
-    a large turn of C (half a turn in an instant where the axis swings past the pole), which no post
-    can follow within the path's tolerance. The axis turns its azimuth in steps of at most ``step``
-    deg instead, its tilt going from one end's to the other's (at least ``margin`` deg where the arc
-    would pass nearer the pole than that); the centre stays on its segment, so the ball cuts what it
-    cut. None needed (``m = 0``) where the arc passes within ``through`` rad of the pole (the
-    machine flips the tilt there: half its ``singular``) or starts or ends on it."""
-    a0, a1 = np.asarray(a0, float), np.asarray(a1, float)
-    dist, inside = _pole_distance(a0[None], a1[None])
-    t0, t1 = math.acos(min(1.0, a0[2])), math.acos(min(1.0, a1[2]))
-    m_rad = math.radians(margin)
-    z0, z1 = math.atan2(a0[1], a0[0]), math.atan2(a1[1], a1[0])
-    turn = (z1 - z0 + math.pi) % (2 * math.pi) - math.pi  # the shorter way round
-    past = bool(inside[0]) and dist[0] < m_rad
-    if min(t0, t1) <= max(through, dist[0] + 1e-12 if past else 0.0) or (past and dist[0] < through) or \
-            abs(turn) <= math.radians(step) + 1e-12:
-        return np.empty((0, 3)), np.empty((0, 3))
-    k = max(1, int(math.ceil(abs(math.degrees(turn)) / step)) - 1)
-    s = np.arange(1, k + 1) / (k + 1)
-    tilt = np.maximum(m_rad if past else 0.0, t0 + s * (t1 - t0))
-    az = z0 + s * turn
-    axes = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
-    centres = np.asarray(c0, float) + s[:, None] * (np.asarray(c1, float) - np.asarray(c0, float))
-    return axes, centres
-
-
-def gentle_turns(tp: Toolpath, radius, singular, margin=POLE_MARGIN, step=POLE_STEP):
-    """``(toolpath, source (k',))``: ``tp`` with poses put in wherever C of a 5-axis machine whose
-    pole is +Z would turn more than ``step`` deg in one move (``source``: the move of ``tp`` each
-    new move belongs to). The machine holds C within ``singular`` rad of the pole; poses put in
-    near it are tilted at least ``margin`` deg, and at least twice ``singular``. Off the pole,
-    :func:`around_pole`'s poses. Leaving the pole, the machine still holds C where the last tilted
-    pose had it: the axis tilts out at that azimuth first (to that tilt, or the move's end tilt if
-    smaller), turns round at that tilt in steps of ``step`` deg, and tilts to the move's end. Tips
-    follow the ball centres along their segment (``radius (T,)`` per tool index; a rapid's tip
-    simply along its segment)."""
-    margin = max(margin, 2.0 * math.degrees(singular))
-    through = 0.5 * singular  # an arc this near the pole: the machine flips the tilt instead
-    n = len(tp)
-    tilt = np.arccos(np.clip(tp.axis[:, 2], -1.0, 1.0))
-    az = np.arctan2(tp.axis[:, 1], tp.axis[:, 0])
-    m_rad, step_rad = math.radians(margin), math.radians(step)
-    off = tilt > singular
-    last_off = np.maximum.accumulate(np.where(off, np.arange(n), -1))  # the last tilted pose so far
-    held = np.full(n, np.nan)  # where C is held before each move
-    held[1:] = np.where(last_off[:-1] >= 0, az[np.maximum(last_off[:-1], 0)], np.nan)
-
-    def wrap(x):
-        return (x + np.pi) % (2 * np.pi) - np.pi
-
-    turned = np.zeros(n, bool)
-    turned[1:] = off[1:] & np.where(off[:-1], np.abs(wrap(az[1:] - az[:-1])) > step_rad + 1e-12,
-                                    np.isfinite(held[1:]) & (np.abs(wrap(az[1:] - np.nan_to_num(held[1:]))) > 1e-9))
-    inserts = {}
-    for i in np.flatnonzero(turned):
-        r = 0.0 if tp.rapid[i] else float(radius[tp.tool[i]])
-        c0, c1 = tp.tip[i - 1] + r * tp.axis[i - 1], tp.tip[i] + r * tp.axis[i]
-        if off[i - 1]:
-            new_axes, centres = around_pole(tp.axis[i - 1], tp.axis[i], c0, c1, r, margin, step, through)
-        else:
-            turn = float(wrap(az[i] - held[i]))
-            k = max(1, int(math.ceil(abs(turn) / step_rad)))
-            t = min(m_rad, tilt[i])
-            zs = held[i] + turn * np.arange(0, k + 1) / k
-            new_axes = np.column_stack([np.sin(t) * np.cos(zs), np.sin(t) * np.sin(zs), np.full(k + 1, np.cos(t))])
-            if t >= tilt[i] - 1e-12:
-                new_axes = new_axes[:-1]  # the last is the move's own end
-            f = np.arange(1, len(new_axes) + 1) / (len(new_axes) + 1)
-            centres = c0 + f[:, None] * (c1 - c0)
-        if len(new_axes):
-            inserts[int(i)] = (centres - r * new_axes, new_axes)
-    if not inserts:
-        return tp, np.arange(n)
-    at = sorted(inserts)
-    pieces = np.split(np.arange(n), at)
-    tips, axes, source = [tp.tip[pieces[0]]], [tp.axis[pieces[0]]], [pieces[0]]
-    for j, piece in zip(at, pieces[1:]):
-        t_new, a_new = inserts[j]
-        tips += [t_new, tp.tip[piece]]
-        axes += [a_new, tp.axis[piece]]
-        source += [np.full(len(t_new), j), piece]
-    source = np.concatenate(source)
-    return Toolpath(np.vstack(tips), np.vstack(axes), tp.rapid[source], tp.tool[source]), source
-
-
-def _largest_balls(kern, con, centre_dir, radii, tol):
-    """``(k,)`` the largest ball (rank into ``radii``) that fits at each CC point of ``con`` and
-    touches the part there, -1 where none does (:func:`largest_balls` of its points)."""
-    return largest_balls(kern, con.points, con.reach, centre_dir, radii, tol)
-
-
-def largest_balls(kern, points, reach, centre_dir, radii, tol):
-    """``(k,)`` the largest ball (rank into ``radii``) that fits at each CC point ``points (k, 3)``
-    (centre along ``centre_dir (k, 3)`` times its radius, ``reach (k,)`` the crease factor of
-    the contours) and touches the part there, -1 where none does; each point on its own. In a
-    concave crease the ball sits on the bisector
-    touching both facets R·tan(θ/2) from the crease: where the facets end sooner (a crease sharp
-    for its facets' size), or the centre's reach was capped (``MIN_HALF_COS``), that ball floats
-    off the part and cuts nothing; a smaller one, nearer the crease, may touch."""
-    best = kern.largest_ball(points, centre_dir, radii, tol)
-    best[reach >= 1.0 / MIN_HALF_COS - 1e-9] = -1
-    crease = np.nonzero((best >= 0) & (reach > 1.0 + 1e-9))[0]
-    for _ in range(len(radii)):
-        if not len(crease):
-            break
-        r = radii[best[crease]]
-        floats = kern.mesh_distances(points[crease] + r[:, None] * centre_dir[crease]) > r + tol
-        crease = crease[floats]
-        for t in np.unique(best[crease]) + 1:
-            sel = crease[best[crease] + 1 == t]
-            if t >= len(radii):
-                best[sel] = -1
-                continue
-            res = kern.largest_ball(points[sel], centre_dir[sel], radii[t:], tol)
-            best[sel] = np.where(res >= 0, t + res, -1)
-        crease = crease[best[crease] >= 0]
-    return best
-
-
-def _stretch_ranks(best, s, min_run):
-    """Ball ranks ``(n,)`` along a run (``best`` each point's largest ball, ``s`` arc length, mm)
-    with no stretch of one ball shorter than ``min_run`` (unless the run is): the shortest such
-    stretch takes the smaller ball of a neighbour when one has a smaller ball (which fits wherever
-    a larger one does), else (a narrow spot) its ball spreads onto its neighbours, a point at a time
-    on the nearer side, until it spans ``min_run``. Ranks only grow: no point gets a larger ball
-    than its own."""
-    r = best.astype(np.int64).copy()
-    n = len(r)
-    for _ in range(n * (int(r.max(initial=0)) + 2)):
-        starts = np.r_[0, np.flatnonzero(np.diff(r)) + 1]
-        if len(starts) == 1:
-            break
-        ends = np.r_[starts[1:], n]
-        length = s[ends - 1] - s[starts]
-        short = np.flatnonzero(length < min_run)
-        if not len(short):
-            break
-        k = short[np.argmin(length[short])]
-        a, b = int(starts[k]), int(ends[k])
-        own = r[a]
-        smaller = [r[j] for j in (a - 1, b) if 0 <= j < n and r[j] > own]
-        if smaller:
-            r[a:b] = min(smaller)
-            continue
-        while s[b - 1] - s[a] < min_run and (a > 0 or b < n):
-            if b >= n or (a > 0 and s[a] - s[a - 1] <= s[b] - s[b - 1]):
-                a -= 1
-            else:
-                b += 1
-        r[a:b] = np.maximum(r[a:b], own)
-    return r
-
-
-def _run_tools(best, con, centre_dir, radii, params, kern):
-    """``(point_tool (n,), short runs, their points)``. A run is a stretch of a contour where some
-    ball fits (cyclic on a closed contour); a run shorter than ``params.min_run`` mm is left out
-    (-1). Along a run each point takes its largest ball, in stretches no shorter than
-    ``params.min_run`` (:func:`_stretch_ranks`), each re-checked as :func:`_contour_tools` does."""
-    pieces, ranks, short, short_points = [], [], 0, 0
-    for c in range(len(con)):
-        a, b = con.offsets[c], con.offsets[c + 1]
-        for run in contour_runs(best[a:b] >= 0, bool(con.closed[c])):
-            full = bool(con.closed[c]) and len(run) == b - a + 1
-            idx = run[:-1] + a if full else run + a  # a full loop lists its first point twice
-            pts = con.points[np.r_[idx, idx[:1]] if full else idx]
-            seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-            if seg.sum() < params.min_run:
-                short += 1
-                short_points += len(idx)
-                continue
-            r = best[idx]
-            if full and (r != r[0]).any():  # start the loop where a stretch starts
-                k = int(np.flatnonzero(r != np.roll(r, 1))[0])
-                idx, r, seg = np.roll(idx, -k), np.roll(r, -k), np.roll(seg, -k)
-            r = _stretch_ranks(r, np.r_[0.0, np.cumsum(seg[:len(idx) - 1])], params.min_run)
-            cuts = np.flatnonzero(np.diff(r)) + 1
-            pieces += np.split(idx, cuts)
-            ranks += list(r[np.r_[0, cuts]])
-    point_tool = np.full(len(best), -1, np.int64)
-    if not pieces:
-        return point_tool, short, short_points
-    order = np.concatenate(pieces)
-    offsets = np.r_[0, np.cumsum([len(p) for p in pieces])]
-    piece_of = np.repeat(np.arange(len(pieces)), np.diff(offsets))
-    tool = _contour_tools(np.asarray(ranks)[piece_of], offsets, piece_of, con.points[order], centre_dir[order], radii,
-                          params.tolerance, kern)
-    point_tool[order] = tool[piece_of]
-    return point_tool, short, short_points
-
-
-def _contour_tools(best, offsets, contour_of, points, centre_dir, radii, tol, kern):
-    """Per contour the smallest of its points' largest balls (-1 if a point fits none), re-checked
-    at every point: in a concave crease a smaller ball sits nearer the crease, so gouge-freeness is
-    not strictly monotone in R there, and a contour moves to a smaller ball until all its points fit."""
-    if len(best) == 0:
-        return np.zeros(0, np.int64)
-    all_fit = np.logical_and.reduceat(best >= 0, offsets[:-1])
-    tool = np.where(all_fit, np.maximum.reduceat(best, offsets[:-1]), -1).astype(np.int64)
-    for _ in range(len(radii)):
-        pt = tool[contour_of]
-        changed = False
-        for t in np.unique(tool[tool >= 0]):
-            sel = np.nonzero(pt == t)[0]
-            res = kern.largest_ball(points[sel], centre_dir[sel], radii[t:], tol)
-            worst = np.full(len(tool), 0, np.int64)
-            np.maximum.at(worst, contour_of[sel], np.where(res < 0, len(radii), res))
-            bad = (tool == t) & (worst > 0)
-            if bad.any():
-                changed = True
-                tool[bad] = np.where(t + worst[bad] < len(radii), t + worst[bad], -1)
-        if not changed:
-            break
-    return tool
-
-
-def _smaller_balls(point_tool, choice, con, centre_dir, side, radii, params, kern, cand, cand_tilt, slack, body):
-    """Points whose ball has no collision-free axis try the smaller balls of the table in turn
-    (each re-checked for gouges: the largest smaller one that fits); ``(point_tool, choice, count
-    of points that found an axis on a smaller ball)``."""
-    point_tool, choice = point_tool.copy(), choice.copy()
-    moved = np.zeros(len(point_tool), bool)
-    tried = np.zeros(len(point_tool), bool)
-    for _ in range(len(radii) - 1):
-        todo = np.nonzero((point_tool >= 0) & (choice < 0) & (point_tool < len(radii) - 1) & ~tried)[0]
-        if not len(todo):
-            break
-        new = np.full(len(todo), -1, np.int64)
-        for t in np.unique(point_tool[todo]) + 1:
-            sel = point_tool[todo] + 1 == t
-            res = kern.largest_ball(con.points[todo[sel]], centre_dir[todo[sel]], radii[t:], params.tolerance)
-            new[sel] = np.where(res >= 0, t + res, -1)
-        tried[todo[new < 0]] = True
-        todo, new = todo[new >= 0], new[new >= 0]
-        if not len(todo):
-            break
-        ce = con.points[todo] + radii[new][:, None] * centre_dir[todo]
-        found = kern.axis_search(ce, con.feed[todo], side[todo], new, cand, cand_tilt, slack, radii, body,
-                                 np.array([0, len(todo)], np.int64))
-        point_tool[todo] = new
-        choice[todo] = found
-        moved[todo[found >= 0]] = True
-    return point_tool, choice, int(moved.sum())
-
-
-AREA_STATUS = ("cut", "no_ball", "no_axis", "short_runs", "left_out", "facing_down", "shallow")
-
-
-def surface_status(mesh, kern, radii, tol, max_tilt, p, face, points, status, raster_from=None, raster_reach=0.0):
-    """``(s,)`` index into ``AREA_STATUS`` of each point ``p (s, 3)`` of the design (on facets
-    ``face (s,)``): ``facing_down`` on facets no ball within ``max_tilt`` touches (:func:`facing_down`);
-    ``no_ball`` where no ball of ``radii`` touches the facet there without entering the part by more
-    than ``tol`` (exact, through ``kern``); on facets facing up flatter than ``SCALLOP_MIN_SLOPE``,
-    the status of the nearest raster contact (``points[raster_from:]``) within ``raster_reach`` mm,
-    else ``shallow`` (no raster, or none of its passes reached there); elsewhere the status of the
-    nearest of ``points (k, 3)`` (CC points, then raster contacts; ``status (k,)``)."""
-    out = np.full(len(p), AREA_STATUS.index("facing_down"), np.int64)
-    flat = shallow_facets(mesh, SCALLOP_MIN_SLOPE)[face]
-    out[flat] = AREA_STATUS.index("shallow")
-    up = np.nonzero(~facing_down(mesh, max_tilt)[face] & ~flat)[0]
-    if len(up) and len(points):
-        out[up] = status[cKDTree(points).query(p[up])[1]]
-    flat = np.nonzero(flat)[0]
-    if raster_from is not None and len(flat) and len(points) > raster_from:
-        dist, near = cKDTree(points[raster_from:]).query(p[flat], distance_upper_bound=raster_reach)
-        hit = np.isfinite(dist)
-        out[flat[hit]] = status[raster_from:][near[hit]]
-    checked = np.nonzero(out != AREA_STATUS.index("facing_down"))[0]
-    if len(checked):
-        fits = kern.largest_ball(p[checked], mesh.face_normals[face[checked]], radii, tol) >= 0
-        out[checked[~fits]] = AREA_STATUS.index("no_ball")
-    return out
-
-
-def surface_areas(mesh, kern, radii, tol, max_tilt, spacing, points, status, raster_from=None, raster_reach=0.0):
-    """mm² of the design surface by why it was or was not cut (:func:`surface_status` of points
-    spread over it about ``spacing`` apart, :func:`~meshmill.geometry.analysis.sample_surface`)."""
-    p, weight, face = sample_surface(mesh, spacing, AREA_SAMPLES)
-    by = np.bincount(surface_status(mesh, kern, radii, tol, max_tilt, p, face, points, status, raster_from,
-                                    raster_reach), weights=weight, minlength=len(AREA_STATUS))
-    return {**{name: float(by[k]) for k, name in enumerate(AREA_STATUS)}, "total": float(weight.sum()),
-            "why": "points spread over the design: facing_down where no ball within --max-tilt touches it, no_ball "
-                   "where no ball of the table touches it there, shallow where it faces up flatter than 10 deg and no "
-                   "raster pass (--scallop) reached it, else the status of the nearest CC point (or raster contact)"}
-
-
-def facing_down(mesh, max_tilt):
-    """``(m,) bool``: facets facing down more steeply than a ball whose axis is tilted at most
-    ``max_tilt`` deg from +Z can touch (its cutting half faces down the axis; the flutes square to it)."""
-    return mesh.face_normals[:, 2] < -math.sin(math.radians(max_tilt)) - 1e-9
-
 def axis_piece(shared: dict, piece) -> np.ndarray:
     """The axis search of a group of contours on a worker of a cluster
     (:func:`meshmill.cluster.run_pieces`): ``piece = (centres, feed, side, tool, offsets)`` of its
@@ -568,31 +103,35 @@ def _contour_groups(offsets, count: int, *arrays) -> list[tuple]:
             for a, b in ranges(len(offsets) - 1, count)]
 
 
-def _by_contours(cluster, offsets, arrays, local, remote, shared, say, what) -> np.ndarray:
-    """``(k,) int64`` of a per-point search done by groups of contours (each point or contour on its
-    own: the same result however grouped): ``local(piece)`` here, the share done told, or
-    ``remote(shared, piece)`` on the workers of ``cluster``; pieces of :func:`_contour_groups`."""
-    if cluster is not None:
-        from ..cluster import PIECES_PER_WORKER, run_pieces, workers
+@dataclass
+class ContourWork:
+    """Where the per-point searches of the contours run: here through the part's kernels ``kern``
+    (``part`` bound to them), or, with a ``cluster`` (a ``distributed.Client``), on its workers,
+    which bind ``part`` on ``device`` themselves; ``say`` is told the share done."""
 
-        out = run_pieces(cluster, remote, shared, _contour_groups(offsets, PIECES_PER_WORKER * workers(cluster),
-                                                                  *arrays), say, what)
-    else:
-        meter, out = Meter(say, what, offsets[-1]), []
-        for piece in _contour_groups(offsets, PIECES, *arrays):
-            out.append(local(piece))
-            meter.done(len(piece[0]))
-    return np.concatenate([np.zeros(0, np.int64), *out])
+    kern: object
+    part: Mesh
+    device: str = "cpu"
+    cluster: object = None
+    say: object = None
 
+    def by_contours(self, offsets, arrays, local, remote, shared: dict, what: str) -> np.ndarray:
+        """``(k,) int64`` of a per-point search done by groups of contours (each point or contour
+        on its own: the same result however grouped): ``local(piece)`` here, or ``remote(shared +
+        part and device, piece)`` on the cluster's workers; pieces of :func:`_contour_groups`."""
+        say = self.say or (lambda stage: None)
+        if self.cluster is not None:
+            from ..cluster import PIECES_PER_WORKER, run_pieces, workers
 
-def balls_piece(shared: dict, piece) -> np.ndarray:
-    """:func:`largest_balls` of a group of contours' points ``piece = (points, reach, centre_dir,
-    offsets)`` on a worker of a cluster; ``shared``: the ``part``, the ``radii``, ``tol``, the
-    ``device``."""
-    from ..cluster import worker_cached
-
-    kern = worker_cached(shared, "part", lambda: solid_kernels(shared["part"], shared["device"]))
-    return largest_balls(kern, *piece[:3], shared["radii"], shared["tol"])
+            pieces = _contour_groups(offsets, PIECES_PER_WORKER * workers(self.cluster), *arrays)
+            out = run_pieces(self.cluster, remote, dict(part=self.part, device=self.device, **shared), pieces, say,
+                             what)
+        else:
+            meter, out = Meter(say, what, offsets[-1]), []
+            for piece in _contour_groups(offsets, PIECES, *arrays):
+                out.append(local(piece))
+                meter.done(len(piece[0]))
+        return np.concatenate([np.zeros(0, np.int64), *out])
 
 
 class _ClusterCheck:
@@ -618,25 +157,55 @@ class _ClusterCheck:
         return self.client.gather(futures)
 
 
-def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", machine=None, cluster=None):
-    """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, detail)``.
+# --- the stages ------------------------------------------------------------------------------------
 
-    ``tools``: the whole tool table (ball tools are used); ``progress(stage)`` is called as each
-    stage starts; ``params.stock``: the material the finish starts from (a
-    :class:`~meshmill.simulation.stock.Stock`; default the part with ``STOCK_ALLOWANCE`` on it),
-    which rapids keep ``params.clearance`` from. ``detail`` holds per-point arrays for reports and
-    tests. ``machine``: the 5-axis :class:`~meshmill.machine.model.Machine` the path is for: no
-    move swings the axis past the pole of its rotaries (:func:`around_pole`).
-    """
+@dataclass
+class FinishSetup:
+    """What a finish works with: ``params`` as kept (the tolerance less what writing the path and
+    the part's float32 vertices move points, the clearance plus the stock's margin; ``tolerance``
+    mm: the one asked); ``stock`` (a closed mesh the finish starts from, or None) and
+    ``allowance`` mm on the design otherwise; ``balls`` the ball tools, largest first, and their
+    ``radii (b,)`` mm; ``levels (L,)`` the contours' Z mm from the top down; ``safe_z`` mm; the
+    part's ``zmin``, ``zmax`` mm."""
+
+    params: FinishParams
+    tolerance: float
+    stock: Mesh | None
+    allowance: float
+    balls: list
+    radii: np.ndarray
+    levels: np.ndarray
+    safe_z: float
+    zmin: float
+    zmax: float
+
+    @property
+    def stock_allowance(self) -> float:
+        """mm of material on the design that the finish starts from (0 where a stock mesh is given)."""
+        return 0.0 if self.stock is not None else self.allowance
+
+    @property
+    def body_clearance(self) -> float:
+        """mm the shank and holder keep from the part: the clearance, and out of the allowance."""
+        return max(self.params.clearance, self.stock_allowance)
+
+    def stock_check(self, device: str = "cpu") -> StockCheck:
+        """What rapids keep the clearance from (and shanks and holders stay out of): the stock
+        mesh, bound on ``device``, and the allowance."""
+        kern = solid_kernels(self.stock, device) if self.stock is not None else None
+        return StockCheck(allowance=self.stock_allowance, kern=kern, clearance=self.params.clearance)
+
+
+def finish_setup(mesh: Mesh, tools, params: FinishParams) -> FinishSetup:
+    """The :class:`FinishSetup` of ``mesh`` with the tool table ``tools``: InputError without a
+    ball tool or with a ``safe_z`` that a tilted ball under the stock's top would not clear;
+    NothingToCut where ``step_down`` leaves no level."""
     stock, allowance, margin = Stock.of(params.stock, "offset").material(mesh)
     # kept under the tolerance by what writing the path and the part moves them (the files verify)
     tolerance = params.tolerance
     params = dataclasses.replace(params, tolerance=max(0.0, tolerance - WRITE_ROUNDING - FLOAT32_ROUNDING *
                                                        float(np.abs(mesh.bounds).max())),
                                  clearance=params.clearance + margin)
-    say = progress or (lambda stage: None)
-    seconds = {}
-    t_all = time.perf_counter()
     balls = sorted((t for t in tools if t.type == "ball"), key=lambda t: (-t.radius, t.number))
     if not balls:
         raise InputError("the tool table has no ball tool: finish needs ball-end tools")
@@ -654,92 +223,149 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     levels = z_levels(zmin, zmax, params.step_down)
     if len(levels) == 0:
         raise NothingToCut(f"step_down {params.step_down:g} is larger than the part height {zmax - zmin:g} mm: no contour",
-                         "step_down")
+                           "step_down")
+    return FinishSetup(params, tolerance, stock, allowance, balls, radii, levels, safe_z, zmin, zmax)
 
-    say("index")
-    t = time.perf_counter()
-    kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device for every stage
-    rapid_stock = StockCheck(allowance=0.0 if stock is not None else allowance,
-                             kern=solid_kernels(stock, device) if stock is not None else None,
-                             clearance=params.clearance)
-    seconds["index"] = time.perf_counter() - t
 
-    say("contours")
-    t = time.perf_counter()
+def contours(mesh: Mesh, kern, setup: FinishSetup):
+    """``(contours, scallop)``: the CC points (:class:`~meshmill.geometry.slicing.Contours`: ``(n,
+    3)`` mm points, outward normals, feed directions) of the planes ``setup.levels``, ``sample``
+    mm apart and the normal turning at most :data:`MAX_ARC_STEP` (and a sample over the largest
+    radius) between them at a convex edge; with ``scallop``, the levels put in between where the
+    slope needs them (:func:`~meshmill.ops.finish_levels.added_contours`, ``scallop`` its report;
+    else None)."""
+    params, radii = setup.params, setup.radii
     arc_step = min(params.sample / radii.max(), MAX_ARC_STEP)
-    con = slice_contours(mesh, levels, params.sample, arc_step)
-    scallop = None
-    if params.scallop is not None:
-        def piece_tools(c):
-            cd = c.normals * c.reach[:, None]
-            return _run_tools(_largest_balls(kern, c, cd, radii, params.tolerance), c, cd, radii, params, kern)[0]
+    con = slice_contours(mesh, setup.levels, params.sample, arc_step)
+    if params.scallop is None:
+        return con, None
 
-        added, scallop = added_contours(mesh, levels, zmin, zmax, radii, params.scallop, params.sample, arc_step,
-                                        piece_tools, SCALLOP_MIN_SLOPE)
-        con = concat_contours([con, *added])
-    seconds["contours"] = time.perf_counter() - t
-    npts = len(con.points)
-    contour_of = con.contour_of
+    def piece_tools(c):
+        cd = c.normals * c.reach[:, None]
+        return run_balls(largest_balls(kern, c.points, c.reach, cd, radii, params.tolerance), c, cd, radii, params,
+                         kern)[0]
 
-    say("tools")
-    t = time.perf_counter()
+    added, scallop = added_contours(mesh, setup.levels, setup.zmin, setup.zmax, radii, params.scallop, params.sample,
+                                    arc_step, piece_tools, SCALLOP_MIN_SLOPE)
+    return concat_contours([con, *added]), scallop
+
+
+@dataclass
+class Balls:
+    """The ball of each of n CC points: ``centre_dir (n, 3)`` (the ball's centre is CC + R
+    centre_dir), ``best (n,)`` the largest ball that fits at the point alone and ``point_tool
+    (n,)`` the one its run (or, ``whole_contours``, its contour) takes (ranks into the radii,
+    largest first; -1: none); ``short_runs`` runs left out as shorter than ``min_run``, holding
+    ``short_points`` points."""
+
+    centre_dir: np.ndarray
+    best: np.ndarray
+    point_tool: np.ndarray
+    short_runs: int = 0
+    short_points: int = 0
+
+
+def point_balls(con, setup: FinishSetup, work: ContourWork) -> Balls:
+    """The :class:`Balls` of the CC points ``con``: per point the largest ball of ``setup.radii``
+    whose sphere does not enter the part by more than the tolerance (:func:`largest_balls`), then
+    per run the balls of :func:`run_balls` (``whole_contours``: per contour,
+    :func:`contour_balls`)."""
+    params, radii, kern = setup.params, setup.radii, work.kern
     centre_dir = con.normals * con.reach[:, None]  # ball centre = CC + R·centre_dir
-    best = _by_contours(cluster, con.offsets, (con.points, con.reach, centre_dir),
-                        lambda p: largest_balls(kern, *p[:3], radii, params.tolerance), balls_piece,
-                        dict(part=mesh, device=device, radii=radii, tol=params.tolerance), say, "tools")
-    fits = best >= 0
+    best = work.by_contours(con.offsets, (con.points, con.reach, centre_dir),
+                            lambda p: largest_balls(kern, *p[:3], radii, params.tolerance), balls_piece,
+                            dict(radii=radii, tol=params.tolerance), "tools")
     if params.whole_contours:
-        contour_tool = _contour_tools(best, con.offsets, contour_of, con.points, centre_dir, radii, params.tolerance, kern)
-        point_tool = contour_tool[contour_of]
-        short_runs = short_points = 0
-    else:
-        point_tool, short_runs, short_points = _run_tools(best, con, centre_dir, radii, params, kern)
-    seconds["tools"] = time.perf_counter() - t
+        contour_tool = contour_balls(best, con.offsets, con.contour_of, con.points, centre_dir, radii,
+                                      params.tolerance, kern)
+        return Balls(centre_dir, best, contour_tool[con.contour_of])
+    return Balls(centre_dir, best, *run_balls(best, con, centre_dir, radii, params, kern))
 
-    say("axes")
-    t = time.perf_counter()
+
+@dataclass
+class Poses:
+    """The tool at each of n CC points (c contours): ``point_tool (n,)`` its ball (rank; -1: not
+    cut), ``choice (n,)`` its axis candidate (:func:`tilt_candidates`; -1: no free axis),
+    ``contour_tool (c,)`` the smallest ball on each contour (-1: none), ``side (n, 3)`` the unit
+    outward side (feed x +Z), and the ball's centre ``ce``, unit ``axis`` and ``tip`` (n, 3) mm;
+    ``fallback``: points that found an axis on a smaller ball than their run's."""
+
+    point_tool: np.ndarray
+    choice: np.ndarray
+    contour_tool: np.ndarray
+    side: np.ndarray
+    ce: np.ndarray
+    axis: np.ndarray
+    tip: np.ndarray
+    fallback: int
+
+    @property
+    def has_axis(self) -> np.ndarray:
+        return self.choice >= 0
+
+
+def tool_axes(con, balls: Balls, setup: FinishSetup, work: ContourWork) -> Poses:
+    """The :class:`Poses` of the CC points ``con`` with their ``balls``: per point the first
+    collision-free axis of :func:`tilt_candidates` (the flutes within the tolerance, shank and
+    holder ``setup.body_clearance`` from the part; the predecessor's when free and at most a step
+    more tilted); a point without one tries the smaller balls (not with ``whole_contours``)."""
+    params, radii, kern = setup.params, setup.radii, work.kern
     side = np.cross(con.feed, [0.0, 0.0, 1.0])
     cand, cand_tilt = tilt_candidates(params.max_tilt, params.tilt_step)
     # shank and holder keep the clearance from the part, and stay out of the allowance on it
-    body, _ = pack_cylinders(balls, params.tolerance, max(params.clearance, rapid_stock.allowance))
+    body, _ = pack_cylinders(setup.balls, params.tolerance, setup.body_clearance)
     slack = math.radians(params.tilt_step) + 1e-9
-    centres = con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir
-    choice = _by_contours(cluster, con.offsets, (centres, con.feed, side, point_tool),
-                          lambda p: kern.axis_search(*p[:4], cand, cand_tilt, slack, radii, body, p[4]), axis_piece,
-                          dict(part=mesh, device=device, cand=cand, cand_tilt=cand_tilt, slack=slack, radii=radii,
-                               body=body), say, "axes")
+    point_tool = balls.point_tool
+    centres = con.points + radii[np.maximum(point_tool, 0)][:, None] * balls.centre_dir
+    choice = work.by_contours(con.offsets, (centres, con.feed, side, point_tool),
+                              lambda p: kern.axis_search(*p[:4], cand, cand_tilt, slack, radii, body, p[4]), axis_piece,
+                              dict(cand=cand, cand_tilt=cand_tilt, slack=slack, radii=radii, body=body), "axes")
     fallback = 0
     if not params.whole_contours:  # no free axis for the run's ball: a smaller one, with a thinner shank
-        point_tool, choice, fallback = _smaller_balls(point_tool, choice, con, centre_dir, side, radii, params, kern,
-                                                      cand, cand_tilt, slack, body)
+        point_tool, choice, fallback = smaller_balls(point_tool, choice, con, balls.centre_dir, side, radii, params,
+                                                      kern, cand, cand_tilt, slack, body)
     contour_tool = np.full(len(con), -1, np.int64)
-    if npts:
-        np.maximum.at(contour_tool, contour_of, point_tool)  # the smallest ball on it
+    if len(con.points):
+        np.maximum.at(contour_tool, con.contour_of, point_tool)  # the smallest ball on it
     has_axis = choice >= 0
-    ce = con.points + radii[np.maximum(point_tool, 0)][:, None] * centre_dir
+    ce = con.points + radii[np.maximum(point_tool, 0)][:, None] * balls.centre_dir
     axis = np.zeros_like(ce)
     axis[has_axis] = _axes(cand, choice[has_axis], con.feed[has_axis], side[has_axis])
     tip = ce - radii[np.maximum(point_tool, 0)][:, None] * axis
-    seconds["axes"] = time.perf_counter() - t
+    return Poses(point_tool, choice, contour_tool, side, ce, axis, tip, fallback)
 
+
+@dataclass
+class Passes:
+    """The passes of a finish and the points they index. ``passes``: dicts with ``contour``, the
+    ``tool`` (index into the tool table) and its ``rank``, ``idx`` (the pass's points in order),
+    ``entry``, ``exit`` and ``first_link`` (into :data:`~meshmill.ops.finish_path.LINKS`), ``shallow`` (a raster pass);
+    ``tip``, ``axis``, ``ce``, ``side`` (m, 3) mm: the n CC points' poses, then the points put in
+    where a pass meets a larger ball's, then ``n_raster`` raster tips from ``raster_first``."""
+
+    passes: list
+    tip: np.ndarray
+    axis: np.ndarray
+    ce: np.ndarray
+    side: np.ndarray
+    raster_first: int
+    n_raster: int
+
+
+def cutting_passes(con, balls: Balls, poses: Poses, shallow, setup: FinishSetup, tools) -> Passes:
+    """The :class:`Passes` along the runs of each contour that have a ball and an axis, one ball a
+    pass (where the ball changes, the smaller ball's pass takes in the larger one's neighbouring
+    point, so that the stretch between them is cut), then the raster passes of ``shallow``
+    (:class:`~meshmill.ops.finish_shallow.ShallowPasses` or None), ordered by contour or, with
+    ``order = "tool"``, by ball; NothingToCut where there is none."""
+    params, radii = setup.params, setup.radii
     table_index = {tool.number: i for i, tool in enumerate(tools)}
-    shallow = None
-    if params.scallop is not None:
-        say("shallow areas")
-        t = time.perf_counter()
-        shallow = shallow_fill(mesh, kern, balls, params.scallop, SCALLOP_MIN_SLOPE, params.sample, params.tolerance,
-                               max(params.clearance, rapid_stock.allowance), params.min_run)
-        seconds["shallow"] = time.perf_counter() - t
-
-    say("path")
-    t = time.perf_counter()
+    point_tool, has_axis = poses.point_tool, poses.has_axis
+    tip, axis, ce, side = poses.tip, poses.axis, poses.ce, poses.side
     passes, bridge = [], []  # bridge: (CC point, axis, rank) of points put in where a pass meets a larger ball's
     for c in range(len(con)):
         a, b = con.offsets[c], con.offsets[c + 1]
         for run in contour_runs(has_axis[a:b] & (point_tool[a:b] >= 0), bool(con.closed[c])):
-            # one ball a pass: where the ball changes the pass ends, and the smaller ball's pass takes
-            # in the larger one's neighbouring point (a smaller ball fits where a larger one does), so
-            # that the stretch between them is cut
             pieces = np.split(run + a, np.nonzero(np.diff(point_tool[a + run]))[0] + 1)
             for j, piece in enumerate(pieces):
                 rank = int(point_tool[piece[0]])
@@ -754,12 +380,12 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
                 if len(idx) < 2:
                     continue
                 link = 0 if params.lead > 0 else NO_LEAD
-                passes.append(dict(contour=c, tool=table_index[balls[rank].number], rank=rank,
+                passes.append(dict(contour=c, tool=table_index[setup.balls[rank].number], rank=rank,
                                    idx=idx.astype(np.int64), entry=link, exit=link, first_link=link, shallow=False))
     if bridge:
         cc, ax, rk = (np.array(x) for x in zip(*bridge))
         r = radii[rk][:, None]
-        bce = con.points[cc] + r * centre_dir[cc]
+        bce = con.points[cc] + r * balls.centre_dir[cc]
         tip, axis, ce, side = np.vstack([tip, bce - r * ax]), np.vstack([axis, ax]), np.vstack([ce, bce]), \
             np.vstack([side, side[cc]])
     n_raster, raster_first = 0, len(tip)
@@ -775,40 +401,70 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         ce = np.vstack([ce, rtip + radii[rank][:, None] * raxis])
         side = np.vstack([side, np.tile(np.cross(shallow.direction, [0.0, 0.0, 1.0]), (n_raster, 1))])
         for k, (size, r) in enumerate(zip(sizes, shallow.rank)):
-            passes.append(dict(contour=len(con) + k, tool=table_index[balls[r].number], rank=r,
+            passes.append(dict(contour=len(con) + k, tool=table_index[setup.balls[r].number], rank=r,
                                idx=first + np.arange(size), entry=NO_LEAD, exit=NO_LEAD, first_link=NO_LEAD,
                                shallow=True))
             first += size
     if not passes:
-        smallest = min(radii)
-        raise NothingToCut(f"nothing to cut: of {len(con)} contour(s), {int((contour_tool >= 0).sum())} fit a ball of "
-                         f"the table (smallest R {smallest:g} mm) and none has a collision-free axis within "
-                         f"max_tilt {params.max_tilt:g}; add smaller or longer tools", "max_tilt")
+        raise NothingToCut(f"nothing to cut: of {len(con)} contour(s), {int((poses.contour_tool >= 0).sum())} fit a "
+                           f"ball of the table (smallest R {min(radii):g} mm) and none has a collision-free axis "
+                           f"within max_tilt {params.max_tilt:g}; add smaller or longer tools", "max_tilt")
     if params.order == "tool":
         passes.sort(key=lambda p: (p["rank"], p["shallow"], p["contour"]))
-    gentle = None
-    if machine is not None and machine.chain.type != "3-axis":
-        gentle = machine.chain.singular
-    builder = _PathBuilder(tip, axis, side, safe_z, params.lead,
-                           approach=rapid_stock.allowance + rapid_stock.clearance + params.tolerance,
-                           radius=np.array([t.radius for t in tools]), gentle=gentle,
-                           reach=None if stock is None else functools.partial(
-                               rapid_reach, kern, tools, params.tolerance, rapid_stock))
-    seconds["path"] = time.perf_counter() - t
+    return Passes(passes, tip, axis, ce, side, raster_first, n_raster)
 
-    say("verify")
-    t = time.perf_counter()
+
+def path_builder(cut: Passes, setup: FinishSetup, tools, kern, rapid_stock: StockCheck, machine=None) -> PathBuilder:
+    """The :class:`~meshmill.ops.finish_path.PathBuilder` of the points of ``cut``: rapids stop the
+    allowance, clearance and tolerance above a lead's end (with a stock mesh, where the stock
+    begins: :func:`~meshmill.pathing.verify.rapid_reach` through the part's ``kern``); for a 5-axis
+    ``machine``, C turns gently near the pole of its rotaries."""
+    params = setup.params
+    gentle = machine.chain.singular if machine is not None and machine.chain.type != "3-axis" else None
+    reach = None if setup.stock is None else functools.partial(rapid_reach, kern, tools, params.tolerance, rapid_stock)
+    return PathBuilder(cut.tip, cut.axis, cut.side, setup.safe_z, params.lead,
+                       approach=rapid_stock.allowance + rapid_stock.clearance + params.tolerance,
+                       radius=np.array([t.radius for t in tools]), gentle=gentle, reach=reach)
+
+
+def path_check(mesh: Mesh, kern, setup: FinishSetup, tools, rapid_stock: StockCheck, device="cpu", cluster=None,
+               say=None) -> Reverify:
+    """The check of each version of a finish's path (:class:`~meshmill.pathing.reverify.Reverify`:
+    a round of repairs checks only the moves it changed) within the kept tolerance, poses at most
+    :data:`~meshmill.pathing.verify.DEFAULT_STEP` and ``sample`` apart, rapids against
+    ``rapid_stock``: here through ``kern``, or in ranges of moves on the workers of ``cluster``
+    (the same reports)."""
+    params = setup.params
     step = min(DEFAULT_STEP, params.sample)
-    if cluster is not None:  # ranges of moves on the workers: the same reports
-        parts = _ClusterCheck(cluster, mesh, stock, rapid_stock, tools, params.tolerance, step, device, say)
+    if cluster is not None:
+        parts = _ClusterCheck(cluster, mesh, setup.stock, rapid_stock, tools, params.tolerance, step, device, say)
     else:
         def parts(path, only):
             return check_parts(kern, path, tools, params.tolerance, step, rapid_stock, only, progress=say)
-    # each round of repairs checks only the moves it changed
-    check = Reverify(parts, params.tolerance, step, rapid_stock.summary())
+    return Reverify(parts, params.tolerance, step, rapid_stock.summary())
+
+
+@dataclass
+class Verified:
+    """The verified finish: its ``path``, the verification ``report`` (with ``repair_rounds``),
+    the ``passes`` kept (as repaired) and how many were ``dropped``."""
+
+    path: Toolpath
+    report: dict
+    passes: list
+    dropped: int
+
+
+def verify_and_repair(passes: list, build, check) -> Verified:
+    """The path of ``passes`` that passes its verification: ``build(passes)`` gives ``(toolpath,
+    owner (k,), role (k,))`` (each move's pass and part in it, :meth:`PathBuilder.build`),
+    ``check(toolpath)`` its report (:func:`~meshmill.pathing.verify.merge_reports`, with
+    ``problem_moves``). Up to :data:`REPAIR_ROUNDS` rounds of :func:`repair_passes` change the passes
+    that own the failing moves; then the passes that still fail are left out. NothingToCut when
+    no pass is left."""
     dropped = 0
     for rnd in range(REPAIR_ROUNDS + 1):
-        tp, owner, role = builder.build(passes)
+        tp, owner, role = build(passes)
         report = check(tp)
         if report["ok"] or not passes:
             break
@@ -816,55 +472,76 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
             bad = {owner[m] for m in report["problem_moves"]}
             dropped += len(bad)
             passes = [p for k, p in enumerate(passes) if k not in bad]
-            tp, owner, role = builder.build(passes)
+            tp, owner, role = build(passes)
             report = check(tp)
             break
-        passes, lost = _repair(passes, report["problem_moves"], owner, role)
+        passes, lost = repair_passes(passes, report["problem_moves"], owner, role)
         dropped += lost
     report.pop("problem_moves")
     report["repair_rounds"] = rnd
     if not passes:
         raise NothingToCut("nothing left to cut: every pass failed verification (try lead 0, a larger max_tilt or "
-                         "other tools)", ("lead", "max_tilt"))
-    seconds["verify"] = time.perf_counter() - t
+                           "other tools)", ("lead", "max_tilt"))
+    return Verified(tp, report, passes, dropped)
 
-    cut_all = np.zeros(len(tip), bool)
+
+def _point_status(con, balls: Balls, poses: Poses, cut: Passes, shallow, passes: list):
+    """``(cut (n,), raster_cut (n_raster,), points (s, 3), status (s,))``: which CC points and
+    raster tips the ``passes`` cut, and the status (index into
+    :data:`~meshmill.ops.finish_areas.AREA_STATUS`) of the CC points, then of the raster's contacts
+    (each its pass's: cut, or left out)."""
+    npts = len(con.points)
+    cut_all = np.zeros(len(cut.tip), bool)
     for ps in passes:
         cut_all[ps["idx"]] = True
-    cut = cut_all[:npts]  # (the bridges and the raster's tips are no CC points)
-    raster_cut = cut_all[raster_first:raster_first + n_raster]
-    machinable = contour_tool >= 0
-    tools_used = {}
+    point_cut = cut_all[:npts]  # (the bridges and the raster's tips are no CC points)
+    raster_cut = cut_all[cut.raster_first:cut.raster_first + cut.n_raster]
+    status = np.select([point_cut, balls.best < 0, poses.point_tool < 0, ~poses.has_axis], [0, 1, 3, 2], 4)
+    if cut.n_raster:  # every contact of a raster pass takes the pass's status
+        contacts = np.concatenate(shallow.contacts)
+        pass_cut = np.add.reduceat(raster_cut, np.r_[0, np.cumsum([len(t) for t in shallow.tips])[:-1]]) > 0
+        contact_status = np.repeat(np.where(pass_cut, 0, 4), [len(c) for c in shallow.contacts])
+    else:
+        contacts, contact_status = np.zeros((0, 3)), np.zeros(0, np.int64)
+    return point_cut, raster_cut, np.vstack([con.points, contacts]), np.r_[status, contact_status].astype(np.int64)
+
+
+def _tools_used(tools, passes: list, npts: int) -> dict:
+    """Per tool name: its ``passes``, the CC points (``cc_points``) and ``contours`` they cut, and
+    its ``raster_points``."""
+    used = {}
     for ps in passes:
-        name = tools[ps["tool"]].name
-        entry = tools_used.setdefault(name, {"passes": 0, "cc_points": 0, "contours": set(), "raster_points": 0})
+        entry = used.setdefault(tools[ps["tool"]].name, {"passes": 0, "cc_points": 0, "contours": set(),
+                                                         "raster_points": 0})
         entry["passes"] += 1
         if ps["shallow"]:
             entry["raster_points"] += int(len(ps["idx"]))
         else:
             entry["cc_points"] += int(len(np.unique(ps["idx"][ps["idx"] < npts])))
             entry["contours"].add(ps["contour"])
-    for entry in tools_used.values():
+    for entry in used.values():
         entry["contours"] = len(entry["contours"])
-    tilt = np.degrees(np.arccos(np.clip(axis[:npts][cut, 2], -1, 1))) if cut.any() else np.zeros(0)
+    return used
+
+
+def finish_summary(mesh: Mesh, kern, tools, setup: FinishSetup, con, scallop, balls: Balls, poses: Poses,
+                   shallow, cut: Passes, done: Verified, stock: dict, pole) -> tuple[dict, dict]:
+    """``(summary, detail)`` of a finish from its stages' results: the summary's figures (the
+    surface's mm² by why it was or was not cut, :func:`surface_areas`), and per-point arrays for
+    reports and tests. ``stock``: the rapids' :class:`~meshmill.pathing.verify.StockCheck` summary;
+    ``pole``: what :func:`~meshmill.ops.finish_pole.gentle_turns` did (None without a 5-axis machine)."""
+    params, radii, tp = setup.params, setup.radii, done.path
+    npts = len(con.points)
+    point_tool, fits = poses.point_tool, balls.best >= 0
+    point_cut, raster_cut, points, point_status = _point_status(con, balls, poses, cut, shallow, done.passes)
+    machinable = poses.contour_tool >= 0
+    tilt = np.degrees(np.arccos(np.clip(cut.axis[:npts][point_cut, 2], -1, 1))) if point_cut.any() else np.zeros(0)
     feed_move = ~tp.rapid[1:] & (tp.tool[1:] == tp.tool[:-1])
     turn = np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1])[feed_move]
     max_turn = float(np.degrees(np.arccos(np.clip(turn.min(), -1, 1)))) if len(turn) else 0.0
-    status = np.select([cut, ~fits, point_tool < 0, ~has_axis], [0, 1, 3, 2], 4)
-    if n_raster:  # every contact of a raster pass takes the pass's status
-        contacts = np.concatenate(shallow.contacts)
-        pass_cut = np.add.reduceat(raster_cut, np.r_[0, np.cumsum([len(t) for t in shallow.tips])[:-1]]) > 0
-        contact_status = np.repeat(np.where(pass_cut, 0, 4), [len(c) for c in shallow.contacts])
-    else:
-        contacts, contact_status = np.zeros((0, 3)), np.zeros(0, np.int64)
-    point_status = np.r_[status, contact_status].astype(np.int64)
     raster_reach = shallow.spacing if shallow is not None else 0.0
-    areas = surface_areas(mesh, kern, radii, params.tolerance, params.max_tilt, params.sample,
-                          np.vstack([con.points, contacts]), point_status, npts if shallow is not None else None,
-                          raster_reach)
-    if scallop is not None:
-        scallop = {**scallop, "shallow": shallow.report}
-    seconds["total"] = time.perf_counter() - t_all
+    areas = surface_areas(mesh, kern, radii, params.tolerance, params.max_tilt, params.sample, points, point_status,
+                          npts if shallow is not None else None, raster_reach)
     summary = {
         "operation": "finish",
         "step_down": params.step_down,
@@ -872,15 +549,14 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "max_tilt": params.max_tilt,
         "tilt_step": params.tilt_step,
         "order": params.order,
-        "safe_z": safe_z,
-        "tolerance": tolerance,
+        "safe_z": setup.safe_z,
+        "tolerance": setup.tolerance,
         "tolerance_kept": params.tolerance,
         "clearance": params.clearance,
-        "stock": rapid_stock.summary(),
+        "stock": stock,
         "levels": int(len(np.unique(con.z))),
-        "scallop": scallop,
-        "pole": None if gentle is None else {"margin_deg": POLE_MARGIN, "step_deg": POLE_STEP,
-                                             "poses_added": builder.added},
+        "scallop": None if scallop is None else {**scallop, "shallow": shallow.report},
+        "pole": pole,
         "contours": int(len(con)),
         "machinable_contours": int(machinable.sum()),
         "unmachinable_contours": [
@@ -893,27 +569,69 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         "whole_contours": bool(params.whole_contours),
         "partly_cut_contours": int((machinable & (np.add.reduceat(point_tool < 0, con.offsets[:-1]) > 0)).sum())
         if npts else 0,
-        "runs_too_short": int(short_runs),
-        "points_in_short_runs": int(short_points),
-        "points_on_smaller_balls": int(fallback),
-        "points_left_out": int((point_tool >= 0).sum() - cut[point_tool >= 0].sum()),
-        "points_cut": int(cut.sum()),
-        "raster_points": int(n_raster),
+        "runs_too_short": int(balls.short_runs),
+        "points_in_short_runs": int(balls.short_points),
+        "points_on_smaller_balls": int(poses.fallback),
+        "points_left_out": int((point_tool >= 0).sum() - point_cut[point_tool >= 0].sum()),
+        "points_cut": int(point_cut.sum()),
+        "raster_points": int(cut.n_raster),
         "raster_points_cut": int(raster_cut.sum()),
         "area_mm2": areas,
         "points_tilted": int((tilt > 1e-6).sum()),
         "max_tilt_used": float(tilt.max()) if len(tilt) else 0.0,
         "max_axis_change": max_turn,
-        "passes": len(passes),
-        "passes_dropped": dropped,
+        "passes": len(done.passes),
+        "passes_dropped": done.dropped,
         "moves": int(len(tp)),
         "cutting_length": tp.cutting_length(),
-        "tools_used": tools_used,
-        "verify": report,
-        "seconds": {k: round(v, 4) for k, v in seconds.items()},
+        "tools_used": _tools_used(tools, done.passes, npts),
+        "verify": done.report,
     }
-    detail = dict(surface_points=np.vstack([con.points, contacts]), surface_status=point_status,
-                  raster_from=npts if shallow is not None else -1, raster_reach=raster_reach,
-                  contours=con, best=best, contour_tool=contour_tool, point_tool=point_tool, choice=choice,
-                  axis=axis[:npts], tip=tip[:npts], ce=ce[:npts], cut=cut, balls=balls, kern=kern, shallow=shallow)
-    return tp, summary, detail
+    detail = dict(surface_points=points, surface_status=point_status, raster_from=npts if shallow is not None else -1,
+                  raster_reach=raster_reach, contours=con, best=balls.best, contour_tool=poses.contour_tool,
+                  point_tool=point_tool, choice=poses.choice, axis=cut.axis[:npts], tip=cut.tip[:npts],
+                  ce=cut.ce[:npts], cut=point_cut, balls=setup.balls, kern=kern, shallow=shallow)
+    return summary, detail
+
+
+def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str = "cpu", machine=None, cluster=None):
+    """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, detail)``.
+
+    ``tools``: the whole tool table (ball tools are used); ``progress(stage)`` is called as each
+    stage starts; ``params.stock``: the material the finish starts from (a
+    :class:`~meshmill.simulation.stock.Stock`; default the part with ``STOCK_ALLOWANCE`` on it),
+    which rapids keep ``params.clearance`` from. ``detail`` holds per-point arrays for reports and
+    tests. ``machine``: the 5-axis :class:`~meshmill.machine.model.Machine` the path is for: no
+    move swings the axis past the pole of its rotaries
+    (:func:`~meshmill.ops.finish_pole.gentle_turns`). The stages are the module's.
+    """
+    setup = finish_setup(mesh, tools, params)
+    params = setup.params
+    clock = StageClock(progress)
+    t_all = time.perf_counter()
+    with clock("index"):
+        kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device for every stage
+        rapid_stock = setup.stock_check(device)
+    work = ContourWork(kern, mesh, device, cluster, clock.say)
+    with clock("contours"):
+        con, scallop = contours(mesh, kern, setup)
+    with clock("tools"):
+        balls = point_balls(con, setup, work)
+    with clock("axes"):
+        poses = tool_axes(con, balls, setup, work)
+    shallow = None
+    if params.scallop is not None:
+        with clock("shallow areas", "shallow"):
+            shallow = shallow_fill(mesh, kern, setup.balls, params.scallop, SCALLOP_MIN_SLOPE, params.sample,
+                                   params.tolerance, setup.body_clearance, params.min_run)
+    with clock("path"):
+        cut = cutting_passes(con, balls, poses, shallow, setup, tools)
+        builder = path_builder(cut, setup, tools, kern, rapid_stock, machine)
+    with clock("verify"):
+        done = verify_and_repair(cut.passes, builder.build,
+                                 path_check(mesh, kern, setup, tools, rapid_stock, device, cluster, clock.say))
+    summary, detail = finish_summary(mesh, kern, tools, setup, con, scallop, balls, poses, shallow, cut, done,
+                                     rapid_stock.summary(), builder.pole_report())
+    clock.seconds["total"] = time.perf_counter() - t_all
+    summary["seconds"] = {k: round(v, 4) for k, v in clock.seconds.items()}
+    return done.path, summary, detail

@@ -26,6 +26,7 @@ from ..pathing.dropcutter import ToolDrop
 from .finish_levels import scallop_spacing
 from ..pathing.dropcutter import drop_refined
 
+SCALLOP_MIN_SLOPE = 10.0  # deg from the horizontal: flatter surfaces are rastered, not Z-levelled (scallop)
 MARGIN_DEG = 5.0  # the raster keeps contacts up to this much steeper than the shallow limit (overlap)
 COVER = 0.75  # a contact within this share of a larger ball's stepover of its contacts is that ball's
 

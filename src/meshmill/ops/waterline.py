@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-from ..progress import Meter
+from ..progress import Meter, StageClock
 from .. import memory
-from ..errors import InputError, NothingToCut
+from ..errors import NothingToCut
 from ..kernels.backend import solid_kernels
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import z_levels
@@ -251,6 +252,139 @@ def level_piece(shared: dict, levels) -> list:
     return found
 
 
+@dataclass
+class WaterlineSetup:
+    """What a waterline works with: ``params`` as kept (the clearance plus the stock's margin);
+    ``rapid_stock`` (what rapids keep clear of), ``grow`` mm (how far the shank and holder keep
+    from the design), ``safe_z`` mm and ``rest_kern`` (what ``rest`` depths are measured from, or
+    None), as :func:`~meshmill.pathing.dropcutter.stock_for` gives them; the ``tool`` and its
+    ``index`` in the table; ``levels (L,)`` Z mm from the top down; the drop grid's nodes ``xs
+    (nx,)`` x ``ys (ny,)`` mm, ``sample`` apart over the part widened by the tool's reach."""
+
+    params: WaterlineParams
+    rapid_stock: object
+    grow: float
+    safe_z: float
+    rest_kern: object
+    index: int
+    tool: object
+    levels: np.ndarray
+    xs: np.ndarray
+    ys: np.ndarray
+
+
+def waterline_setup(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, device: str = "cpu") -> WaterlineSetup:
+    """The :class:`WaterlineSetup` of ``mesh`` with the tool ``tool_name`` of ``tools``:
+    InputError for a tool not in the table or a grid larger than the memory (``sample``);
+    NothingToCut where ``step_down`` leaves no level."""
+    params, rapid_stock, grow, safe_z, rest_kern = stock_for(mesh, params, device)
+    index, tool = pick_tool(tools, tool_name)
+    reach = max(tool.radius, 0.5 * tool.shank_diameter, 0.5 * tool.holder_diameter)  # outside it: no contact
+    bounds = mesh.bounds
+    levels = z_levels(bounds[0, 2], bounds[1, 2], params.step_down)
+    if len(levels) == 0:
+        raise NothingToCut(f"step_down {params.step_down:g} is larger than the part height "
+                           f"{bounds[1, 2] - bounds[0, 2]:g} mm: no level", "step_down")
+    spacing = params.sample
+    lo = bounds[0, :2] - reach - 2 * spacing
+    hi = bounds[1, :2] + reach + 2 * spacing
+    nx = int(math.ceil((hi[0] - lo[0]) / spacing)) + 1
+    ny = int(math.ceil((hi[1] - lo[1]) / spacing)) + 1
+    memory.check(NODE_BYTES * float(nx) * ny, f"{nx:,} x {ny:,} grid points", "use a larger sample", ("sample",))
+    xs = lo[0] + (hi[0] - lo[0]) * np.arange(nx) / (nx - 1)
+    ys = lo[1] + (hi[1] - lo[1]) * np.arange(ny) / (ny - 1)
+    return WaterlineSetup(params, rapid_stock, grow, safe_z, rest_kern, index, tool, levels, xs, ys)
+
+
+def drop_grid(mesh: Mesh, kern, setup: WaterlineSetup) -> tuple[ToolDrop, DropGrid]:
+    """``(drop, grid)``: the drop-cutter of the whole tool over the part (bound to ``kern``; never
+    below the part's bottom less 1 mm; the cutter grown by ``allowance``, shank and holder by
+    ``setup.grow``) and its heights on the nodes ``setup.xs x setup.ys``, bounded per block and
+    dropped as the levels need them (:class:`~meshmill.pathing.dropgrid.DropGrid`)."""
+    drop = ToolDrop(setup.tool, kern, float(mesh.bounds[0, 2]) - 1.0, grow=setup.params.allowance,
+                    body_grow=setup.grow)
+    return drop, DropGrid(drop, setup.xs, setup.ys)
+
+
+def level_loops(setup: WaterlineSetup, drop: ToolDrop, grid: DropGrid, part=None, device="cpu", cluster=None,
+                say=None):
+    """``([(z, (k, 3) loop or piece), ...], seconds in the grid)``: the loops of every level of
+    ``setup.levels`` from the top down (:func:`_level_loops`, refined within the tolerance), or with
+    ``cluster`` (a ``distributed.Client``) groups of levels found on its workers, which drop
+    ``part`` on ``device`` themselves (the same loops)."""
+    params = setup.params
+    xs, ys = setup.xs, setup.ys
+    loops, grid_s = [], 0.0
+    if cluster is not None:
+        from ..cluster import PIECES_PER_WORKER, run_pieces, workers
+        from ..progress import ranges
+
+        shared = dict(part=part, device=device, tool=setup.tool, floor=drop.floor, grow=params.allowance,
+                      body_grow=setup.grow, xs=xs, ys=ys, tol=params.tolerance, spacing=params.sample)
+        groups = [setup.levels[a:b] for a, b in ranges(len(setup.levels), PIECES_PER_WORKER * workers(cluster))]
+        for found in run_pieces(cluster, level_piece, shared, groups, say, "levels"):
+            loops += found
+        return loops, grid_s
+    cx, cy = 0.5 * (xs[:-1] + xs[1:]), 0.5 * (ys[:-1] + ys[1:])
+    centre_cache = {}
+    meter = Meter(say, "levels", len(setup.levels))
+    for z in setup.levels:
+        found, s = _level_loops(z, grid, drop, cx, cy, centre_cache, params.tolerance, params.sample)
+        loops += found
+        grid_s += s
+        meter.done()
+    return loops, grid_s
+
+
+def rest_pieces(loops, setup: WaterlineSetup):
+    """``(loops, report)``: the pieces of ``loops`` (``[(z, (k, 3))]``) that remove more than
+    ``rest`` mm of the stock (tested at ``sample`` spacing against ``setup.rest_kern``), with a
+    lead of :data:`~meshmill.pathing.rest.REST_LEAD` samples on each side; a loop whole in the
+    material stays as it was."""
+    params, tool = setup.params, setup.tool
+    dense = [densify(p, params.sample) for _, p in loops]
+    sizes = np.cumsum([len(d) for d in dense])[:-1]
+    inside = np.split(in_material(np.vstack(dense), tool, setup.rest_kern, params.rest), sizes) if dense else []
+    n_in, n_all = int(sum(i.sum() for i in inside)), int(sum(len(d) for d in dense))
+    pieces = []
+    for (z, p), d, i in zip(loops, dense, inside):  # one drop onto the stock for every loop
+        if i.all():
+            pieces.append((z, p))  # as it was: whole in material
+        else:
+            pieces += [(z, simplify_polyline(r, 0.25 * params.tolerance))
+                       for r in loop_runs(d, i, REST_LEAD * params.sample, REST_JOIN * tool.diameter)]
+    return pieces, {"min_depth": params.rest, "points_in_material": n_in, "points_tested": n_all, "runs": len(pieces),
+                    "loops_before": len(loops)}
+
+
+def waterline_summary(setup: WaterlineSetup, grid: DropGrid, loops, tp, report: dict, rest) -> dict:
+    """The summary of a waterline (timing aside): its parameters, the grid and how much of it was
+    dropped, the ``loops`` cut (``[(z, (k, 3))]``), the path ``tp``, the ``rest`` report (or
+    None) and the verification ``report``."""
+    params = setup.params
+    return {
+        "operation": "waterline",
+        "tool": setup.tool.name,
+        "step_down": params.step_down,
+        "sample": params.sample,
+        "grid_spacing": params.sample,
+        "tolerance": params.tolerance,
+        "allowance": params.allowance,
+        "safe_z": setup.safe_z,
+        "stock": setup.rapid_stock.summary(),
+        "levels": int(len(setup.levels)),
+        "passes": len(loops),
+        "closed_loops": int(sum(np.array_equal(p[0], p[-1]) for _, p in loops)),
+        "grid": [len(setup.xs), len(setup.ys)],
+        "grid_points_dropped": grid.dropped,
+        "cl_points": int(sum(len(p) for _, p in loops)),
+        "moves": int(len(tp)),
+        "cutting_length": tp.cutting_length(),
+        **({"rest": rest} if rest is not None else {}),
+        "verify": report,
+    }
+
+
 def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progress=None, device: str = "cpu",
               cluster=None):
     """Run the operation on ``device`` (``"cpu"`` or ``"cuda"``); returns ``(toolpath, summary, passes)`` with ``passes`` a list of
@@ -260,106 +394,32 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     ``params.clearance`` from; with ``params.rest`` only the pieces of the loops that remove more
     than that depth of it are cut (:mod:`meshmill.pathing.rest`), with a lead of 1.5 samples on
     each side, measured from its surface; ``cluster``: a ``distributed.Client`` groups of levels
-    are found on (the same loops)."""
-    params, rapid_stock, grow, safe_z, rest_kern = stock_for(mesh, params, device)
-    say = progress or (lambda stage: None)
-    index, tool = pick_tool(tools, tool_name)
-    reach = max(tool.radius, 0.5 * tool.shank_diameter, 0.5 * tool.holder_diameter)  # outside it: no contact
-    bounds = mesh.bounds
-    levels = z_levels(bounds[0, 2], bounds[1, 2], params.step_down)
-    if len(levels) == 0:
-        raise NothingToCut(f"step_down {params.step_down:g} is larger than the part height "
-                         f"{bounds[1, 2] - bounds[0, 2]:g} mm: no level", "step_down")
-    spacing = params.sample
-    lo = bounds[0, :2] - reach - 2 * spacing
-    hi = bounds[1, :2] + reach + 2 * spacing
-    nx = int(math.ceil((hi[0] - lo[0]) / spacing)) + 1
-    ny = int(math.ceil((hi[1] - lo[1]) / spacing)) + 1
-    memory.check(NODE_BYTES * float(nx) * ny, f"{nx:,} x {ny:,} grid points", "use a larger sample", ("sample",))
-    seconds = {}
+    are found on (the same loops). The stages: :func:`waterline_setup`, :func:`drop_grid`,
+    :func:`level_loops`, :func:`rest_pieces` (with ``rest``), the verified path
+    (:func:`~meshmill.pathing.dropcutter.verified_path`), :func:`waterline_summary`."""
+    setup = waterline_setup(mesh, tools, tool_name, params, device)
+    params = setup.params
+    clock = StageClock(progress)
     t_all = time.perf_counter()
-    say("index")
-    t = time.perf_counter()
-    kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device from here on
-    seconds["index"] = time.perf_counter() - t
-    say("drop-cutter bounds")
-    t = time.perf_counter()
-    xs = lo[0] + (hi[0] - lo[0]) * np.arange(nx) / (nx - 1)
-    ys = lo[1] + (hi[1] - lo[1]) * np.arange(ny) / (ny - 1)
-    drop = ToolDrop(tool, kern, float(bounds[0, 2]) - 1.0, grow=params.allowance,
-                    body_grow=grow)
-    grid = DropGrid(drop, xs, ys)
-    cx = 0.5 * (xs[:-1] + xs[1:])
-    cy = 0.5 * (ys[:-1] + ys[1:])
-    seconds["bounds"] = time.perf_counter() - t
-    seconds["grid"] = 0.0
-    say("levels")
-    t_levels = time.perf_counter()
-    loops = []
-    if cluster is not None:  # groups of levels on the workers: the same loops
-        from ..cluster import PIECES_PER_WORKER, run_pieces, workers
-        from ..progress import ranges
-
-        shared = dict(part=mesh, device=device, tool=tool, floor=float(bounds[0, 2]) - 1.0, grow=params.allowance,
-                      body_grow=grow, xs=xs, ys=ys, tol=params.tolerance, spacing=spacing)
-        groups = [levels[a:b] for a, b in ranges(len(levels), PIECES_PER_WORKER * workers(cluster))]
-        for found in run_pieces(cluster, level_piece, shared, groups, say, "levels"):
-            loops += found
-    else:
-        centre_cache = {}
-        meter = Meter(say, "levels", len(levels))
-        for z in levels:
-            found, grid_s = _level_loops(z, grid, drop, cx, cy, centre_cache, params.tolerance, spacing)
-            loops += found
-            seconds["grid"] += grid_s
-            meter.done()
-    seconds["levels"] = time.perf_counter() - t_levels - seconds["grid"]
+    with clock("index"):
+        kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device from here on
+    with clock("drop-cutter bounds", "bounds"):
+        drop, grid = drop_grid(mesh, kern, setup)
+    with clock("levels"):
+        loops, grid_s = level_loops(setup, drop, grid, mesh, device, cluster, clock.say)
+    clock.seconds.update(grid=grid_s, levels=clock.seconds.pop("levels") - grid_s)
     rest = None
     if params.rest is not None:  # the pieces of the loops in the stock's material, at sample spacing
-        dense = [densify(p, params.sample) for _, p in loops]
-        sizes = np.cumsum([len(d) for d in dense])[:-1]
-        inside = np.split(in_material(np.vstack(dense), tool, rest_kern, params.rest), sizes) if dense else []
-        n_in, n_all = int(sum(i.sum() for i in inside)), int(sum(len(d) for d in dense))
-        pieces = []
-        for (z, p), d, i in zip(loops, dense, inside):  # one drop onto the stock for every loop
-            if i.all():
-                pieces.append((z, p))  # as it was: whole in material
-            else:
-                pieces += [(z, simplify_polyline(r, 0.25 * params.tolerance)) for r in loop_runs(d, i, REST_LEAD * params.sample, REST_JOIN * tool.diameter)]
-        rest = {"min_depth": params.rest, "points_in_material": n_in, "points_tested": n_all, "runs": len(pieces),
-                "loops_before": len(loops)}
-        loops = pieces
+        loops, rest = rest_pieces(loops, setup)
     if not loops:
         why = f"removes more than rest {params.rest:g} mm of the stock" if params.rest is not None else \
             "meets the part at any level"
         raise NothingToCut(f"nothing to cut: no loop {why}", "rest" if params.rest is not None else ())
-    say("verify")
-    t = time.perf_counter()
-    tp, report, kept = verified_path([p for _, p in loops], index, tools, kern, safe_z, params.tolerance, DEFAULT_STEP,
-                                     rapid_stock, say)
+    with clock("verify"):
+        tp, report, kept = verified_path([p for _, p in loops], setup.index, tools, kern, setup.safe_z,
+                                         params.tolerance, DEFAULT_STEP, setup.rapid_stock, clock.say)
     loops = [(float(p[0, 2]), p) for p in kept]
-    seconds["verify"] = time.perf_counter() - t
-    seconds["total"] = time.perf_counter() - t_all
-    summary = {
-        "operation": "waterline",
-        "tool": tool.name,
-        "step_down": params.step_down,
-        "sample": params.sample,
-        "grid_spacing": spacing,
-        "tolerance": params.tolerance,
-        "allowance": params.allowance,
-        "safe_z": safe_z,
-        "stock": rapid_stock.summary(),
-        "levels": int(len(levels)),
-        "passes": len(loops),
-        "closed_loops": int(sum(np.array_equal(p[0], p[-1]) for _, p in loops)),
-        "grid": [nx, ny],
-        "grid_points_dropped": grid.dropped,
-        "cl_points": int(sum(len(p) for _, p in loops)),
-        "moves": int(len(tp)),
-        "cutting_length": tp.cutting_length(),
-        **({"rest": rest} if rest is not None else {}),
-        "verify": report,
-        "seconds": {k: round(v, 4) for k, v in seconds.items()},
-    }
+    summary = waterline_summary(setup, grid, loops, tp, report, rest)
+    clock.seconds["total"] = time.perf_counter() - t_all
+    summary["seconds"] = {k: round(v, 4) for k, v in clock.seconds.items()}
     return tp, summary, loops

@@ -1,0 +1,185 @@
+"""A finish's passes as moves: leads, links to the safe plane, repairs of what verification found.
+
+:class:`PathBuilder` turns passes (dicts: ``tool``, ``idx`` into the points' arrays, ``entry`` and
+``exit`` into :data:`LINKS`, ...) into a :class:`~meshmill.toolpath.model.Toolpath` and says which
+pass and which part of it (``link_in``, ``approach_in``, ``lead_in``, the j-th cutting move,
+``lead_out``, ``approach_out``, ``link_out``) each move is; :func:`repair_passes` changes the
+passes that own failing moves. Lengths in mm.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..toolpath.model import Toolpath
+from .finish_pole import POLE_MARGIN, POLE_STEP, gentle_turns
+
+# Ways into and out of a pass, tried in this order: (lead along the outward side, vertical retract
+# instead of one along the tool axis, feed all the way from and to the safe plane). The rapid of
+# the others ends (starts) the approach distance above the lead's end, where the tool is clear of
+# the stock; the approach itself is a feed.
+LINKS = ((True, False, False), (True, True, False), (False, False, False), (False, True, False), (False, False, True),
+         (False, True, True))
+NO_LEAD = 2
+
+
+class PathBuilder:
+    """Turns passes into moves and maps verification problems back onto passes. ``approach``: the
+    distance (mm) above a lead's end where the rapid stops and the feed begins. ``gentle``: the
+    ``singular`` angle (rad) of a 5-axis machine whose C must turn gently (:func:`gentle_turns`), or
+    None. Between passes the axis turns where the last pass left the safe plane, then travels."""
+
+    def __init__(self, tip, axis, side, safe_z, lead, approach, radius, gentle=None, reach=None):
+        self.tip, self.axis, self.side, self.safe_z, self.lead = tip, axis, side, safe_z, lead
+        self.approach, self.radius, self.gentle, self.reach = approach, radius, gentle, reach
+
+    def _reaches(self, passes):
+        """Per pass, the distances ``(in, out)`` down the way to the safe plane to which a rapid
+        may come where its entry (exit) feeds all the way (None: feed all the way): the stock's
+        :func:`~meshmill.pathing.verify.rapid_reach`, at least the approach distance."""
+        out = [[None, None] for _ in passes]
+        if self.reach is None:
+            return out
+        pts, dirs, axes, tools, tops, where = [], [], [], [], [], []
+        for k, ps in enumerate(passes):
+            for side, key, end in ((0, "entry", 0), (1, "exit", -1)):
+                lead, vertical, feed = LINKS[ps[key]]
+                if not feed or not ps.get(("reach_in", "reach_out")[side], True):
+                    continue
+                i = ps["idx"][end]
+                p = self.tip[i] + (self.lead * self.side[i] if lead else 0.0)
+                u = self.axis[i]
+                d = np.array([0.0, 0.0, 1.0]) if vertical or u[2] < 1e-6 else u
+                pts.append(p)
+                dirs.append(d)
+                axes.append(u)
+                tools.append(ps["tool"])
+                tops.append(max(0.0, (self.safe_z - p[2]) / d[2]))
+                where.append((k, side))
+        if pts:
+            t = self.reach(np.array(pts), np.array(dirs), np.array(axes), np.array(tools), np.array(tops))
+            for (k, side), tk, top in zip(where, t, tops):
+                if tk < top - self.approach:
+                    out[k][side] = max(float(tk), self.approach)
+        return out
+
+    def _up(self, p, u, vertical):
+        if vertical or u[2] < 1e-6:
+            return np.array([p[0], p[1], self.safe_z])
+        return p + (self.safe_z - p[2]) / u[2] * u
+
+    @staticmethod
+    def _dir(u, vertical):
+        return np.array([0.0, 0.0, 1.0]) if vertical or u[2] < 1e-6 else u
+
+    def _above(self, p, u, vertical):
+        """``approach`` mm up the way to the safe plane (never past it)."""
+        d = self._dir(u, vertical)
+        return p + min(self.approach, max(0.0, (self.safe_z - p[2]) / d[2])) * d
+
+    def build(self, passes):
+        tips, axes, rapid, tools, owner, role = [], [], [], [], [], []
+
+        def add(p, u, is_rapid, tool, k, r):
+            tips.append(p)
+            axes.append(u)
+            rapid.append(is_rapid)
+            tools.append(tool)
+            owner.append(k)
+            role.append(r)
+
+        reaches = self._reaches(passes)
+        for k, ps in enumerate(passes):
+            idx, tool = ps["idx"], ps["tool"]
+            reach_in, reach_out = reaches[k]
+            t0, u0 = self.tip[idx[0]], self.axis[idx[0]]
+            t1, u1 = self.tip[idx[-1]], self.axis[idx[-1]]
+            lead_in, vertical_in, feed_in = LINKS[ps["entry"]]
+            lead_out, vertical_out, feed_out = LINKS[ps["exit"]]
+            start = t0 + (self.lead * self.side[idx[0]] if lead_in else 0.0)
+            end = t1 + (self.lead * self.side[idx[-1]] if lead_out else 0.0)
+            if tips and float(np.dot(axes[-1], u0)) < 1.0 - 1e-12:  # turn in place, then travel
+                add(tips[-1], u0, True, tool, k, "link_in")
+            add(self._up(start, u0, vertical_in), u0, True, tool, k, "link_in")
+            if not feed_in:
+                add(self._above(start, u0, vertical_in), u0, True, tool, k, "link_in")
+            elif reach_in is not None:  # rapid down to where the stock begins, then feed
+                add(start + reach_in * self._dir(u0, vertical_in), u0, True, tool, k, "link_in")
+            add(start, u0, False, tool, k, "approach_in")
+            if lead_in:
+                add(t0, u0, False, tool, k, "lead_in")
+            for j in range(1, len(idx)):
+                add(self.tip[idx[j]], self.axis[idx[j]], False, tool, k, j)
+            if lead_out:
+                add(end, u1, False, tool, k, "lead_out")
+            if not feed_out:
+                add(self._above(end, u1, vertical_out), u1, False, tool, k, "approach_out")
+                add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
+            elif reach_out is not None:  # feed out of the stock, then rapid
+                add(end + reach_out * self._dir(u1, vertical_out), u1, False, tool, k, "approach_out")
+                add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
+            else:
+                add(self._up(end, u1, vertical_out), u1, False, tool, k, "approach_out")
+        tp = Toolpath(np.array(tips).reshape(-1, 3), np.array(axes).reshape(-1, 3), np.array(rapid, bool),
+                      np.array(tools, np.int64))
+        self.added = 0
+        if self.gentle is not None:
+            n = len(tp)
+            tp, keep = gentle_turns(tp, self.radius, self.gentle)
+            owner, role = [owner[k] for k in keep], [role[k] for k in keep]
+            self.added = len(tp) - n
+        return tp, owner, role
+
+    def pole_report(self):
+        """What :func:`gentle_turns` put into the last path built: ``margin_deg``, ``step_deg``,
+        ``poses_added`` (None without a 5-axis machine)."""
+        if self.gentle is None:
+            return None
+        return {"margin_deg": POLE_MARGIN, "step_deg": POLE_STEP, "poses_added": self.added}
+
+
+def repair_passes(passes, problem_moves, owner, role):
+    """New pass list after fixing the passes that own the problem moves; returns (passes, dropped).
+
+    A failing entry or exit tries the next of :data:`LINKS` (a failing lead jumps to the first
+    option without one); when none is left the pass is dropped. A failing cutting move splits its
+    pass, and pieces of a single point are left out.
+    """
+    fixes = {}
+    for m in problem_moves:
+        fixes.setdefault(owner[m], set()).add(role[m])
+    out, dropped = [], 0
+    for k, ps in enumerate(passes):
+        if k not in fixes:
+            out.append(ps)
+            continue
+        ps = dict(ps)
+        roles = fixes[k]
+        if "lead_in" in roles:
+            ps["entry"] = max(ps["entry"] + 1, NO_LEAD)
+        elif "link_in" in roles and LINKS[ps["entry"]][2] and ps.get("reach_in", True):
+            ps["reach_in"] = False  # the rapid down to the stock failed: feed all the way
+        elif "link_in" in roles or "approach_in" in roles:
+            ps["entry"] += 1
+        if "lead_out" in roles:
+            ps["exit"] = max(ps["exit"] + 1, NO_LEAD)
+        elif "link_out" in roles and LINKS[ps["exit"]][2] and ps.get("reach_out", True):
+            ps["reach_out"] = False
+        elif "link_out" in roles or "approach_out" in roles:
+            ps["exit"] += 1
+        if ps["entry"] >= len(LINKS) or ps["exit"] >= len(LINKS):
+            dropped += 1
+            continue
+        # split at cutting moves that failed: the move from point j-1 to j is not cut
+        cuts = sorted(r for r in roles if isinstance(r, int))
+        bounds = [0, *cuts, len(ps["idx"])]
+        pieces = [ps["idx"][a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+        for i, piece in enumerate(pieces):
+            if len(piece) < 2:
+                continue
+            new = dict(ps, idx=piece)
+            if i > 0:
+                new["entry"] = ps["first_link"]
+            if i < len(pieces) - 1:
+                new["exit"] = ps["first_link"]
+            out.append(new)
+    return out, dropped
