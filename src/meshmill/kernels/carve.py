@@ -14,6 +14,9 @@ from types import SimpleNamespace
 from . import sweep
 
 MIN_PIECE = 1e-9  # mm: a dexel piece shorter than this is removed
+RAPID = 1  # bits of a move's kind: a rapid (it must remove nothing)
+BODY = 2  # a shank or holder (it removes nothing; touching material is a collision)
+TILE = 16  # lines a side of the tiles that cutting runs in parallel over
 
 
 def build(jit, inline=None):

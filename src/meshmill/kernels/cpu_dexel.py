@@ -13,6 +13,7 @@ import numpy as np
 from numba import prange
 
 from . import carve, raycast, sweep
+from .carve import BODY, TILE
 from .geom import STACK_SIZE
 from .raycast import MAX_HITS
 
@@ -123,9 +124,6 @@ _line_range = crv.line_range
 _move_constants = crv.move_constants
 _cut_line = crv.cut_line
 _touch_line = crv.touch_line
-RAPID = 1  # bits of a move's kind: a rapid (it must remove nothing)
-BODY = 2  # a shank or holder (it removes nothing; touching material is a collision)
-TILE = 16  # lines a side of the tiles that cutting runs in parallel over
 
 
 @numba.njit(cache=True)
@@ -179,9 +177,10 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
     """Cut the lines of the given ``tiles`` with their moves, in move order within each line.
 
     Moves as in :mod:`meshmill.kernels.carve`, ``box (k, 6)`` their bounds, ``kind (k,)`` bits
-    :data:`RAPID` and :data:`BODY`. Sets ``hit[m]`` when a move removes more than ``hit_min`` mm
-    of a dexel (a rapid that cuts; a feed move in material, not in air) or a body move (shank,
-    holder: it removes nothing) meets that much material, and ``overflow[t]`` when a line of tile t ran out of room: the tile stops there, so
+    :data:`~meshmill.kernels.carve.RAPID` and :data:`~meshmill.kernels.carve.BODY`. Sets ``hit[m]``
+    when a move removes more than ``hit_min`` mm of a dexel (a rapid that cuts; a feed move in
+    material, not in air) or a body move (shank, holder: it removes nothing) meets that much
+    material, and ``overflow[t]`` when a line of tile t ran out of room: the tile stops there, so
     rerunning it after growing the line is exact (removal is idempotent, and moves before the stop
     saw the material in path order). ``iv, off, count`` may hold the lines from row ``row0`` on
     only (a block of rows: the tiles given must lie in it)."""

@@ -17,6 +17,7 @@ import numpy as np
 from numba import cuda, float64, int32, int64
 
 from . import carve, clearance, cutters, raycast
+from .carve import BODY, TILE
 from .clearance import WORK_SIZE
 from .cutters import NO_BODY
 from .geom import SEEN_SIZE, STACK_SIZE, build
@@ -46,7 +47,6 @@ _cut_line = crv.cut_line
 _touch_line = crv.touch_line
 THREADS = 128
 CHUNK = 4  # points of a drop-cutter batch run in order by one thread (fewer than the CPU's: more threads)
-TILE = 16  # as meshmill.kernels.cpu_dexel.TILE: one block of TILE x TILE threads per tile
 
 
 def _blocks(n, threads=THREADS):
@@ -309,7 +309,7 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_mov
         j0, j1 = _line_range(box[m, 2], box[m, 3], lv, step, nv)
         if i < i0 or i > i1 or j < j0 or j > j1:
             continue
-        if kind[m] & 2:  # BODY: a shank or holder meets material, it removes none
+        if kind[m] & BODY:  # a shank or holder meets material, it removes none
             if _touch_line(m, (i - row0) * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
                            radius, corner, flutes, strips) > hit_min:
                 hit[m] = 1

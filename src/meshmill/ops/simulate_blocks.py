@@ -24,9 +24,8 @@ from .. import memory
 from ..cluster import PIECES_PER_WORKER, check_workers, share, submit, wait, worker_cached, workers
 from ..progress import ranges
 from ..geometry import shapes
-from ..kernels.backend import MeshKernels
+from ..kernels.backend import TILE, MeshKernels
 from ..kernels.bvh import build_bvh
-from ..kernels.cpu_dexel import TILE
 from ..simulation import cut as cutting
 from ..simulation.deviation import join_measures, measure_lines, nearest_end
 from ..simulation.dexel import LINE_BYTES, TRIANGLE_BYTES, cast_rows, lattice, lattice_summary, material_mesh, \
