@@ -155,3 +155,110 @@ def test_axis_in_the_plane_of_the_triangle():
         q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
         d2 = cpu.dev.triangle_axis_dist2((tri @ q.T).reshape(1, 9), 0, *(q @ base), *(q @ u), 0.0, 30.0)
         assert abs(d2 - 9.0) < 1e-9
+
+
+def _grid_mesh(seed, m=40):
+    """Triangles with corners on the integer grid of [-3, 3]³: queries on their vertices, edges and
+    planes are exact in floating point, and many boxes touch."""
+    rng = np.random.default_rng(seed)
+    V = rng.integers(-3, 4, (3 * m, 3)).astype(np.float64)
+    F = np.arange(3 * m).reshape(m, 3)
+    keep = np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1) > 0
+    return V, F[keep]
+
+
+def _queries(V, F, rng, k=30):
+    """Points on the vertices, the edges' middles and quarter points of the faces (exact for grid
+    meshes), and random points around them."""
+    tri = V[F]
+    on = np.concatenate([V[:k], 0.5 * (tri[:k, 0] + tri[:k, 1]), 0.25 * tri[:k, 0] + 0.25 * tri[:k, 1]
+                         + 0.5 * tri[:k, 2]])
+    return np.concatenate([on, rng.uniform(V.min() - 2, V.max() + 2, (k, 3))])
+
+
+def _meshes():
+    return [_grid_mesh(0), _grid_mesh(1), _random_mesh(0, 40)]
+
+
+def test_every_bvh_search_is_the_minimum_of_its_triangle_test():
+    # the traversal written once prunes only what cannot come below the best, so each search
+    # returns exactly the least of its triangle test over all triangles, and a triangle giving it
+    stack = np.empty(STACK_SIZE, np.int32)
+    for V, F in _meshes():
+        bvh = build_bvh(V, F)
+        rng = np.random.default_rng(len(F))
+        pts = _queries(V, F, rng)
+        tris = range(len(bvh.tris))
+        for p in pts:
+            d = cpu.dev.mesh_point_dist2(*p, 1e300, 0.0, *bvh.arrays, stack)
+            assert d == min(cpu.dev.point_triangle_dist2(*p, bvh.tris, t) for t in tris)
+        for a, b in zip(pts[::2], pts[1::2]):
+            if np.linalg.norm(b - a) == 0.0:
+                continue
+            u = (b - a) / np.linalg.norm(b - a)
+            d, hit = cpu.dev.mesh_cylinder_search(*a, *u, 0.0, 2.5, 1e300, 0.0, *bvh.arrays, stack)
+            ref = [cpu.dev.triangle_axis_dist2(bvh.tris, t, *a, *u, 0.0, 2.5) for t in tris]
+            assert d == min(ref) and ref[hit] == d
+            d = cpu.clr.mesh_segment_dist2(*a, *b, 1e300, 0.0, *bvh.arrays, stack)
+            (dx, dy, dz), length = b - a, math.sqrt(sum((b - a) ** 2))  # as the kernel rounds them
+            su = (dx / length, dy / length, dz / length)
+            assert d == min(min(cpu.dev.triangle_axis_dist2(bvh.tris, t, *a, *su, 0.0, length),
+                                cpu.dev.point_triangle_dist2(*a, bvh.tris, t),
+                                cpu.dev.point_triangle_dist2(*b, bvh.tris, t)) for t in tris)
+        w = np.zeros(cpu.WORK_SIZE)
+        for a, b, c in zip(pts[::3], pts[1::3], pts[2::3]):
+            w[cpu.clearance._TRI_A:cpu.clearance._TRI_A + 9] = np.r_[a, b, c]
+            w[cpu.clearance._TRI_B:cpu.clearance._TRI_B + 9] = np.r_[a, c, c + 0.5]
+            d = cpu.clr.mesh_tris_dist2(w, 1e300, 0.0, *bvh.arrays, stack)
+            assert d == min(min(cpu.clr.tri_tri_dist2(w, cpu.clearance._TRI_A, bvh.tris, t),
+                                cpu.clr.tri_tri_dist2(w, cpu.clearance._TRI_B, bvh.tris, t)) for t in tris)
+            e1 = (b - a) / max(np.linalg.norm(b - a), 1e-300)
+            e2 = np.cross(u := np.array([0.0, 0.0, 1.0]), e1)
+            if np.linalg.norm(e2) < 1e-9:
+                continue
+            e2 /= np.linalg.norm(e2)
+            e1 = np.cross(e2, u)
+            args = (*a, *u, *e1, *e2, -1.0, 1.5, 0.75, -0.25)
+            d = cpu.clr.mesh_stadium_dist2(*args, 1e300, 0.0, *bvh.arrays, stack, w)
+            assert d == min(cpu.clr.stadium_tri_dist2(bvh.tris, t, *args, w) for t in tris)
+
+
+def test_a_search_stops_below_stop2_and_caps_at_cap2():
+    stack = np.empty(STACK_SIZE, np.int32)
+    V, F = _grid_mesh(7)
+    bvh = build_bvh(V, F)
+    for p in _queries(V, F, np.random.default_rng(7)):
+        exact = cpu.dev.mesh_point_dist2(*p, 1e300, 0.0, *bvh.arrays, stack)
+        for lim in (0.25, 1.0, 4.0):
+            d = cpu.dev.mesh_point_dist2(*p, lim, lim, *bvh.arrays, stack)
+            assert exact <= d < lim if exact < lim else d == lim
+
+
+def test_the_visits_see_every_crossing():
+    # inside, line hits and ray blocking through the BVH against the same triangle test over all
+    # triangles, for lines through vertices and edges (ties decided once, by the triangle test)
+    stack = np.empty(STACK_SIZE, np.int32)
+    V, F = _grid_mesh(11, 80)
+    bvh = build_bvh(V, F)
+    tris = range(len(bvh.tris))
+    kind = np.ones(len(bvh.tris), np.int8)
+    kind[::3] = 0
+    pts = _queries(V, F, np.random.default_rng(3))
+    hw, hs = np.empty(512), np.empty(512, np.int64)
+    all_lo, all_hi = bvh.node_lo[:1], bvh.node_hi[:1]
+    for p in pts:
+        wind, odd = 0, False
+        for t in tris:
+            side, z = cpu.ray.hit(bvh.tris, t, 2, p[0], p[1])
+            if side != 0 and z > p[2]:
+                wind, odd = (wind + side, odd) if kind[t] == 1 else (wind, not odd)
+        assert cpu.clr.inside(*p, *bvh.arrays, kind, 0.0, stack) == (wind > 0 or (odd and p[2] >= 0.0))
+        for a in range(3):
+            u0, v0 = p[(a + 1) % 3], p[(a + 2) % 3]
+            n = cpu.ray.bvh_line_hits(a, u0, v0, *bvh.arrays, stack, hw, hs)
+            got = sorted(zip(hw[:n], hs[:n]))
+            n = cpu.ray.box_line_hits(a, u0, v0, all_lo, all_hi, np.array([0, len(bvh.tris)]), bvh.tris, hw, hs)
+            assert got == sorted(zip(hw[:n], hs[:n]))
+        d = np.array([0.3, -0.5, 0.8])
+        blocked = any(cpu.dev.line_crossing(*p, *d, *bvh.tris[t], 1e-300, 0.0) > 1e-6 for t in tris)
+        assert cpu.ray.ray_blocked(*p, *d, 1e-6, *bvh.arrays, stack) == blocked

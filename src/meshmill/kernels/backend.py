@@ -1,12 +1,15 @@
 """Which backend runs the kernels: ``cpu``, ``cuda``, or ``auto`` (CUDA when numba sees a usable
-GPU, else the CPU), and :class:`MeshKernels`, the kernels of one backend bound to one mesh.
-The CUDA module is imported only when chosen."""
+GPU, else the CPU); :class:`MeshKernels`, the kernels of one backend bound to one mesh, and
+:class:`DexelKernels`, the dexel kernels of one backend. Only this package imports the backends'
+modules (``cpu``, ``cpu_dexel``, ``cuda``); the CUDA module is imported only when chosen."""
 from __future__ import annotations
 
 import os
 import sys
 
 from ..errors import InputError
+from .carve import BODY, RAPID, TILE  # noqa: F401  (the kinds of moves, the tiles of lines cutting runs over)
+from .raycast import MAX_HITS  # noqa: F401  (crossings a line may have)
 
 DEVICES = ("cpu", "cuda", "auto")
 
@@ -51,15 +54,25 @@ def resolve(device: str) -> str:
     return "cpu"
 
 
-def implementation(device: str):
-    """The module of the backend (``"cpu"`` or ``"cuda"``): both offer the same functions."""
+def _backend(device: str, dexel: bool = False):
+    """The module of the backend (``"cpu"`` or ``"cuda"``) offering its mesh kernels, or with
+    ``dexel`` its dexel kernels (the CUDA module offers both)."""
     if device == "cuda":
         from . import cuda
 
         return cuda
+    if dexel:
+        from . import cpu_dexel
+
+        return cpu_dexel
     from . import cpu
 
     return cpu
+
+
+def _check(device: str) -> None:
+    if device not in ("cpu", "cuda"):
+        raise ValueError(f"device must be 'cpu' or 'cuda' (resolve '{device}' first)")
 
 
 class MeshKernels:
@@ -70,10 +83,9 @@ class MeshKernels:
     arrays, as documented in :mod:`meshmill.kernels.cpu`."""
 
     def __init__(self, bvh, device: str = "cpu", inside=None, drop_on_inside: bool = False):
-        if device not in ("cpu", "cuda"):
-            raise ValueError(f"device must be 'cpu' or 'cuda' (resolve '{device}' first)")
+        _check(device)
         self.bvh, self.device = bvh, device
-        self.impl = implementation(device)
+        self.impl = _backend(device)
         self.mesh = self.impl.to_device(bvh) if device == "cuda" else bvh.arrays
         self.inside = None
         if inside is not None:
@@ -120,28 +132,61 @@ class MeshKernels:
         return self.impl.rays_blocked(origins, direction, tmin, self.mesh)
 
 
-class LineCaster:
-    """Dexel line casting (seed 000) of one backend bound to one mesh ``index``: ``("bvh",
+class DexelKernels:
+    """The dexel kernels (seed 000) of one backend: lines cast through the mesh ``index`` (none
+    needed to cut), moves binned into tiles of lines and cut from them. ``index``: ``("bvh",
     BVH.arrays)``, or on the CPU also the seed's cells and k-means partitions (``("boxes", ...)``,
-    :func:`meshmill.kernels.cpu_dexel.cast_lines`)."""
+    :func:`meshmill.kernels.cpu_dexel.cast_lines`); on CUDA it is copied to the GPU once, here.
+    Arguments and results are host numpy arrays, as documented in :mod:`meshmill.kernels.cpu_dexel`;
+    binning, and the few lines decided point by point, run on the CPU whatever the device."""
 
-    def __init__(self, index, device: str = "cpu"):
-        if device == "cuda" and index[0] != "bvh":
+    def __init__(self, device: str = "cpu", index=None):
+        _check(device)
+        if device == "cuda" and index is not None and index[0] != "bvh":
             raise InputError("the cells and k-means indexes run on the CPU only: use index bvh with device cuda",
                              ("index", "device"))
-        self.impl = implementation(device)
-        if device == "cuda":
+        self.device = device
+        self.impl = _backend(device, dexel=True)
+        self.host = _backend("cpu", dexel=True)
+        self.index = index
+        if device == "cuda" and index is not None:
             from types import SimpleNamespace
 
             self.index = self.impl.to_device(SimpleNamespace(arrays=index[1]))
-        else:
-            self.index = index
 
     def cast_lines(self, a, lu, lv, step, nu, nv, first_row=0):
         """``(dense (lines, cap, 2), count (lines,))``: the material intervals of the ``nu x nv``
         lines along axis ``a`` of the lattice from ``(lu, lv)``, ``step`` mm apart, from its row
         ``first_row`` on (a block of rows: the same lines as the whole lattice's)."""
+        if self.index is None:
+            raise ValueError("these dexel kernels were bound without a mesh index")
         return self.impl.cast_lines(a, lu, lv, step, nu, nv, self.index, first_row)
+
+    def line_hits(self, a, us, vs, bvh):
+        """``(w (k, MAX_HITS) mm, NaN-padded and unsorted; n (k,))``: where the lines along axis
+        ``a`` through ``(us[i], vs[i])`` cross the mesh of ``bvh`` (``BVH.arrays``), on the CPU."""
+        return self.host.line_hits(a, us, vs, bvh)
+
+    def points_inside(self, points, inside):
+        """``(k,) bool``: whether each of ``points (k, 3)`` lies in the material of a
+        :attr:`~meshmill.geometry.solid.Solid.inside`, on the CPU."""
+        return _backend("cpu").points_inside(points, inside)
+
+    def bin_moves(self, box, lu, lv, step, nu, nv):
+        """``(tile_start, tile_moves)``: the moves of each tile of :data:`TILE` x TILE lines (see
+        :func:`meshmill.kernels.cpu_dexel.bin_moves`), on the CPU."""
+        return self.host.bin_moves(box, float(lu), float(lv), float(step), int(nu), int(nv))
+
+    def move_constants(self, pa, pb, xa, xb, corner, flutes):
+        """``(chord (k, 6), plane (k, 4))``: what every line a move crosses needs."""
+        return self.impl.move_constants(pa, pb, xa, xb, corner, flutes)
+
+    def cut_tiles(self, lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb, radius,
+                  corner, flutes, strips, chord, plane, box, kind, hit_min, hit, overflow, row0=0):
+        """Cut the lines of ``tiles`` by their moves, ``iv, count, hit, overflow`` in place (see
+        :func:`meshmill.kernels.cpu_dexel.cut_tiles`)."""
+        self.impl.cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb,
+                            radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, overflow, row0)
 
 
 def cutter_rise(rho, radius, corner_radius) -> float:

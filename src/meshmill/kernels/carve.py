@@ -9,23 +9,21 @@ line frame (see :mod:`meshmill.kernels.sweep`): tips ``pa, pb (k, 3)``, unit axe
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 
 from . import sweep
+from .geom import namespace
 
 MIN_PIECE = 1e-9  # mm: a dexel piece shorter than this is removed
+RAPID = 1  # bits of a move's kind: a rapid (it must remove nothing)
+BODY = 2  # a shank or holder (it removes nothing; touching material is a collision)
+TILE = 16  # lines a side of the tiles that cutting runs in parallel over
 
 
 def build(jit, inline=None):
     """Compile the device functions with ``jit`` and return them in a namespace; ``inline``, if
-    given, compiles :func:`cut_line` (called once per line and move) to be inlined where it is
-    called (on the CPU a call passing arrays costs reference counting)."""
+    given, compiles :func:`cut_line` and :func:`touch_line` (called once per line and move) to be
+    inlined where they are called (on the CPU: a third of the cutting time)."""
     swp = sweep.build(jit)
-    capsule = swp.capsule
-    pgram_ball = swp.pgram_ball
-    flute_range = swp.flute_range
-    tool_move = swp.tool_move
-    flute_plane = swp.flute_plane
 
     @jit
     def subtract(iv, off, count, line, lo, hi):
@@ -97,11 +95,26 @@ def build(jit, inline=None):
         return False
 
     @jit
+    def reaches(iv, off, count, line, wlo, whi):
+        """Whether the intervals of ``line`` may reach into ``(wlo, whi)``: it has some, the first
+        starts below whi and the last ends above wlo."""
+        n = count[line]
+        return n > 0 and not (iv[off[line], 0] >= whi or iv[off[line] + n - 1, 1] <= wlo)
+
+    @jit
     def line_range(lo, hi, l0, step, n):
         """First and last of ``n`` lines at ``l0 + (i + 1/2) step`` within ``[lo, hi]``."""
         i0 = max(0, int(math.ceil((lo - l0) / step - 0.5)))
         i1 = min(n - 1, int(math.floor((hi - l0) / step - 0.5)))
         return i0, i1
+
+    @jit
+    def move_lines(box, m, lu, lv, step, nu, nv):
+        """``(i0, i1, j0, j1)``: the lines (first and second lattice index, from ``lu, lv``) that the
+        box ``box[m]`` (ulo, uhi, vlo, vhi, ...) of move m covers; none when i0 > i1 or j0 > j1."""
+        i0, i1 = line_range(box[m, 0], box[m, 1], lu, step, nu)
+        j0, j1 = line_range(box[m, 2], box[m, 3], lv, step, nv)
+        return i0, i1, j0, j1
 
     @jit
     def move_constants(m, pa, pb, xa, xb, corner, flutes, chord, plane):
@@ -111,37 +124,37 @@ def build(jit, inline=None):
         for k in range(3):
             chord[m, k] = pa[m, k] + cm * xa[m, k]
             chord[m, 3 + k] = pb[m, k] + cm * xb[m, k]
-        plane[m, 0], plane[m, 1], plane[m, 2], plane[m, 3] = flute_plane(pa[m], pb[m], xa[m], xb[m], cm, flutes[m])
+        plane[m, 0], plane[m, 1], plane[m, 2], plane[m, 3] = swp.flute_plane(pa[m], pb[m], xa[m], xb[m], cm,
+                                                                             flutes[m])
 
     @(inline or jit)
     def cut_line(m, line, u0, v0, wlo, whi, iv, off, count, pa, pb, xa, xb, radius, corner, flutes, strips,
                  chord, plane):
         """Cut move m from line ``line`` at (u0, v0). Returns the length removed, -1 when the line
         ran out of room (see :func:`subtract`)."""
+        if not reaches(iv, off, count, line, wlo, whi):
+            return 0.0
         n = count[line]
-        if n == 0:
-            return 0.0
         base = off[line]
-        if iv[base, 0] >= whi or iv[base + n - 1, 1] <= wlo:
-            return 0.0
         cm = corner[m]
         if cm >= radius[m]:
             # the ball alone, unless material lies where only the flutes reach
-            lo, hi = capsule(u0, v0, chord[m, 0], chord[m, 1], chord[m, 2], chord[m, 3], chord[m, 4], chord[m, 5], cm)
-            flo, fhi = flute_range(u0, v0, plane[m, 0], plane[m, 1], plane[m, 2], plane[m, 3])
+            lo, hi = swp.capsule(u0, v0, chord[m, 0], chord[m, 1], chord[m, 2], chord[m, 3], chord[m, 4], chord[m, 5],
+                                 cm)
+            flo, fhi = swp.flute_range(u0, v0, plane[m, 0], plane[m, 1], plane[m, 2], plane[m, 3])
             if material_outside(iv, base, n, max(flo, wlo), min(fhi, whi), lo, hi):
-                lo, hi = tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
+                lo, hi = swp.tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
         else:
             if xa[m, 0] == xb[m, 0] and xa[m, 1] == xb[m, 1] and xa[m, 2] == xb[m, 2]:
                 # nothing to cut unless material lies in the sweep of the ball of radius R about
                 # the axis segment (it holds the whole tool's)
                 H = max(0.0, flutes[m] - 2.0 * cm)
-                lo, hi = pgram_ball(u0, v0, chord[m, 0], chord[m, 1], chord[m, 2], chord[m, 3] - chord[m, 0],
-                                    chord[m, 4] - chord[m, 1], chord[m, 5] - chord[m, 2], H * xa[m, 0],
-                                    H * xa[m, 1], H * xa[m, 2], radius[m])
+                lo, hi = swp.pgram_ball(u0, v0, chord[m, 0], chord[m, 1], chord[m, 2], chord[m, 3] - chord[m, 0],
+                                        chord[m, 4] - chord[m, 1], chord[m, 5] - chord[m, 2], H * xa[m, 0],
+                                        H * xa[m, 1], H * xa[m, 2], radius[m])
                 if lo >= hi or not material_outside(iv, base, n, max(lo, wlo), min(hi, whi), 1.0, 0.0):
                     return 0.0
-            lo, hi = tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
+            lo, hi = swp.tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
         if lo >= hi:
             return 0.0
         return subtract(iv, off, count, line, lo, hi)
@@ -150,12 +163,10 @@ def build(jit, inline=None):
     def touch_line(m, line, u0, v0, wlo, whi, iv, off, count, pa, pb, xa, xb, radius, corner, flutes, strips):
         """The longest piece of material (mm) of line ``line`` at (u0, v0) inside the volume move m
         sweeps; nothing is removed (a shank or holder: it collides, it does not cut)."""
+        if not reaches(iv, off, count, line, wlo, whi):
+            return 0.0
         n = count[line]
-        if n == 0:
-            return 0.0
         base = off[line]
-        if iv[base, 0] >= whi or iv[base + n - 1, 1] <= wlo:
-            return 0.0
         if not material_outside(iv, base, n, wlo, whi, 1.0, 0.0):
             return 0.0
         # first the capsule about the cylinder's axis (a ball-end of its radius standing R lower,
@@ -167,10 +178,10 @@ def build(jit, inline=None):
         g = R + twist + 1e-9
         qa = (pa[m, 0] - g * xa[m, 0], pa[m, 1] - g * xa[m, 1], pa[m, 2] - g * xa[m, 2])
         qb = (pb[m, 0] - g * xb[m, 0], pb[m, 1] - g * xb[m, 1], pb[m, 2] - g * xb[m, 2])
-        lo, hi = tool_move(u0, v0, qa, qb, xa[m], xb[m], g, g, flutes[m] + 2.0 * g, strips[m])
+        lo, hi = swp.tool_move(u0, v0, qa, qb, xa[m], xb[m], g, g, flutes[m] + 2.0 * g, strips[m])
         if lo >= hi or not material_outside(iv, base, n, lo, hi, 1.0, 0.0):
             return 0.0
-        lo, hi = tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], corner[m], flutes[m], strips[m])
+        lo, hi = swp.tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], corner[m], flutes[m], strips[m])
         best = 0.0
         for k in range(base, base + n):
             s = max(iv[k, 0], lo)
@@ -179,5 +190,5 @@ def build(jit, inline=None):
                 best = e - s
         return best
 
-    return SimpleNamespace(subtract=subtract, material_outside=material_outside, line_range=line_range,
-                           move_constants=move_constants, cut_line=cut_line, touch_line=touch_line)
+    return namespace(subtract=subtract, material_outside=material_outside, move_lines=move_lines,
+                     move_constants=move_constants, cut_line=cut_line, touch_line=touch_line)

@@ -36,11 +36,12 @@ Every test is conservative: "clear" is a proof, "not clear" only asks the caller
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 
 from . import geom, raycast
+from .geom import bvh_search, bvh_visit, namespace
 
 INF = 1.0e300
+EMPTY_BOX = (INF, INF, INF, -INF, -INF, -INF)  # (lox, loy, loz, hix, hiy, hiz) holding nothing
 RING_ARCS = 8  # chords the circle of a rounded end starts with
 MIN_ARC = 1e-4  # rad: a chord is not halved below this
 ARC_STACK = 64  # chords waiting at once (pairs of angles in the work array)
@@ -60,9 +61,9 @@ def build(jit):
     ray = raycast.build(jit)
     point_tri = g.point_tri_dist2
     axis_dist = g.triangle_axis_dist2
-    point_seg = g.point_segment_dist2
     point_dist = g.mesh_point_dist2
     cylinder_dist = g.mesh_cylinder_dist2
+    crossing = g.line_crossing
     hit = ray.hit
 
     @jit
@@ -111,35 +112,7 @@ def build(jit):
     def pierces(p0x, p0y, p0z, p1x, p1y, p1z, ax, ay, az, bx, by, bz, cx, cy, cz):
         """Whether segment p0-p1 crosses the plane of triangle abc inside it (a degenerate triangle
         or a segment in its plane never does: distances decide those)."""
-        e1x = bx - ax
-        e1y = by - ay
-        e1z = bz - az
-        e2x = cx - ax
-        e2y = cy - ay
-        e2z = cz - az
-        dx = p1x - p0x
-        dy = p1y - p0y
-        dz = p1z - p0z
-        px = dy * e2z - dz * e2y
-        py = dz * e2x - dx * e2z
-        pz = dx * e2y - dy * e2x
-        det = e1x * px + e1y * py + e1z * pz
-        if abs(det) <= 1e-300:
-            return False
-        inv = 1.0 / det
-        tx = p0x - ax
-        ty = p0y - ay
-        tz = p0z - az
-        u = (tx * px + ty * py + tz * pz) * inv
-        if u < 0.0 or u > 1.0:
-            return False
-        qx = ty * e1z - tz * e1y
-        qy = tz * e1x - tx * e1z
-        qz = tx * e1y - ty * e1x
-        v = (dx * qx + dy * qy + dz * qz) * inv
-        if v < 0.0 or u + v > 1.0:
-            return False
-        s = (e2x * qx + e2y * qy + e2z * qz) * inv
+        s = crossing(p0x, p0y, p0z, p1x - p0x, p1y - p0y, p1z - p0z, ax, ay, az, bx, by, bz, cx, cy, cz, 1e-300, 0.0)
         return s >= 0.0 and s <= 1.0
 
     @jit
@@ -184,8 +157,15 @@ def build(jit):
         return best
 
     @jit
-    def box_box_dist2(node_lo, node_hi, n, lox, loy, loz, hix, hiy, hiz):
-        """Squared distance between node n's box and the box [lo, hi]."""
+    def grow_box(box, x, y, z):
+        """``box`` (lox, loy, loz, hix, hiy, hiz) grown to hold the point (x, y, z)."""
+        lox, loy, loz, hix, hiy, hiz = box
+        return min(lox, x), min(loy, y), min(loz, z), max(hix, x), max(hiy, y), max(hiz, z)
+
+    @jit
+    def box_box_dist2(node_lo, node_hi, n, box):
+        """Squared distance between node n's box and ``box`` (lox, loy, loz, hix, hiy, hiz)."""
+        lox, loy, loz, hix, hiy, hiz = box
         d = 0.0
         for k in range(3):
             lo = lox if k == 0 else (loy if k == 1 else loz)
@@ -197,66 +177,61 @@ def build(jit):
         return d
 
     @jit
+    def tris_box(q, node_lo, node_hi, n, best, reach):
+        # the query: the work array holding the two triangles, and their box
+        w, box = q
+        return box_box_dist2(node_lo, node_hi, n, box)
+
+    @jit
+    def tris_leaf(q, tris, t, best, reach):
+        d = tri_tri_dist2(q[0], _TRI_A, tris, t)
+        if d < best:
+            best = d
+        d = tri_tri_dist2(q[0], _TRI_B, tris, t)
+        if d < best:
+            best = d
+        return best
+
+    tris_search = bvh_search(jit, tris_box, tris_leaf)
+
+    @jit
     def mesh_tris_dist2(q, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack):
         """Smallest squared distance from the two triangles ``q[_TRI_A:+9]``, ``q[_TRI_B:+9]`` to the
         mesh, capped at cap2, returning early below stop2."""
-        lox = INF
-        loy = INF
-        loz = INF
-        hix = -INF
-        hiy = -INF
-        hiz = -INF
+        box = EMPTY_BOX
         for k in range(6):
             o = _TRI_A + 3 * k
-            lox = min(lox, q[o])
-            loy = min(loy, q[o + 1])
-            loz = min(loz, q[o + 2])
-            hix = max(hix, q[o])
-            hiy = max(hiy, q[o + 1])
-            hiz = max(hiz, q[o + 2])
-        best = cap2
-        stack[0] = 0
-        sp = 1
-        while sp > 0:
-            sp -= 1
-            n = stack[sp]
-            if box_box_dist2(node_lo, node_hi, n, lox, loy, loz, hix, hiy, hiz) >= best:
-                continue
-            left = node_child[n, 0]
-            if left < 0:
-                first = node_range[n, 0]
-                for t in range(first, first + node_range[n, 1]):
-                    d = tri_tri_dist2(q, _TRI_A, tris, t)
-                    if d < best:
-                        best = d
-                    d = tri_tri_dist2(q, _TRI_B, tris, t)
-                    if d < best:
-                        best = d
-                    if best < stop2:
-                        return best
-            else:
-                stack[sp] = node_child[n, 1]
-                stack[sp + 1] = left
-                sp += 2
-        return best
+            box = grow_box(box, q[o], q[o + 1], q[o + 2])
+        return tris_search((q, box), cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack)[0]
 
     @jit
-    def box_may_touch_capsule(node_lo, node_hi, n, ax, ay, az, bx, by, bz, r):
-        """False only when box n certainly lies farther than r from segment a-b."""
-        if node_lo[n, 0] > max(ax, bx) + r or node_hi[n, 0] < min(ax, bx) - r:
-            return False
-        if node_lo[n, 1] > max(ay, by) + r or node_hi[n, 1] < min(ay, by) - r:
-            return False
-        if node_lo[n, 2] > max(az, bz) + r or node_hi[n, 2] < min(az, bz) - r:
-            return False
-        cx = 0.5 * (node_lo[n, 0] + node_hi[n, 0])
-        cy = 0.5 * (node_lo[n, 1] + node_hi[n, 1])
-        cz = 0.5 * (node_lo[n, 2] + node_hi[n, 2])
-        hx = 0.5 * (node_hi[n, 0] - node_lo[n, 0])
-        hy = 0.5 * (node_hi[n, 1] - node_lo[n, 1])
-        hz = 0.5 * (node_hi[n, 2] - node_lo[n, 2])
-        reach = r + math.sqrt(hx * hx + hy * hy + hz * hz)
-        return point_seg(cx, cy, cz, ax, ay, az, bx, by, bz) <= reach * reach
+    def capsule_reach(q, best):
+        # the capsule's radius, and how near its middle a triangle must come to lower best: no point
+        # of the segment is nearer a triangle than its middle less ``pad`` (half its length, and the
+        # rounding of coordinates this large)
+        r = math.sqrt(best)
+        return r, (r * (1.0 + 1e-12) + q[13]) ** 2
+
+    @jit
+    def capsule_box(q, node_lo, node_hi, n, best, reach):
+        # the query: the segment a-b, its unit direction u and length, its middle m, and pad
+        ax, ay, az, bx, by, bz, ux, uy, uz, length, mx, my, mz, pad = q
+        r = reach[0]
+        return 0.0 if g.box_near_segment(node_lo, node_hi, n, ax, ay, az, bx, by, bz, r, r, r, r) else best
+
+    @jit
+    def segment_leaf(q, tris, t, best, reach):
+        ax, ay, az, bx, by, bz, ux, uy, uz, length, mx, my, mz, pad = q
+        if point_tri(mx, my, mz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5], tris[t, 6],
+                     tris[t, 7], tris[t, 8]) > reach[1]:
+            return best  # a cheap bound first
+        d = axis_dist(tris, t, ax, ay, az, ux, uy, uz, 0.0, length)
+        d = min(d, point_tri(ax, ay, az, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
+                             tris[t, 6], tris[t, 7], tris[t, 8]))
+        return min(d, point_tri(bx, by, bz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
+                                tris[t, 6], tris[t, 7], tris[t, 8]))
+
+    segment_search = bvh_search(jit, capsule_box, segment_leaf, reach_of=capsule_reach)
 
     @jit
     def mesh_segment_dist2(ax, ay, az, bx, by, bz, cap2, stop2, node_lo, node_hi, node_child, node_range, tris,
@@ -270,49 +245,12 @@ def build(jit):
         length = math.sqrt(dx * dx + dy * dy + dz * dz)
         if length <= 1e-12:
             return point_dist(ax, ay, az, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack)
-        ux = dx / length
-        uy = dy / length
-        uz = dz / length
-        # a cheap bound first: no point of the segment is nearer a triangle than its middle less
-        # half its length (and the rounding of coordinates this large), so a triangle whose distance
-        # to the middle is past ``reach`` plus that cannot lower ``best``
         mx = ax + 0.5 * dx
         my = ay + 0.5 * dy
         mz = az + 0.5 * dz
         pad = 0.5 * length + 1e-12 * (1.0 + abs(mx) + abs(my) + abs(mz))
-        best = cap2
-        reach = math.sqrt(best)
-        far2 = (reach * (1.0 + 1e-12) + pad) ** 2
-        stack[0] = 0
-        sp = 1
-        while sp > 0:
-            sp -= 1
-            n = stack[sp]
-            if not box_may_touch_capsule(node_lo, node_hi, n, ax, ay, az, bx, by, bz, reach):
-                continue
-            left = node_child[n, 0]
-            if left < 0:
-                first = node_range[n, 0]
-                for t in range(first, first + node_range[n, 1]):
-                    if point_tri(mx, my, mz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
-                                 tris[t, 6], tris[t, 7], tris[t, 8]) > far2:
-                        continue
-                    d = axis_dist(tris, t, ax, ay, az, ux, uy, uz, 0.0, length)
-                    d = min(d, point_tri(ax, ay, az, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4],
-                                         tris[t, 5], tris[t, 6], tris[t, 7], tris[t, 8]))
-                    d = min(d, point_tri(bx, by, bz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4],
-                                         tris[t, 5], tris[t, 6], tris[t, 7], tris[t, 8]))
-                    if d < best:
-                        best = d
-                        reach = math.sqrt(best)
-                        far2 = (reach * (1.0 + 1e-12) + pad) ** 2
-                        if best < stop2:
-                            return best
-            else:
-                stack[sp] = node_child[n, 1]
-                stack[sp + 1] = left
-                sp += 2
-        return best
+        q = (ax, ay, az, bx, by, bz, dx / length, dy / length, dz / length, length, mx, my, mz, pad)
+        return segment_search(q, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack)[0]
 
     @jit
     def seg2d_dist2(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y):
@@ -408,92 +346,75 @@ def build(jit):
         return best
 
     @jit
+    def prism_box(q, node_lo, node_hi, n, best, reach):
+        # the query: the prism of :func:`mesh_stadium_dist2`, its box, and the work array
+        ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, box, w = q
+        d = box_box_dist2(node_lo, node_hi, n, box)
+        if d >= best:
+            return d
+        # a box whose extent along the axis misses the slab holds no triangle the prism meets
+        hc = (0.5 * (node_lo[n, 0] + node_hi[n, 0]) - ax) * ux + (0.5 * (node_lo[n, 1] + node_hi[n, 1]) - ay) * uy \
+            + (0.5 * (node_lo[n, 2] + node_hi[n, 2]) - az) * uz
+        he = 0.5 * ((node_hi[n, 0] - node_lo[n, 0]) * abs(ux) + (node_hi[n, 1] - node_lo[n, 1]) * abs(uy)
+                    + (node_hi[n, 2] - node_lo[n, 2]) * abs(uz))
+        # rounding (of coordinates as large as the box's or the axis point's): a vertex on a face stays in
+        slack = 1e-12 * (abs(node_hi[n, 0]) + abs(node_hi[n, 1]) + abs(node_hi[n, 2]) + abs(ax) + abs(ay)
+                         + abs(az) + he + abs(s0) + abs(s1)) + 1e-12
+        if hc + he < s0 - slack or hc - he > s1 + slack:
+            return best
+        return d
+
+    @jit
+    def prism_leaf(q, tris, t, best, reach):
+        ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, box, w = q
+        return stadium_tri_dist2(tris, t, ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, w)
+
+    prism_search = bvh_search(jit, prism_box, prism_leaf)
+
+    @jit
     def mesh_stadium_dist2(ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, cap2, stop2,
                            node_lo, node_hi, node_child, node_range, tris, stack, w):
         """Smallest squared distance across the axis from the stadium prism (see
         :func:`stadium_tri_dist2`) to the mesh: a flat cylinder of radius rad over [s0, s1], swept
         across its axis by (vx, vy), overlaps the mesh iff this is below rad²."""
         # the prism's box: its four corner points, widened by the distance being asked about
-        lox = INF
-        loy = INF
-        loz = INF
-        hix = -INF
-        hiy = -INF
-        hiz = -INF
+        box = EMPTY_BOX
         for k in range(4):
             h = s0 if k < 2 else s1
             f = 0.0 if k % 2 == 0 else 1.0
-            x = ax + h * ux + f * (vx * e1x + vy * e2x)
-            y = ay + h * uy + f * (vx * e1y + vy * e2y)
-            z = az + h * uz + f * (vx * e1z + vy * e2z)
-            lox = min(lox, x)
-            loy = min(loy, y)
-            loz = min(loz, z)
-            hix = max(hix, x)
-            hiy = max(hiy, y)
-            hiz = max(hiz, z)
-        best = cap2
-        stack[0] = 0
-        sp = 1
-        while sp > 0:
-            sp -= 1
-            n = stack[sp]
-            if box_box_dist2(node_lo, node_hi, n, lox, loy, loz, hix, hiy, hiz) >= best:
-                continue
-            # a box whose extent along the axis misses the slab holds no triangle the prism meets
-            hc = (0.5 * (node_lo[n, 0] + node_hi[n, 0]) - ax) * ux + (0.5 * (node_lo[n, 1] + node_hi[n, 1]) - ay) * uy \
-                + (0.5 * (node_lo[n, 2] + node_hi[n, 2]) - az) * uz
-            he = 0.5 * ((node_hi[n, 0] - node_lo[n, 0]) * abs(ux) + (node_hi[n, 1] - node_lo[n, 1]) * abs(uy)
-                        + (node_hi[n, 2] - node_lo[n, 2]) * abs(uz))
-            # rounding (of coordinates as large as the box's or the axis point's): a vertex on a face stays in
-            slack = 1e-12 * (abs(node_hi[n, 0]) + abs(node_hi[n, 1]) + abs(node_hi[n, 2]) + abs(ax) + abs(ay)
-                             + abs(az) + he + abs(s0) + abs(s1)) + 1e-12
-            if hc + he < s0 - slack or hc - he > s1 + slack:
-                continue
-            left = node_child[n, 0]
-            if left < 0:
-                first = node_range[n, 0]
-                for t in range(first, first + node_range[n, 1]):
-                    d = stadium_tri_dist2(tris, t, ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1,
-                                          vx, vy, w)
-                    if d < best:
-                        best = d
-                        if best < stop2:
-                            return best
+            box = grow_box(box, ax + h * ux + f * (vx * e1x + vy * e2x), ay + h * uy + f * (vx * e1y + vy * e2y),
+                           az + h * uz + f * (vx * e1z + vy * e2z))
+        q = (ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, box, w)
+        return prism_search(q, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack)[0]
+
+    @jit
+    def column_box(q, node_lo, node_hi, n):
+        # the query: the point p, and the kinds of the triangles
+        px, py, pz, kind = q
+        return not (px < node_lo[n, 0] or px > node_hi[n, 0] or py < node_lo[n, 1] or py > node_hi[n, 1]
+                    or node_hi[n, 2] <= pz)
+
+    @jit
+    def winding_leaf(q, tris, t, state):
+        px, py, pz, kind = q
+        wind, odd = state
+        side, z = hit(tris, t, 2, px, py)
+        if side != 0 and z > pz:
+            if kind[t] == 1:
+                wind += side
             else:
-                stack[sp] = node_child[n, 1]
-                stack[sp + 1] = left
-                sp += 2
-        return best
+                odd = not odd
+        return wind, odd
+
+    crossings_above = bvh_visit(jit, column_box, winding_leaf)
 
     @jit
     def inside(px, py, pz, in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor, stack):
         """Whether p lies in the material: the crossings of the line up from p with the solid
         triangles (``in_kind`` 1, signed) wind around it, or it is above ``floor`` with an odd
         number of sheet triangles (``in_kind`` 0) above it (the solid an open surface bounds below)."""
-        wind = 0
-        odd = False
-        stack[0] = 0
-        sp = 1
-        while sp > 0:
-            sp -= 1
-            n = stack[sp]
-            if px < in_lo[n, 0] or px > in_hi[n, 0] or py < in_lo[n, 1] or py > in_hi[n, 1] or in_hi[n, 2] <= pz:
-                continue
-            left = in_child[n, 0]
-            if left < 0:
-                first = in_range[n, 0]
-                for t in range(first, first + in_range[n, 1]):
-                    side, z = hit(in_tris, t, 2, px, py)
-                    if side != 0 and z > pz:
-                        if in_kind[t] == 1:
-                            wind += side
-                        else:
-                            odd = not odd
-            else:
-                stack[sp] = left
-                stack[sp + 1] = in_child[n, 1]
-                sp += 2
+        wind, odd = crossings_above((px, py, pz, in_kind), (0, False), in_lo, in_hi, in_child, in_range, in_tris,
+                                    stack)
         return wind > 0 or (odd and pz >= floor)
 
     @jit
@@ -528,6 +449,24 @@ def build(jit):
         cz = nx * y - ny * x
         return (x * c + cx * s + nx * d * (1.0 - c), y * c + cy * s + ny * d * (1.0 - c),
                 z * c + cz * s + nz * d * (1.0 - c))
+
+    @jit
+    def push_halves(w, sp, a, b):
+        """Push the two halves of [a, b] on the stack of ``sp`` pairs at the start of ``w``; the
+        pairs on it after."""
+        m = 0.5 * (a + b)
+        w[2 * sp] = a
+        w[2 * sp + 1] = m
+        w[2 * sp + 2] = m
+        w[2 * sp + 3] = b
+        return sp + 2
+
+    @jit
+    def on_circle(cx, cy, cz, rho, cos, sin, e1x, e1y, e1z, e2x, e2y, e2z):
+        """The point at the angle of cosine ``cos`` and sine ``sin`` on the circle of radius rho
+        about c in the plane of the unit vectors e1, e2."""
+        return (cx + rho * (cos * e1x + sin * e2x), cy + rho * (cos * e1y + sin * e2y),
+                cz + rho * (cos * e1z + sin * e2z))
 
     @jit
     def put_point(w, o, px, py, pz):
@@ -580,18 +519,10 @@ def build(jit):
             c1 = math.cos(f1)
             s1 = math.sin(f1)
             # corners: (a, f0) (a, f1) (b, f0) (b, f1); triangles (a0, a1, b1) and (a0, b1, b0)
-            a0x = cax + rho * (c0 * e1x + s0 * e2x)
-            a0y = cay + rho * (c0 * e1y + s0 * e2y)
-            a0z = caz + rho * (c0 * e1z + s0 * e2z)
-            a1x = cax + rho * (c1 * e1x + s1 * e2x)
-            a1y = cay + rho * (c1 * e1y + s1 * e2y)
-            a1z = caz + rho * (c1 * e1z + s1 * e2z)
-            b0x = cbx + rho * (c0 * f1x + s0 * f2x)
-            b0y = cby + rho * (c0 * f1y + s0 * f2y)
-            b0z = cbz + rho * (c0 * f1z + s0 * f2z)
-            b1x = cbx + rho * (c1 * f1x + s1 * f2x)
-            b1y = cby + rho * (c1 * f1y + s1 * f2y)
-            b1z = cbz + rho * (c1 * f1z + s1 * f2z)
+            a0x, a0y, a0z = on_circle(cax, cay, caz, rho, c0, s0, e1x, e1y, e1z, e2x, e2y, e2z)
+            a1x, a1y, a1z = on_circle(cax, cay, caz, rho, c1, s1, e1x, e1y, e1z, e2x, e2y, e2z)
+            b0x, b0y, b0z = on_circle(cbx, cby, cbz, rho, c0, s0, f1x, f1y, f1z, f2x, f2y, f2z)
+            b1x, b1y, b1z = on_circle(cbx, cby, cbz, rho, c1, s1, f1x, f1y, f1z, f2x, f2y, f2z)
             tx = a0x - a1x - b0x + b1x
             ty = a0y - a1y - b0y + b1y
             tz = a0z - a1z - b0z + b1z
@@ -610,12 +541,7 @@ def build(jit):
             # halving the chord helps only while its own slack (sagitta, twist) is what fails
             if rho <= 0.0 or f1 - f0 < MIN_ARC or sagitta + twist <= 0.25 * dev or sp + 2 > ARC_STACK:
                 return False
-            fm = 0.5 * (f0 + f1)
-            w[2 * sp] = f0
-            w[2 * sp + 1] = fm
-            w[2 * sp + 2] = fm
-            w[2 * sp + 3] = f1
-            sp += 2
+            sp = push_halves(w, sp, f0, f1)
         return True
 
     @jit
@@ -631,12 +557,7 @@ def build(jit):
         bow = abs(tm) * shorten
         across = half * chord + bow
         along = rad * chord + bow
-        cax = ta[0] + tm * ua[0]
-        cay = ta[1] + tm * ua[1]
-        caz = ta[2] + tm * ua[2]
-        vx = tb[0] + tm * ub[0] - cax
-        vy = tb[1] + tm * ub[1] - cay
-        vz = tb[2] + tm * ub[2] - caz
+        cax, cay, caz, vx, vy, vz = g.axis_point_move(ta, ua, tb, ub, tm)
         vu = vx * mx + vy * my + vz * mz
         v1 = vx * e1x + vy * e1y + vz * e1z
         v2 = vx * e2x + vy * e2y + vz * e2z
@@ -730,12 +651,7 @@ def build(jit):
                         or b1 - b0 < 1e-6 or sp + 2 > ARC_STACK:
                     ok = False
                     break
-                bm = 0.5 * (b0 + b1)
-                w[2 * sp] = b0
-                w[2 * sp + 1] = bm
-                w[2 * sp + 2] = bm
-                w[2 * sp + 3] = b1
-                sp += 2
+                sp = push_halves(w, sp, b0, b1)
             if ok:
                 return True
         return False
@@ -789,9 +705,7 @@ def build(jit):
             n = ring_n[t] if rho > 0.0 else 1
             for j in range(n):
                 phi = 2.0 * math.pi * j / n
-                qx = cx + rho * (math.cos(phi) * ex + math.sin(phi) * gx)
-                qy = cy + rho * (math.cos(phi) * ey + math.sin(phi) * gy)
-                qz = cz + rho * (math.cos(phi) * ez + math.sin(phi) * gz)
+                qx, qy, qz = on_circle(cx, cy, cz, rho, math.cos(phi), math.sin(phi), ex, ey, ez, gx, gy, gz)
                 cap = r * r if not buried else INF
                 d = math.sqrt(point_dist(qx, qy, qz, cap, 0.0, node_lo, node_hi, node_child, node_range, tris, stack))
                 if buried and (rho <= 0.0 or inside(qx, qy, qz, in_lo, in_hi, in_child, in_range, in_tris, in_kind,
@@ -838,7 +752,7 @@ def build(jit):
                     hi = mid
             segs[i, k] = min(radial, hi - (seg_base[t, k] - g_i))
 
-    return SimpleNamespace(seg_seg_dist2=seg_seg_dist2, tri_tri_dist2=tri_tri_dist2, mesh_tris_dist2=mesh_tris_dist2,
-                           seg2d_dist2=seg2d_dist2, stadium_tri_dist2=stadium_tri_dist2,
-                           mesh_stadium_dist2=mesh_stadium_dist2, inside=inside, ring_clear=ring_clear,
-                           cylinder_clear=cylinder_clear, interval_clear=interval_clear, pose_depth=pose_depth)
+    return namespace(seg_seg_dist2=seg_seg_dist2, tri_tri_dist2=tri_tri_dist2, mesh_tris_dist2=mesh_tris_dist2,
+                     mesh_segment_dist2=mesh_segment_dist2, seg2d_dist2=seg2d_dist2, stadium_tri_dist2=stadium_tri_dist2,
+                     mesh_stadium_dist2=mesh_stadium_dist2, inside=inside, ring_clear=ring_clear,
+                     cylinder_clear=cylinder_clear, interval_clear=interval_clear, pose_depth=pose_depth)

@@ -11,25 +11,21 @@ import numba
 import numpy as np
 from numba import prange
 
-from . import clearance, cutters
+from . import clearance, cutters, raycast
 from .clearance import WORK_SIZE
-from .cpu_dexel import cast_lines, cut_tiles, move_constants, rays_blocked  # noqa: F401  (one module offers every kernel)
 from .cutters import NO_BODY
 from .geom import INF, SEEN_SIZE, STACK_SIZE, build
 
-dev = build(numba.njit(fastmath=False, cache=True))
-cut = cutters.build(numba.njit(fastmath=False, cache=True))
-clr = clearance.build(numba.njit(fastmath=False, cache=True))
+# device functions allocate nothing and keep no array they are handed, so they are compiled without
+# reference counting (else every call passing arrays counts references, atomically, in the innermost
+# loops); the parallel loops below allocate, and count
+device = numba.njit(fastmath=False, cache=True, _nrt=False)
+dev = build(device)
+cut = cutters.build(device)
+clr = clearance.build(device)
+ray = raycast.build(device)
 CHUNK = 64  # points of a drop-cutter batch run in order by one thread
-_point = dev.mesh_point_dist2
-_ball = dev.largest_clear_ball
-_first_clear_axis = dev.first_clear_axis
-_keep_previous_axes = dev.keep_previous_axes
-_pose_depth = clr.pose_depth
-_interval_clear = clr.interval_clear
-_inside = clr.inside
-_drop_run = cut.drop_run
-_touch_point = cut.touch_point
+RAY_CHUNK = 256  # rays tested in order by one thread
 
 
 @numba.njit(parallel=True, cache=True)
@@ -37,8 +33,8 @@ def _mesh_distances(p, cap, node_lo, node_hi, node_child, node_range, tris):
     out = np.empty(p.shape[0])
     for i in prange(p.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
-        d2 = _point(p[i, 0], p[i, 1], p[i, 2], cap * cap, 0.0,
-                    node_lo, node_hi, node_child, node_range, tris, stack)
+        d2 = dev.mesh_point_dist2(p[i, 0], p[i, 1], p[i, 2], cap * cap, 0.0,
+                                  node_lo, node_hi, node_child, node_range, tris, stack)
         out[i] = math.sqrt(d2)
     return out
 
@@ -54,8 +50,8 @@ def _largest_ball(cc, nrm, radii, tol, node_lo, node_hi, node_child, node_range,
     out = np.empty(cc.shape[0], np.int32)
     for i in prange(cc.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
-        out[i] = _ball(cc[i, 0], cc[i, 1], cc[i, 2], nrm[i, 0], nrm[i, 1], nrm[i, 2], radii, tol,
-                       node_lo, node_hi, node_child, node_range, tris, stack)
+        out[i] = dev.largest_clear_ball(cc[i, 0], cc[i, 1], cc[i, 2], nrm[i, 0], nrm[i, 1], nrm[i, 2], radii, tol,
+                                        node_lo, node_hi, node_child, node_range, tris, stack)
     return out
 
 
@@ -75,8 +71,8 @@ def _axis_search(ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
         seen = np.empty(SEEN_SIZE)
         kept = 0
         for i in range(c * CHUNK, min(ce.shape[0], (c + 1) * CHUNK)):
-            out[i], kept = _first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
-                                             node_lo, node_hi, node_child, node_range, tris, stack, seen, kept)
+            out[i], kept = dev.first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                                                node_lo, node_hi, node_child, node_range, tris, stack, seen, kept)
     return out
 
 
@@ -86,7 +82,7 @@ def _keep_previous(choice, offsets, cand_tilt, slack, ce, f, s, tool, cand, radi
     out = choice.copy()
     for k in prange(offsets.shape[0] - 1):
         stack = np.empty(STACK_SIZE, np.int32)
-        _keep_previous_axes(offsets[k], offsets[k + 1], out, cand_tilt, slack, ce, f, s, tool, cand, radius,
+        dev.keep_previous_axes(offsets[k], offsets[k + 1], out, cand_tilt, slack, ce, f, s, tool, cand, radius,
                                seg_t0, seg_t1, seg_r, node_lo, node_hi, node_child, node_range, tris, stack)
     return out
 
@@ -117,9 +113,9 @@ def _pose_penetration(tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, s
     segs = np.zeros((tip.shape[0], seg_r.shape[1]))
     for i in prange(tip.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
-        _pose_depth(i, tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
-                    node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
-                    in_kind, floor, stack, ring, segs)
+        clr.pose_depth(i, tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
+                       node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
+                       in_kind, floor, stack, ring, segs)
     return ring, segs
 
 
@@ -150,9 +146,9 @@ def _intervals_clear(tip_a, axis_a, tip_b, axis_b, tool, grow, limit, ring_t, ri
     for i in prange(tip_a.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
         work = np.empty(WORK_SIZE)
-        out[i] = _interval_clear(i, tip_a, axis_a, tip_b, axis_b, tool, grow, limit, ring_t, ring_rho, ring_r,
-                                 seg_t0, seg_t1, seg_r, seg_base, node_lo, node_hi, node_child, node_range, tris,
-                                 stack, work)
+        out[i] = clr.interval_clear(i, tip_a, axis_a, tip_b, axis_b, tool, grow, limit, ring_t, ring_rho, ring_r,
+                                    seg_t0, seg_t1, seg_r, seg_base, node_lo, node_hi, node_child, node_range, tris,
+                                    stack, work)
     return out
 
 
@@ -170,7 +166,7 @@ def _points_inside(p, in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor)
     out = np.zeros(p.shape[0], np.bool_)
     for i in prange(p.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
-        out[i] = _inside(p[i, 0], p[i, 1], p[i, 2], in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor, stack)
+        out[i] = clr.inside(p[i, 0], p[i, 1], p[i, 2], in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor, stack)
     return out
 
 
@@ -188,7 +184,7 @@ def _drop_cutter(xy, R, r, body_r, body_t, floor, chunk, node_lo, node_hi, node_
     cc = np.empty((k, 3))
     for c in prange((k + chunk - 1) // chunk):
         stack = np.empty(STACK_SIZE, np.int32)
-        _drop_run(c * chunk, min(k, (c + 1) * chunk), xy, R, r, body_r, body_t, floor,
+        cut.drop_run(c * chunk, min(k, (c + 1) * chunk), xy, R, r, body_r, body_t, floor,
                      node_lo, node_hi, node_child, node_range, tris, stack, z, cc)
     return z, cc
 
@@ -211,7 +207,7 @@ def _touch_points(pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, wid
     out = pb.copy()
     for i in prange(pa.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
-        _touch_point(i, pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, width, rounds,
+        cut.touch_point(i, pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, width, rounds,
                         node_lo, node_hi, node_child, node_range, tris, stack, out)
     return out
 
@@ -232,3 +228,21 @@ def touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_r
                          float(z), float(radius), float(corner_radius), np.ascontiguousarray(body[0], np.float64),
                          np.ascontiguousarray(body[1], np.float64), float(floor), float(touch), float(width),
                          int(rounds), *bvh)
+
+
+@numba.njit(parallel=True, cache=True)
+def _rays_blocked(origins, d, tmin, node_lo, node_hi, node_child, node_range, tris):
+    out = np.zeros(origins.shape[0], np.bool_)
+    for c in prange((origins.shape[0] + RAY_CHUNK - 1) // RAY_CHUNK):
+        stack = np.empty(STACK_SIZE, np.int32)
+        for i in range(c * RAY_CHUNK, min(origins.shape[0], (c + 1) * RAY_CHUNK)):
+            out[i] = ray.ray_blocked(origins[i, 0], origins[i, 1], origins[i, 2], d[0], d[1], d[2], tmin,
+                                     node_lo, node_hi, node_child, node_range, tris, stack)
+    return out
+
+
+def rays_blocked(origins, direction, tmin, bvh):
+    """``(k,) bool``: whether the ray from each of ``origins (k, 3)`` along the unit ``direction``
+    meets the mesh beyond ``tmin`` mm."""
+    return _rays_blocked(np.ascontiguousarray(origins, np.float64), np.asarray(direction, np.float64),
+                         float(tmin), *bvh)

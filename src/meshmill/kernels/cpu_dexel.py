@@ -7,21 +7,22 @@ through ``u = lo_u + (i + 1/2) step``, ``v = lo_v + (j + 1/2) step`` (u, v as in
 """
 from __future__ import annotations
 
-
 import numba
 import numpy as np
 from numba import prange
 
 from . import carve, raycast, sweep
+from .carve import BODY, TILE
+from .cpu import device
 from .geom import STACK_SIZE
 from .raycast import MAX_HITS
 
-ray = raycast.build(numba.njit(fastmath=False, cache=True))
-_cast_bvh_line = ray.cast_bvh_line
-_cast_box_line = ray.cast_box_line
-_ray_blocked = ray.ray_blocked
-_bvh_line_hits = ray.bvh_line_hits
-LINE_CHUNK = 256
+ray = raycast.build(device)
+swp = sweep.build(device)
+crv = carve.build(device, numba.njit(fastmath=False, cache=True, inline="always"))
+subtract = crv.subtract
+material_outside = crv.material_outside
+LINE_CHUNK = 256  # lines cast in order by one thread
 
 
 @numba.njit(cache=True)
@@ -33,7 +34,7 @@ def _hits_of_lines(a, us, vs, node_lo, node_hi, node_child, node_range, tris):
     hw = np.empty(MAX_HITS)
     hs = np.empty(MAX_HITS, np.int64)
     for i in range(k):
-        m = _bvh_line_hits(a, us[i], vs[i], node_lo, node_hi, node_child, node_range, tris, stack, hw, hs)
+        m = ray.bvh_line_hits(a, us[i], vs[i], node_lo, node_hi, node_child, node_range, tris, stack, hw, hs)
         n[i] = m
         for j in range(min(m, MAX_HITS)):
             w[i, j] = hw[j]
@@ -57,8 +58,8 @@ def _cast_bvh(a, line0, lu, lv, step, nu, nv, cap, node_lo, node_hi, node_child,
         hw = np.empty(MAX_HITS)
         hs = np.empty(MAX_HITS, np.int64)
         for line in range(c * LINE_CHUNK, min(n_lines, (c + 1) * LINE_CHUNK)):
-            count[line] = _cast_bvh_line(a, line, line0, lu, lv, step, nv, cap, node_lo, node_hi, node_child,
-                                         node_range, tris, stack, hw, hs, out)
+            count[line] = ray.cast_bvh_line(a, line, line0, lu, lv, step, nv, cap, node_lo, node_hi, node_child,
+                                            node_range, tris, stack, hw, hs, out)
     return out, count
 
 
@@ -72,28 +73,9 @@ def _cast_boxes(a, line0, lu, lv, step, nu, nv, cap, box_lo, box_hi, box_start, 
         hw = np.empty(MAX_HITS)
         hs = np.empty(MAX_HITS, np.int64)
         for line in range(c * LINE_CHUNK, min(n_lines, (c + 1) * LINE_CHUNK)):
-            count[line] = _cast_box_line(a, line, line0, lu, lv, step, nv, cap, box_lo, box_hi, box_start, tris,
-                                         hw, hs, out)
+            count[line] = ray.cast_box_line(a, line, line0, lu, lv, step, nv, cap, box_lo, box_hi, box_start, tris,
+                                            hw, hs, out)
     return out, count
-
-
-@numba.njit(parallel=True, cache=True)
-def _rays_blocked(origins, d, tmin, node_lo, node_hi, node_child, node_range, tris):
-    out = np.zeros(origins.shape[0], np.bool_)
-    n_chunks = (origins.shape[0] + LINE_CHUNK - 1) // LINE_CHUNK
-    for c in prange(n_chunks):
-        stack = np.empty(STACK_SIZE, np.int32)
-        for i in range(c * LINE_CHUNK, min(origins.shape[0], (c + 1) * LINE_CHUNK)):
-            out[i] = _ray_blocked(origins[i, 0], origins[i, 1], origins[i, 2], d[0], d[1], d[2], tmin,
-                                  node_lo, node_hi, node_child, node_range, tris, stack)
-    return out
-
-
-def rays_blocked(origins, direction, tmin, bvh):
-    """``(k,) bool``: whether the ray from each of ``origins (k, 3)`` along the unit ``direction``
-    meets the mesh beyond ``tmin`` mm (``bvh`` is ``BVH.arrays``)."""
-    return _rays_blocked(np.ascontiguousarray(origins, np.float64), np.asarray(direction, np.float64),
-                         float(tmin), *bvh)
 
 
 def cast_lines(a, lu, lv, step, nu, nv, index, first_row=0):
@@ -115,17 +97,14 @@ def cast_lines(a, lu, lv, step, nu, nv, index, first_row=0):
         cap = need
 
 
-swp = sweep.build(numba.njit(fastmath=False, cache=True))
-crv = carve.build(numba.njit(fastmath=False, cache=True), numba.njit(fastmath=False, cache=True, inline="always"))
-subtract = crv.subtract
-material_outside = crv.material_outside
-_line_range = crv.line_range
-_move_constants = crv.move_constants
-_cut_line = crv.cut_line
-_touch_line = crv.touch_line
-RAPID = 1  # bits of a move's kind: a rapid (it must remove nothing)
-BODY = 2  # a shank or holder (it removes nothing; touching material is a collision)
-TILE = 16  # lines a side of the tiles that cutting runs in parallel over
+@numba.njit(cache=True)
+def _tile_span(box, m, lu, lv, step, nu, nv):
+    """The tiles (first and last along u, then along v) holding lines that move m's box covers;
+    none when a first is past its last."""
+    i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)
+    if i0 > i1 or j0 > j1:
+        return 0, -1, 0, -1
+    return i0 // TILE, i1 // TILE, j0 // TILE, j1 // TILE
 
 
 @numba.njit(cache=True)
@@ -136,24 +115,18 @@ def bin_moves(box, lu, lv, step, nu, nv):
     tv = (nv + TILE - 1) // TILE
     cnt = np.zeros(tu * tv + 1, np.int64)
     for m in range(box.shape[0]):
-        i0, i1 = _line_range(box[m, 0], box[m, 1], lu, step, nu)
-        j0, j1 = _line_range(box[m, 2], box[m, 3], lv, step, nv)
-        if i0 > i1 or j0 > j1:
-            continue
-        for ti in range(i0 // TILE, i1 // TILE + 1):
-            for tj in range(j0 // TILE, j1 // TILE + 1):
+        ti0, ti1, tj0, tj1 = _tile_span(box, m, lu, lv, step, nu, nv)
+        for ti in range(ti0, ti1 + 1):
+            for tj in range(tj0, tj1 + 1):
                 cnt[ti * tv + tj + 1] += 1
     for t in range(tu * tv):
         cnt[t + 1] += cnt[t]
     fill = cnt[:-1].copy()
     moves = np.empty(cnt[-1], np.int64)
     for m in range(box.shape[0]):
-        i0, i1 = _line_range(box[m, 0], box[m, 1], lu, step, nu)
-        j0, j1 = _line_range(box[m, 2], box[m, 3], lv, step, nv)
-        if i0 > i1 or j0 > j1:
-            continue
-        for ti in range(i0 // TILE, i1 // TILE + 1):
-            for tj in range(j0 // TILE, j1 // TILE + 1):
+        ti0, ti1, tj0, tj1 = _tile_span(box, m, lu, lv, step, nu, nv)
+        for ti in range(ti0, ti1 + 1):
+            for tj in range(tj0, tj1 + 1):
                 t = ti * tv + tj
                 moves[fill[t]] = m
                 fill[t] += 1
@@ -168,7 +141,7 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
     chord = np.empty((k, 6))
     plane = np.empty((k, 4))
     for m in prange(k):
-        _move_constants(m, pa, pb, xa, xb, corner, flutes, chord, plane)
+        crv.move_constants(m, pa, pb, xa, xb, corner, flutes, chord, plane)
     return chord, plane
 
 
@@ -179,9 +152,10 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
     """Cut the lines of the given ``tiles`` with their moves, in move order within each line.
 
     Moves as in :mod:`meshmill.kernels.carve`, ``box (k, 6)`` their bounds, ``kind (k,)`` bits
-    :data:`RAPID` and :data:`BODY`. Sets ``hit[m]`` when a move removes more than ``hit_min`` mm
-    of a dexel (a rapid that cuts; a feed move in material, not in air) or a body move (shank,
-    holder: it removes nothing) meets that much material, and ``overflow[t]`` when a line of tile t ran out of room: the tile stops there, so
+    :data:`~meshmill.kernels.carve.RAPID` and :data:`~meshmill.kernels.carve.BODY`. Sets ``hit[m]``
+    when a move removes more than ``hit_min`` mm of a dexel (a rapid that cuts; a feed move in
+    material, not in air) or a body move (shank, holder: it removes nothing) meets that much
+    material, and ``overflow[t]`` when a line of tile t ran out of room: the tile stops there, so
     rerunning it after growing the line is exact (removal is idempotent, and moves before the stop
     saw the material in path order). ``iv, off, count`` may hold the lines from row ``row0`` on
     only (a block of rows: the tiles given must lie in it)."""
@@ -194,8 +168,7 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
             if overflow[t]:
                 break  # the tile stops at the move that overflowed; it is run again with more room
             m = tile_moves[s]
-            i0, i1 = _line_range(box[m, 0], box[m, 1], lu, step, nu)
-            j0, j1 = _line_range(box[m, 2], box[m, 3], lv, step, nv)
+            i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)
             i0 = max(i0, ti * TILE)
             i1 = min(i1, ti * TILE + TILE - 1)
             j0 = max(j0, tj * TILE)
@@ -205,13 +178,13 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
                 for j in range(j0, j1 + 1):
                     line = (i - row0) * nv + j
                     if kind[m] & BODY:
-                        if not hit[m] and _touch_line(m, line, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5],
-                                                      iv, off, count, pa, pb, xa, xb, radius, corner, flutes,
-                                                      strips) > hit_min:
+                        if not hit[m] and crv.touch_line(m, line, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5],
+                                                         iv, off, count, pa, pb, xa, xb, radius, corner, flutes,
+                                                         strips) > hit_min:
                             hit[m] = 1
                         continue
-                    removed = _cut_line(m, line, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5], iv, off, count,
-                                        pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane)
+                    removed = crv.cut_line(m, line, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5], iv, off, count,
+                                           pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane)
                     if removed < 0.0:
                         overflow[t] = 1
                         break

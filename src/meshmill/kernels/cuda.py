@@ -17,36 +17,21 @@ import numpy as np
 from numba import cuda, float64, int32, int64
 
 from . import carve, clearance, cutters, raycast
+from .carve import BODY, TILE
 from .clearance import WORK_SIZE
 from .cutters import NO_BODY
 from .geom import SEEN_SIZE, STACK_SIZE, build
 from .raycast import MAX_HITS
 
 numba.config.CUDA_LOW_OCCUPANCY_WARNINGS = 0  # small launches (a contour a thread, a few tiles) are expected
-_dev = cuda.jit(device=True)
-dev = build(_dev)
-cut = cutters.build(_dev)
-ray = raycast.build(_dev)
-crv = carve.build(_dev)
-clr = clearance.build(_dev)
-_point = dev.mesh_point_dist2
-_ball = dev.largest_clear_ball
-_first_clear_axis = dev.first_clear_axis
-_keep_previous_axes = dev.keep_previous_axes
-_pose_depth = clr.pose_depth
-_interval_clear = clr.interval_clear
-_inside = clr.inside
-_drop_run = cut.drop_run
-_touch_point = cut.touch_point
-_cast_bvh_line = ray.cast_bvh_line
-_ray_blocked = ray.ray_blocked
-_line_range = crv.line_range
-_constants = crv.move_constants
-_cut_line = crv.cut_line
-_touch_line = crv.touch_line
+device = cuda.jit(device=True)
+dev = build(device)
+cut = cutters.build(device)
+ray = raycast.build(device)
+crv = carve.build(device)
+clr = clearance.build(device)
 THREADS = 128
 CHUNK = 4  # points of a drop-cutter batch run in order by one thread (fewer than the CPU's: more threads)
-TILE = 16  # as meshmill.kernels.cpu_dexel.TILE: one block of TILE x TILE threads per tile
 
 
 def _blocks(n, threads=THREADS):
@@ -75,8 +60,8 @@ def _mesh_distances(p, cap2, node_lo, node_hi, node_child, node_range, tris, out
     i = cuda.grid(1)
     if i < p.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
-        out[i] = math.sqrt(_point(p[i, 0], p[i, 1], p[i, 2], cap2, 0.0,
-                                  node_lo, node_hi, node_child, node_range, tris, stack))
+        out[i] = math.sqrt(dev.mesh_point_dist2(p[i, 0], p[i, 1], p[i, 2], cap2, 0.0,
+                                                node_lo, node_hi, node_child, node_range, tris, stack))
 
 
 def mesh_distances(points, bvh, cap=1e150):
@@ -92,8 +77,8 @@ def _largest_ball(cc, nrm, radii, tol, node_lo, node_hi, node_child, node_range,
     i = cuda.grid(1)
     if i < cc.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
-        out[i] = _ball(cc[i, 0], cc[i, 1], cc[i, 2], nrm[i, 0], nrm[i, 1], nrm[i, 2], radii, tol,
-                       node_lo, node_hi, node_child, node_range, tris, stack)
+        out[i] = dev.largest_clear_ball(cc[i, 0], cc[i, 1], cc[i, 2], nrm[i, 0], nrm[i, 1], nrm[i, 2], radii, tol,
+                                        node_lo, node_hi, node_child, node_range, tris, stack)
 
 
 def largest_ball(cc, normals, radii, tol, bvh):
@@ -110,8 +95,8 @@ def _axis_search(ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r, node_lo, n
     if i < ce.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
         seen = cuda.local.array(SEEN_SIZE, float64)
-        out[i] = _first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
-                                   node_lo, node_hi, node_child, node_range, tris, stack, seen, 0)[0]
+        out[i] = dev.first_clear_axis(i, ce, f, s, tool, cand, radius, seg_t0, seg_t1, seg_r,
+                                      node_lo, node_hi, node_child, node_range, tris, stack, seen, 0)[0]
 
 
 @cuda.jit
@@ -120,8 +105,8 @@ def _keep_previous(choice, offsets, cand_tilt, slack, ce, f, s, tool, cand, radi
     k = cuda.grid(1)
     if k < offsets.shape[0] - 1:
         stack = cuda.local.array(STACK_SIZE, int32)
-        _keep_previous_axes(offsets[k], offsets[k + 1], choice, cand_tilt, slack, ce, f, s, tool, cand, radius,
-                            seg_t0, seg_t1, seg_r, node_lo, node_hi, node_child, node_range, tris, stack)
+        dev.keep_previous_axes(offsets[k], offsets[k + 1], choice, cand_tilt, slack, ce, f, s, tool, cand, radius,
+                               seg_t0, seg_t1, seg_r, node_lo, node_hi, node_child, node_range, tris, stack)
 
 
 def axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body, offsets, bvh):
@@ -142,9 +127,9 @@ def _pose_penetration(tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, s
     i = cuda.grid(1)
     if i < tip.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
-        _pose_depth(i, tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
-                    node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
-                    in_kind, floor, stack, ring, segs)
+        clr.pose_depth(i, tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
+                       node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
+                       in_kind, floor, stack, ring, segs)
 
 
 def pose_penetration(tip, axis, tool, grow, rings, segs, base, bvh, inside):
@@ -166,9 +151,9 @@ def _intervals_clear(tip_a, axis_a, tip_b, axis_b, tool, grow, limit, ring_t, ri
     if i < tip_a.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
         work = cuda.local.array(WORK_SIZE, float64)
-        out[i] = _interval_clear(i, tip_a, axis_a, tip_b, axis_b, tool, grow, limit, ring_t, ring_rho, ring_r,
-                                 seg_t0, seg_t1, seg_r, seg_base, node_lo, node_hi, node_child, node_range, tris,
-                                 stack, work)
+        out[i] = clr.interval_clear(i, tip_a, axis_a, tip_b, axis_b, tool, grow, limit, ring_t, ring_rho, ring_r,
+                                    seg_t0, seg_t1, seg_r, seg_base, node_lo, node_hi, node_child, node_range, tris,
+                                    stack, work)
 
 
 def intervals_clear(tip_a, axis_a, tip_b, axis_b, tool, grow, limit, rings, segs, base, bvh):
@@ -186,8 +171,8 @@ def _points_inside(p, in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor,
     i = cuda.grid(1)
     if i < p.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
-        out[i] = _inside(p[i, 0], p[i, 1], p[i, 2], in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor,
-                         stack)
+        out[i] = clr.inside(p[i, 0], p[i, 1], p[i, 2], in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor,
+                            stack)
 
 
 def points_inside(points, inside):
@@ -203,8 +188,8 @@ def _drop_cutter(xy, R, r, body_r, body_t, floor, chunk, node_lo, node_hi, node_
     k = xy.shape[0]
     if c * chunk < k:
         stack = cuda.local.array(STACK_SIZE, int32)
-        _drop_run(c * chunk, min(k, (c + 1) * chunk), xy, R, r, body_r, body_t, floor,
-                  node_lo, node_hi, node_child, node_range, tris, stack, z, cc)
+        cut.drop_run(c * chunk, min(k, (c + 1) * chunk), xy, R, r, body_r, body_t, floor,
+                     node_lo, node_hi, node_child, node_range, tris, stack, z, cc)
 
 
 def drop_cutter(xy, radius, corner_radius, floor, bvh, body=None, chunk=CHUNK):
@@ -224,8 +209,8 @@ def _touch_points(pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, wid
     i = cuda.grid(1)
     if i < pa.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
-        _touch_point(i, pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, width, rounds,
-                     node_lo, node_hi, node_child, node_range, tris, stack, out)
+        cut.touch_point(i, pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, width, rounds,
+                        node_lo, node_hi, node_child, node_range, tris, stack, out)
 
 
 def touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_radius, floor, bvh,
@@ -247,12 +232,12 @@ def _rays_blocked(origins, d, tmin, node_lo, node_hi, node_child, node_range, tr
     i = cuda.grid(1)
     if i < origins.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
-        out[i] = _ray_blocked(origins[i, 0], origins[i, 1], origins[i, 2], d[0], d[1], d[2], tmin,
-                              node_lo, node_hi, node_child, node_range, tris, stack)
+        out[i] = ray.ray_blocked(origins[i, 0], origins[i, 1], origins[i, 2], d[0], d[1], d[2], tmin,
+                                 node_lo, node_hi, node_child, node_range, tris, stack)
 
 
 def rays_blocked(origins, direction, tmin, bvh):
-    """As :func:`meshmill.kernels.cpu_dexel.rays_blocked`."""
+    """As :func:`meshmill.kernels.cpu.rays_blocked`."""
     out = cuda.device_array(len(origins), np.uint8)
     _rays_blocked[_blocks(len(origins)), THREADS](_d(origins), _d(direction), float(tmin), *bvh, out)
     return out.copy_to_host().astype(bool)
@@ -265,8 +250,8 @@ def _cast_bvh(a, line0, lu, lv, step, nu, nv, cap, node_lo, node_hi, node_child,
         stack = cuda.local.array(STACK_SIZE, int32)
         hw = cuda.local.array(MAX_HITS, float64)
         hs = cuda.local.array(MAX_HITS, int64)
-        count[line] = _cast_bvh_line(a, line, line0, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range,
-                                     tris, stack, hw, hs, out)
+        count[line] = ray.cast_bvh_line(a, line, line0, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range,
+                                        tris, stack, hw, hs, out)
 
 
 def cast_lines(a, lu, lv, step, nu, nv, bvh, first_row=0):
@@ -289,7 +274,7 @@ def cast_lines(a, lu, lv, step, nu, nv, bvh, first_row=0):
 def _move_constants(pa, pb, xa, xb, corner, flutes, chord, plane):
     m = cuda.grid(1)
     if m < pa.shape[0]:
-        _constants(m, pa, pb, xa, xb, corner, flutes, chord, plane)
+        crv.move_constants(m, pa, pb, xa, xb, corner, flutes, chord, plane)
 
 
 @cuda.jit
@@ -305,17 +290,16 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_mov
     v0 = lv + (j + 0.5) * step
     for s in range(tile_start[t], tile_start[t + 1]):
         m = tile_moves[s]
-        i0, i1 = _line_range(box[m, 0], box[m, 1], lu, step, nu)
-        j0, j1 = _line_range(box[m, 2], box[m, 3], lv, step, nv)
+        i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)
         if i < i0 or i > i1 or j < j0 or j > j1:
             continue
-        if kind[m] & 2:  # BODY: a shank or holder meets material, it removes none
-            if _touch_line(m, (i - row0) * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
-                           radius, corner, flutes, strips) > hit_min:
+        if kind[m] & BODY:  # a shank or holder meets material, it removes none
+            if crv.touch_line(m, (i - row0) * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
+                              radius, corner, flutes, strips) > hit_min:
                 hit[m] = 1
             continue
-        removed = _cut_line(m, (i - row0) * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
-                            radius, corner, flutes, strips, chord, plane)
+        removed = crv.cut_line(m, (i - row0) * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
+                               radius, corner, flutes, strips, chord, plane)
         if removed < 0.0:
             overflow[t] = 1
             return

@@ -16,7 +16,8 @@ precision for a torus). This replaces the offset-ellipse solve of other programs
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
+
+from .geom import namespace
 
 NEG = -1.0e300
 NO_BODY = ((), ())  # no shank or holder cylinders: ``body`` of the drop-cutter wrappers
@@ -402,5 +403,5 @@ def build(jit):
         out[i, 0] = bx
         out[i, 1] = by
 
-    return SimpleNamespace(profile=profile, contact_reach=contact_reach, edge_drop=edge_drop, triangle_drop=triangle_drop, mesh_drop=mesh_drop,
-                           tool_drop=tool_drop, drop_run=drop_run, touch_point=touch_point)
+    return namespace(profile=profile, contact_reach=contact_reach, edge_drop=edge_drop, triangle_drop=triangle_drop,
+                     mesh_drop=mesh_drop, tool_drop=tool_drop, drop_run=drop_run, touch_point=touch_point)

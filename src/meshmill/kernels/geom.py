@@ -12,13 +12,17 @@ Mesh arrays (see :mod:`meshmill.kernels.bvh`), all in BVH order, millimetres:
 - ``node_child (k, 2) int32``: left and right child, -1 for a leaf;
 - ``node_range (k, 2) int32``: first triangle and triangle count of a leaf.
 
+The BVH is walked by one traversal written once (:func:`bvh_search`, :func:`bvh_visit`), to
+which each query hands its box test and its triangle test; a query is a tuple (its scalars, and
+the work arrays its triangle test writes), a value that allocates nothing on either backend.
+
 Distances are returned squared. A tool body is a union of coaxial cylinders given by their axial
 ranges ``[t0, t1]`` and radii along the unit axis ``u`` from the tool tip.
 """
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
+from types import ModuleType
 
 STACK_SIZE = 128
 INF = 1.0e300
@@ -26,6 +30,108 @@ WITNESSES = 16  # points of the part found inside a blocked tool body, kept by t
 SEEN_SIZE = 3 * WITNESSES  # float64 work array of the axis search (a CUDA local array: a constant)
 WITNESS_GRID = 8  # a blocking triangle's points looked at for a witness: barycentric steps of 1/8
 WITNESS_MARGIN = 1e-9  # mm: how deep a witness must lie in a candidate's body to block it
+
+
+def namespace(**functions):
+    """The device functions of a ``build`` as the attributes of a module object: compiled code can
+    call them through it (``dev.mesh_point_dist2(...)``), which numba does not allow through a
+    SimpleNamespace."""
+    ns = ModuleType("meshmill.kernels.device")
+    ns.__dict__.update(functions)
+    return ns
+
+
+def bvh_search(jit, box_bound, leaf_dist, nearest_first=False, reach_of=None):
+    """The nearest search through the BVH, compiled with ``jit``:
+    ``search(q, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack) -> (best, hit)``,
+    the smallest ``leaf_dist`` (mm², below cap2) of the mesh's triangles to the query ``q`` and the
+    triangle that gave it (-1: none below cap2); it returns as soon as one falls below ``stop2``
+    (<= cap2; 0: the exact minimum).
+
+    ``box_bound(q, node_lo, node_hi, n, best, reach)``: a lower bound on the distance of the
+    triangles under node n, or any value >= best when none can come below best;
+    ``leaf_dist(q, tris, t, best, reach)``: triangle t's distance, or any value >= best when it
+    cannot come below best. ``reach = reach_of(q, best)`` is what they read of best, computed again
+    only when best falls (default ``sqrt(best)``, mm). Children are searched left first, or with
+    ``nearest_first`` the one of the lower bound first.
+    """
+    if reach_of is None:
+        @jit
+        def reach_of(q, best):
+            return math.sqrt(best)
+
+    @jit
+    def search(q, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack):
+        best = cap2
+        reach = reach_of(q, best)
+        hit = -1
+        stack[0] = 0
+        sp = 1
+        while sp > 0:
+            sp -= 1
+            n = stack[sp]
+            if box_bound(q, node_lo, node_hi, n, best, reach) >= best:
+                continue
+            left = node_child[n, 0]
+            if left < 0:
+                first = node_range[n, 0]
+                for t in range(first, first + node_range[n, 1]):
+                    d = leaf_dist(q, tris, t, best, reach)
+                    if d < best:
+                        best = d
+                        reach = reach_of(q, best)
+                        hit = t
+                        if best < stop2:
+                            return best, hit
+            else:
+                right = node_child[n, 1]
+                if nearest_first and not (box_bound(q, node_lo, node_hi, left, best, reach)
+                                          < box_bound(q, node_lo, node_hi, right, best, reach)):
+                    stack[sp] = left
+                    stack[sp + 1] = right
+                else:
+                    stack[sp] = right
+                    stack[sp + 1] = left
+                sp += 2
+        return best, hit
+
+    return search
+
+
+def bvh_visit(jit, box_meets, leaf_visit, done=None):
+    """The visit of every triangle a query may meet, compiled with ``jit``:
+    ``visit(q, state, node_lo, node_hi, node_child, node_range, tris, stack) -> state``, each
+    triangle t under the nodes whose box meets the query (``box_meets(q, node_lo, node_hi, n)``)
+    in turn: ``state = leaf_visit(q, tris, t, state)`` (a scalar or a tuple of them); it returns as
+    soon as ``done(state)`` (default: never). Right children first."""
+    if done is None:
+        @jit
+        def done(state):
+            return False
+
+    @jit
+    def visit(q, state, node_lo, node_hi, node_child, node_range, tris, stack):
+        stack[0] = 0
+        sp = 1
+        while sp > 0:
+            sp -= 1
+            n = stack[sp]
+            if not box_meets(q, node_lo, node_hi, n):
+                continue
+            left = node_child[n, 0]
+            if left < 0:
+                first = node_range[n, 0]
+                for t in range(first, first + node_range[n, 1]):
+                    state = leaf_visit(q, tris, t, state)
+                    if done(state):
+                        return state
+            else:
+                stack[sp] = left
+                stack[sp + 1] = node_child[n, 1]
+                sp += 2
+        return state
+
+    return visit
 
 
 def build(jit):
@@ -96,22 +202,51 @@ def build(jit):
                                tris[t, 6], tris[t, 7], tris[t, 8])
 
     @jit
+    def line_crossing(ox, oy, oz, dx, dy, dz, ax, ay, az, bx, by, bz, cx, cy, cz, det_min, det_share):
+        """Where the line o + s·d crosses triangle abc, edges included (Möller-Trumbore): s, or NaN
+        where it misses, or lies in the triangle's plane: ``|det| <= det_min``, or with
+        ``det_share > 0`` ``|det| <= det_share |ab| |ac|``."""
+        e1x = bx - ax
+        e1y = by - ay
+        e1z = bz - az
+        e2x = cx - ax
+        e2y = cy - ay
+        e2z = cz - az
+        px = dy * e2z - dz * e2y
+        py = dz * e2x - dx * e2z
+        pz = dx * e2y - dy * e2x
+        det = e1x * px + e1y * py + e1z * pz
+        flat = det_min
+        if det_share > 0.0:
+            flat = det_share * math.sqrt((e1x * e1x + e1y * e1y + e1z * e1z) * (e2x * e2x + e2y * e2y + e2z * e2z))
+        if abs(det) <= flat:
+            return math.nan
+        inv = 1.0 / det
+        tx = ox - ax
+        ty = oy - ay
+        tz = oz - az
+        u = (tx * px + ty * py + tz * pz) * inv
+        if not (u >= 0.0 and u <= 1.0):
+            return math.nan
+        qx = ty * e1z - tz * e1y
+        qy = tz * e1x - tx * e1z
+        qz = tx * e1y - ty * e1x
+        v = (dx * qx + dy * qy + dz * qz) * inv
+        if not (v >= 0.0 and u + v <= 1.0):
+            return math.nan
+        return (e2x * qx + e2y * qy + e2z * qz) * inv
+
+    @jit
+    def across(x, y, z, ux, uy, uz):
+        """The part of the vector (x, y, z) across the unit u."""
+        h = x * ux + y * uy + z * uz
+        return x - h * ux, y - h * uy, z - h * uz
+
+    @jit
     def segment_line_dist2(p0x, p0y, p0z, p1x, p1y, p1z, ax, ay, az, ux, uy, uz):
         """Squared distance from segment p0-p1 to the infinite line through a along unit u."""
-        wx = p0x - ax
-        wy = p0y - ay
-        wz = p0z - az
-        h = wx * ux + wy * uy + wz * uz
-        wx -= h * ux
-        wy -= h * uy
-        wz -= h * uz
-        dx = p1x - p0x
-        dy = p1y - p0y
-        dz = p1z - p0z
-        h = dx * ux + dy * uy + dz * uz
-        dx -= h * ux
-        dy -= h * uy
-        dz -= h * uz
+        wx, wy, wz = across(p0x - ax, p0y - ay, p0z - az, ux, uy, uz)
+        dx, dy, dz = across(p1x - p0x, p1y - p0y, p1z - p0z, ux, uy, uz)
         dd = dx * dx + dy * dy + dz * dz
         s = 0.0
         if dd > 0.0:
@@ -140,35 +275,12 @@ def build(jit):
             return INF
         if h0 > t1 and h1 > t1 and h2 > t1:
             return INF
-        # does the line pierce the triangle inside the slab?
-        e1x = tris[t, 3] - tris[t, 0]
-        e1y = tris[t, 4] - tris[t, 1]
-        e1z = tris[t, 5] - tris[t, 2]
-        e2x = tris[t, 6] - tris[t, 0]
-        e2y = tris[t, 7] - tris[t, 1]
-        e2z = tris[t, 8] - tris[t, 2]
-        pvx = uy * e2z - uz * e2y
-        pvy = uz * e2x - ux * e2z
-        pvz = ux * e2y - uy * e2x
-        det = e1x * pvx + e1y * pvy + e1z * pvz
-        # skip when the axis lies (to rounding) in the triangle's plane: the edge and cut terms
-        # below are then exact, and det would be noise
-        scale = math.sqrt((e1x * e1x + e1y * e1y + e1z * e1z) * (e2x * e2x + e2y * e2y + e2z * e2z))
-        if abs(det) > 1e-9 * scale:
-            inv = 1.0 / det
-            tvx = ax - tris[t, 0]
-            tvy = ay - tris[t, 1]
-            tvz = az - tris[t, 2]
-            bu = (tvx * pvx + tvy * pvy + tvz * pvz) * inv
-            if bu >= 0.0 and bu <= 1.0:
-                qvx = tvy * e1z - tvz * e1y
-                qvy = tvz * e1x - tvx * e1z
-                qvz = tvx * e1y - tvy * e1x
-                bv = (ux * qvx + uy * qvy + uz * qvz) * inv
-                if bv >= 0.0 and bu + bv <= 1.0:
-                    s = (e2x * qvx + e2y * qvy + e2z * qvz) * inv
-                    if s >= t0 and s <= t1:
-                        return 0.0
+        # does the line pierce the triangle inside the slab? (not when it lies, to rounding, in the
+        # triangle's plane: the edge and cut terms below are then exact, and det would be noise)
+        s = line_crossing(ax, ay, az, ux, uy, uz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4],
+                          tris[t, 5], tris[t, 6], tris[t, 7], tris[t, 8], 0.0, 1e-9)
+        if s >= t0 and s <= t1:
+            return 0.0
         best = INF
         for k in range(3):
             i = 3 * k
@@ -260,41 +372,23 @@ def build(jit):
         return d
 
     @jit
+    def point_box(q, node_lo, node_hi, n, best, reach):
+        return box_point_dist2(node_lo, node_hi, n, q[0], q[1], q[2])
+
+    @jit
+    def point_leaf(q, tris, t, best, reach):
+        return point_triangle_dist2(q[0], q[1], q[2], tris, t)
+
+    point_search = bvh_search(jit, point_box, point_leaf, nearest_first=True)
+
+    @jit
     def mesh_point_dist2(px, py, pz, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack):
         """Squared distance from p to the mesh, capped at cap2.
 
         Returns early with a value below stop2 as soon as one is found (an overlap test);
         stop2 = 0 gives the exact minimum.
         """
-        best = cap2
-        stack[0] = 0
-        sp = 1
-        while sp > 0:
-            sp -= 1
-            n = stack[sp]
-            if box_point_dist2(node_lo, node_hi, n, px, py, pz) >= best:
-                continue
-            left = node_child[n, 0]
-            if left < 0:
-                first = node_range[n, 0]
-                for k in range(first, first + node_range[n, 1]):
-                    d = point_triangle_dist2(px, py, pz, tris, k)
-                    if d < best:
-                        best = d
-                        if best < stop2:
-                            return best
-            else:
-                right = node_child[n, 1]
-                dl = box_point_dist2(node_lo, node_hi, left, px, py, pz)
-                dr = box_point_dist2(node_lo, node_hi, right, px, py, pz)
-                if dl < dr:
-                    stack[sp] = right
-                    stack[sp + 1] = left
-                else:
-                    stack[sp] = left
-                    stack[sp + 1] = right
-                sp += 2
-        return best
+        return point_search((px, py, pz), cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack)[0]
 
     @jit
     def largest_clear_ball(cx, cy, cz, nx, ny, nz, radii, tol, node_lo, node_hi, node_child, node_range, tris,
@@ -311,73 +405,49 @@ def build(jit):
         return -1
 
     @jit
-    def box_may_touch_cylinder(node_lo, node_hi, n, p0x, p0y, p0z, p1x, p1y, p1z, ux, uy, uz, r):
-        """False only when box n certainly misses the capsule of radius r around segment p0-p1."""
-        ex = r * math.sqrt(max(0.0, 1.0 - ux * ux))
-        ey = r * math.sqrt(max(0.0, 1.0 - uy * uy))
-        ez = r * math.sqrt(max(0.0, 1.0 - uz * uz))
-        if node_lo[n, 0] > max(p0x, p1x) + ex or node_hi[n, 0] < min(p0x, p1x) - ex:
+    def box_near_segment(node_lo, node_hi, n, ax, ay, az, bx, by, bz, ex, ey, ez, r):
+        """False only when box n certainly lies farther than r from segment a-b: farther than
+        (ex, ey, ez) along x, y or z from the segment's box (at most r each), or than r from the
+        segment by its bounding sphere."""
+        if node_lo[n, 0] > max(ax, bx) + ex or node_hi[n, 0] < min(ax, bx) - ex:
             return False
-        if node_lo[n, 1] > max(p0y, p1y) + ey or node_hi[n, 1] < min(p0y, p1y) - ey:
+        if node_lo[n, 1] > max(ay, by) + ey or node_hi[n, 1] < min(ay, by) - ey:
             return False
-        if node_lo[n, 2] > max(p0z, p1z) + ez or node_hi[n, 2] < min(p0z, p1z) - ez:
+        if node_lo[n, 2] > max(az, bz) + ez or node_hi[n, 2] < min(az, bz) - ez:
             return False
-        # bounding sphere of the box against the segment
         cx = 0.5 * (node_lo[n, 0] + node_hi[n, 0])
         cy = 0.5 * (node_lo[n, 1] + node_hi[n, 1])
         cz = 0.5 * (node_lo[n, 2] + node_hi[n, 2])
         hx = 0.5 * (node_hi[n, 0] - node_lo[n, 0])
         hy = 0.5 * (node_hi[n, 1] - node_lo[n, 1])
         hz = 0.5 * (node_hi[n, 2] - node_lo[n, 2])
-        dx = p1x - p0x
-        dy = p1y - p0y
-        dz = p1z - p0z
-        dd = dx * dx + dy * dy + dz * dz
-        s = 0.0
-        if dd > 0.0:
-            s = ((cx - p0x) * dx + (cy - p0y) * dy + (cz - p0z) * dz) / dd
-            s = min(1.0, max(0.0, s))
-        qx = cx - p0x - s * dx
-        qy = cy - p0y - s * dy
-        qz = cz - p0z - s * dz
         reach = r + math.sqrt(hx * hx + hy * hy + hz * hz)
-        return qx * qx + qy * qy + qz * qz <= reach * reach
+        return point_segment_dist2(cx, cy, cz, ax, ay, az, bx, by, bz) <= reach * reach
+
+    @jit
+    def cylinder_box(q, node_lo, node_hi, n, best, reach):
+        # the query: axis point a, unit u, range t0..t1 along it, and the range's ends p0, p1; the
+        # flat cylinder of radius reach reaches reach·sqrt(1 - u_k²) across axis k from them
+        ax, ay, az, ux, uy, uz, t0, t1, p0x, p0y, p0z, p1x, p1y, p1z = q
+        ex = reach * math.sqrt(max(0.0, 1.0 - ux * ux))
+        ey = reach * math.sqrt(max(0.0, 1.0 - uy * uy))
+        ez = reach * math.sqrt(max(0.0, 1.0 - uz * uz))
+        return 0.0 if box_near_segment(node_lo, node_hi, n, p0x, p0y, p0z, p1x, p1y, p1z, ex, ey, ez, reach) else best
+
+    @jit
+    def cylinder_leaf(q, tris, t, best, reach):
+        ax, ay, az, ux, uy, uz, t0, t1, p0x, p0y, p0z, p1x, p1y, p1z = q
+        return triangle_axis_dist2(tris, t, ax, ay, az, ux, uy, uz, t0, t1)
+
+    cylinder_search = bvh_search(jit, cylinder_box, cylinder_leaf)
 
     @jit
     def mesh_cylinder_search(ax, ay, az, ux, uy, uz, t0, t1, cap2, stop2,
                              node_lo, node_hi, node_child, node_range, tris, stack):
         """:func:`mesh_cylinder_dist2` and the triangle that gave it (-1: none under cap2)."""
-        best = cap2
-        hit = -1
-        p0x = ax + t0 * ux
-        p0y = ay + t0 * uy
-        p0z = az + t0 * uz
-        p1x = ax + t1 * ux
-        p1y = ay + t1 * uy
-        p1z = az + t1 * uz
-        stack[0] = 0
-        sp = 1
-        while sp > 0:
-            sp -= 1
-            n = stack[sp]
-            if not box_may_touch_cylinder(node_lo, node_hi, n, p0x, p0y, p0z, p1x, p1y, p1z,
-                                          ux, uy, uz, math.sqrt(best)):
-                continue
-            left = node_child[n, 0]
-            if left < 0:
-                first = node_range[n, 0]
-                for k in range(first, first + node_range[n, 1]):
-                    d = triangle_axis_dist2(tris, k, ax, ay, az, ux, uy, uz, t0, t1)
-                    if d < best:
-                        best = d
-                        hit = k
-                        if best < stop2:
-                            return best, hit
-            else:
-                stack[sp] = node_child[n, 1]
-                stack[sp + 1] = left
-                sp += 2
-        return best, hit
+        q = (ax, ay, az, ux, uy, uz, t0, t1, ax + t0 * ux, ay + t0 * uy, az + t0 * uz, ax + t1 * ux, ay + t1 * uy,
+             az + t1 * uz)
+        return cylinder_search(q, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack)
 
     @jit
     def mesh_cylinder_dist2(ax, ay, az, ux, uy, uz, t0, t1, cap2, stop2,
@@ -434,6 +504,15 @@ def build(jit):
                 break
             best = max(best, min(seg_r[tool, k] - rad, min(a - seg_t0[tool, k], seg_t1[tool, k] - a)))
         return best
+
+    @jit
+    def axis_point_move(ta, ua, tb, ub, t):
+        """``(cx, cy, cz, dx, dy, dz)``: the point t mm along the axis of pose a (tip ``ta``, unit
+        axis ``ua``: 3-sequences) and how far it moves to pose b."""
+        cx = ta[0] + t * ua[0]
+        cy = ta[1] + t * ua[1]
+        cz = ta[2] + t * ua[2]
+        return cx, cy, cz, tb[0] + t * ub[0] - cx, tb[1] + t * ub[1] - cy, tb[2] + t * ub[2] - cz
 
     @jit
     def tilted_axis(fx, fy, fz, sx, sy, sz, alpha, beta):
@@ -529,7 +608,8 @@ def build(jit):
                           node_lo, node_hi, node_child, node_range, tris, stack):
                 choice[i] = prev
 
-    return SimpleNamespace(
+    return namespace(
+        axis_point_move=axis_point_move,
         tilted_axis=tilted_axis,
         first_clear_axis=first_clear_axis,
         keep_previous_axes=keep_previous_axes,
@@ -537,11 +617,13 @@ def build(jit):
         point_tri_dist2=point_tri_dist2,
         point_segment_dist2=point_segment_dist2,
         box_point_dist2=box_point_dist2,
-        box_may_touch_cylinder=box_may_touch_cylinder,
+        box_near_segment=box_near_segment,
         segment_line_dist2=segment_line_dist2,
+        line_crossing=line_crossing,
         triangle_axis_dist2=triangle_axis_dist2,
         mesh_point_dist2=mesh_point_dist2,
         largest_clear_ball=largest_clear_ball,
+        mesh_cylinder_search=mesh_cylinder_search,
         mesh_cylinder_dist2=mesh_cylinder_dist2,
         body_clear=body_clear,
         body_depth=body_depth,

@@ -15,15 +15,15 @@ when the mesh is wound outward), -1 where it enters, 0 for no hit.
 """
 from __future__ import annotations
 
-from types import SimpleNamespace
-
-from .geom import STACK_SIZE  # noqa: F401  (callers size their traversal stacks with it)
+from . import geom
+from .geom import bvh_visit, namespace
 
 MAX_HITS = 512  # crossings a line may have (callers' buffers); more is reported as an error
 
 
 def build(jit):
     """Compile the device functions with ``jit`` and return them in a namespace."""
+    crossing = geom.build(jit).line_crossing
 
     @jit
     def edge_side(pu, pv, qu, qv, u0, v0):
@@ -121,35 +121,32 @@ def build(jit):
         return count
 
     @jit
+    def line_box(q, node_lo, node_hi, n):
+        # the query: the line along a at (u0, v0) (axes u, v), and where its hits go
+        a, u, v, u0, v0, hw, hs = q
+        return not (u0 < node_lo[n, u] or u0 > node_hi[n, u] or v0 < node_lo[n, v] or v0 > node_hi[n, v])
+
+    @jit
+    def keep_hit(q, tris, t, n):
+        """The ``n`` hits found so far and triangle t's, if the line crosses it (stored in ``hw, hs``
+        while they have room)."""
+        a, u, v, u0, v0, hw, hs = q
+        side, w = hit(tris, t, a, u0, v0)
+        if side != 0:
+            if n < hw.shape[0]:
+                hw[n] = w
+                hs[n] = side
+            n += 1
+        return n
+
+    line_visit = bvh_visit(jit, line_box, keep_hit)
+
+    @jit
     def bvh_line_hits(a, u0, v0, node_lo, node_hi, node_child, node_range, tris, stack, hw, hs):
         """Every crossing of the line with the mesh, through the BVH; returns the hit count
         (may exceed ``len(hw)``: only that many are stored)."""
-        u = (a + 1) % 3
-        v = (a + 2) % 3
-        n = 0
-        stack[0] = 0
-        sp = 1
-        while sp > 0:
-            sp -= 1
-            k = stack[sp]
-            if u0 < node_lo[k, u] or u0 > node_hi[k, u] or v0 < node_lo[k, v] or v0 > node_hi[k, v]:
-                continue
-            left = node_child[k, 0]
-            if left < 0:
-                first = node_range[k, 0]
-                # written out here and in box_line_hits: the innermost loop of line casting stays call-free
-                for t in range(first, first + node_range[k, 1]):
-                    side, w = hit(tris, t, a, u0, v0)
-                    if side != 0:
-                        if n < hw.shape[0]:
-                            hw[n] = w
-                            hs[n] = side
-                        n += 1
-            else:
-                stack[sp] = left
-                stack[sp + 1] = node_child[k, 1]
-                sp += 2
-        return n
+        return line_visit((a, (a + 1) % 3, (a + 2) % 3, u0, v0, hw, hs), 0, node_lo, node_hi, node_child, node_range,
+                          tris, stack)
 
     @jit
     def cast_bvh_line(a, line, line0, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range, tris, stack,
@@ -168,19 +165,12 @@ def build(jit):
     def box_line_hits(a, u0, v0, box_lo, box_hi, box_start, tris, hw, hs):
         """Every crossing of the line with the mesh, through a flat list of partition boxes
         (``box_start (K+1,)`` triangle ranges of ``tris`` in partition order)."""
-        u = (a + 1) % 3
-        v = (a + 2) % 3
+        q = (a, (a + 1) % 3, (a + 2) % 3, u0, v0, hw, hs)
         n = 0
         for k in range(box_lo.shape[0]):
-            if u0 < box_lo[k, u] or u0 > box_hi[k, u] or v0 < box_lo[k, v] or v0 > box_hi[k, v]:
-                continue
-            for t in range(box_start[k], box_start[k + 1]):
-                side, w = hit(tris, t, a, u0, v0)
-                if side != 0:
-                    if n < hw.shape[0]:
-                        hw[n] = w
-                        hs[n] = side
-                    n += 1
+            if line_box(q, box_lo, box_hi, k):
+                for t in range(box_start[k], box_start[k + 1]):
+                    n = keep_hit(q, tris, t, n)
         return n
 
     @jit
@@ -194,68 +184,43 @@ def build(jit):
         return intervals_from_hits(hw, hs, n, out, line, cap)
 
     @jit
+    def slab_box(q, node_lo, node_hi, n):
+        # the query: the ray o + t d, t > tmin
+        ox, oy, oz, dx, dy, dz, tmin = q
+        t0 = tmin
+        t1 = 1e300
+        for c in range(3):
+            o = ox if c == 0 else (oy if c == 1 else oz)
+            d = dx if c == 0 else (dy if c == 1 else dz)
+            if d == 0.0:
+                if o < node_lo[n, c] or o > node_hi[n, c]:
+                    t0 = 1.0
+                    t1 = 0.0
+            else:
+                a = (node_lo[n, c] - o) / d
+                b = (node_hi[n, c] - o) / d
+                t0 = max(t0, min(a, b))
+                t1 = min(t1, max(a, b))
+        return not (t0 > t1)
+
+    @jit
+    def ray_leaf(q, tris, t, blocked):
+        ox, oy, oz, dx, dy, dz, tmin = q
+        return crossing(ox, oy, oz, dx, dy, dz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
+                        tris[t, 6], tris[t, 7], tris[t, 8], 1e-300, 0.0) > tmin
+
+    @jit
+    def blocked(state):
+        return state
+
+    any_hit = bvh_visit(jit, slab_box, ray_leaf, blocked)
+
+    @jit
     def ray_blocked(ox, oy, oz, dx, dy, dz, tmin, node_lo, node_hi, node_child, node_range, tris, stack):
         """Whether the ray o + t d, t > tmin, meets a triangle (Moller-Trumbore, both faces,
         edges included); an any-hit query through the BVH."""
-        stack[0] = 0
-        sp = 1
-        while sp > 0:
-            sp -= 1
-            k = stack[sp]
-            t0 = tmin
-            t1 = 1e300
-            for c in range(3):
-                o = ox if c == 0 else (oy if c == 1 else oz)
-                d = dx if c == 0 else (dy if c == 1 else dz)
-                if d == 0.0:
-                    if o < node_lo[k, c] or o > node_hi[k, c]:
-                        t0 = 1.0
-                        t1 = 0.0
-                else:
-                    a = (node_lo[k, c] - o) / d
-                    b = (node_hi[k, c] - o) / d
-                    t0 = max(t0, min(a, b))
-                    t1 = min(t1, max(a, b))
-            if t0 > t1:
-                continue
-            left = node_child[k, 0]
-            if left >= 0:
-                stack[sp] = left
-                stack[sp + 1] = node_child[k, 1]
-                sp += 2
-                continue
-            first = node_range[k, 0]
-            for t in range(first, first + node_range[k, 1]):
-                e1x = tris[t, 3] - tris[t, 0]
-                e1y = tris[t, 4] - tris[t, 1]
-                e1z = tris[t, 5] - tris[t, 2]
-                e2x = tris[t, 6] - tris[t, 0]
-                e2y = tris[t, 7] - tris[t, 1]
-                e2z = tris[t, 8] - tris[t, 2]
-                px = dy * e2z - dz * e2y
-                py = dz * e2x - dx * e2z
-                pz = dx * e2y - dy * e2x
-                det = e1x * px + e1y * py + e1z * pz
-                if abs(det) < 1e-300:
-                    continue
-                inv = 1.0 / det
-                tx = ox - tris[t, 0]
-                ty = oy - tris[t, 1]
-                tz = oz - tris[t, 2]
-                u = (tx * px + ty * py + tz * pz) * inv
-                if u < 0.0 or u > 1.0:
-                    continue
-                qx = ty * e1z - tz * e1y
-                qy = tz * e1x - tx * e1z
-                qz = tx * e1y - ty * e1x
-                v = (dx * qx + dy * qy + dz * qz) * inv
-                if v < 0.0 or u + v > 1.0:
-                    continue
-                if (e2x * qx + e2y * qy + e2z * qz) * inv > tmin:
-                    return True
-        return False
+        return any_hit((ox, oy, oz, dx, dy, dz, tmin), False, node_lo, node_hi, node_child, node_range, tris, stack)
 
-    return SimpleNamespace(edge_side=edge_side, hit=hit, intervals_from_hits=intervals_from_hits,
-                           bvh_line_hits=bvh_line_hits, cast_bvh_line=cast_bvh_line, box_line_hits=box_line_hits,
-                           cast_box_line=cast_box_line,
-                           ray_blocked=ray_blocked)
+    return namespace(edge_side=edge_side, hit=hit, intervals_from_hits=intervals_from_hits,
+                     bvh_line_hits=bvh_line_hits, cast_bvh_line=cast_bvh_line, box_line_hits=box_line_hits,
+                     cast_box_line=cast_box_line, ray_blocked=ray_blocked)

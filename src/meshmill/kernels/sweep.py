@@ -28,7 +28,9 @@ into pieces short enough for the stated sweep tolerance.
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
+
+from . import geom
+from .geom import namespace
 
 INF = 1.0e300
 BISECT_TOL = 1e-9  # mm along the line
@@ -38,6 +40,7 @@ SEARCH_SAMPLES = 16  # poses sampled along a turning piece before the golden-sec
 
 def build(jit):
     """Compile the device functions with ``jit`` and return them in a namespace."""
+    g = geom.build(jit)
 
     @jit
     def golden_step(a, b, s1, s2, f1, f2):
@@ -502,12 +505,7 @@ def build(jit):
         every pose; over a move that is the half-space ``(p - c_a).x_a >= -m`` (m covers the
         move and its turn). Returns ``(xu, xv, xw, k)``: the line at (u0, v0) is in the
         half-space where ``u0 xu + v0 xv + w xw + k >= 0``."""
-        cu = pa[0] + r * xa[0]
-        cv = pa[1] + r * xa[1]
-        cw = pa[2] + r * xa[2]
-        du = pb[0] + r * xb[0] - cu
-        dv = pb[1] + r * xb[1] - cv
-        dw = pb[2] + r * xb[2] - cw
+        cu, cv, cw, du, dv, dw = g.axis_point_move(pa, xa, pb, xb, r)  # the ball centre's chord
         dist = math.sqrt(du * du + dv * dv + dw * dw)
         turn = math.sqrt((xb[0] - xa[0]) ** 2 + (xb[1] - xa[1]) ** 2 + (xb[2] - xa[2]) ** 2)
         m = max(0.0, -(du * xa[0] + dv * xa[1] + dw * xa[2])) if turn == 0.0 else dist + (dist + F + r) * turn
@@ -538,12 +536,7 @@ def build(jit):
         thickened by R; other cutters take the lowest start and highest end of their poses."""
         rho = R - r
         H = max(0.0, F - 2.0 * r)
-        cu = pa[0] + r * xa[0]
-        cv = pa[1] + r * xa[1]
-        cw = pa[2] + r * xa[2]
-        Du = pb[0] + r * xb[0] - cu
-        Dv = pb[1] + r * xb[1] - cv
-        Dw = pb[2] + r * xb[2] - cw
+        cu, cv, cw, Du, Dv, Dw = g.axis_point_move(pa, xa, pb, xb, r)
         if xa[0] == xb[0] and xa[1] == xb[1] and xa[2] == xb[2]:
             if rho <= 1e-12:
                 return pgram_ball(u0, v0, cu, cv, cw, Du, Dv, Dw, H * xa[0], H * xa[1], H * xa[2], r)
@@ -575,8 +568,7 @@ def build(jit):
             hi = max(hi, max(h1, h2))
         return lo, hi
 
-    return SimpleNamespace(sphere=sphere, capsule=capsule, pgram_ball=pgram_ball, core_dist2=core_dist2,
-                           rounded_sweep=rounded_sweep, aligned_sweep=aligned_sweep, aligned_poses=aligned_poses,
-                           aligned_at=aligned_at, fixed_sweep=fixed_sweep,
-                           pose=pose,
-                           flute_plane=flute_plane, flute_range=flute_range, tool_move=tool_move)
+    return namespace(sphere=sphere, capsule=capsule, pgram_ball=pgram_ball, core_dist2=core_dist2,
+                     rounded_sweep=rounded_sweep, aligned_sweep=aligned_sweep, aligned_poses=aligned_poses,
+                     aligned_at=aligned_at, fixed_sweep=fixed_sweep, pose=pose, flute_plane=flute_plane,
+                     flute_range=flute_range, tool_move=tool_move)

@@ -23,9 +23,8 @@ import numpy as np
 from .. import memory
 from ..cluster import PIECES_PER_WORKER, check_workers, share, submit, wait, worker_cached, workers
 from ..progress import ranges
-from ..kernels.backend import MeshKernels
+from ..kernels.backend import TILE, MeshKernels
 from ..kernels.bvh import build_bvh
-from ..kernels.cpu_dexel import TILE
 from ..simulation import cut as cutting
 from ..params import OUTPUTS
 from ..simulation.deviation import join_measures, measure_lines, measured, nearest_end

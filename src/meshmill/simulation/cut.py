@@ -20,8 +20,7 @@ import numpy as np
 
 from ..progress import in_pieces, ranges
 from ..errors import InputError
-from ..kernels.backend import implementation
-from ..kernels.cpu_dexel import BODY, RAPID, TILE, bin_moves
+from ..kernels.backend import BODY, RAPID, TILE, DexelKernels
 from ..kernels.sweep import SEARCH_SAMPLES
 from .dexel import DexelModel, compact_lines, join_lines
 
@@ -327,7 +326,7 @@ def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern) -> tuple:
     pa, pb = np.ascontiguousarray(moves.pa[:, perm]), np.ascontiguousarray(moves.pb[:, perm])
     xa, xb = np.ascontiguousarray(moves.xa[:, perm]), np.ascontiguousarray(moves.xb[:, perm])
     chord, plane = kern.move_constants(pa, pb, xa, xb, moves.corner, moves.flutes)
-    tile_start, tile_moves = bin_moves(box, float(lo[u]), float(lo[v]), step, int(n[u]), int(n[v]))
+    tile_start, tile_moves = kern.bin_moves(box, lo[u], lo[v], step, n[u], n[v])
     return kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves
 
 
@@ -384,7 +383,7 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None) -
     if cluster is not None:
         _cut_on(cluster, stock, moves, boxes, hit, progress, device)
     else:
-        kern = implementation(device)
+        kern = DexelKernels(device)
         for a in range(3):  # in blocks of tile rows (tiles are independent), the share done told
             prepared = _direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern)
             rows = -(-int(stock.n[(a + 1) % 3]) // TILE)
@@ -416,7 +415,7 @@ def cut_lines(shared: dict, a: int, rows, start, iv):
     stock = Stock(lo=shared["lo"], step=shared["step"], n=n, iv=[None] * 3, off=[None] * 3, count=[None] * 3)
     stock.iv[a], stock.off[a], stock.count[a] = _with_room(start, iv)  # the block's lines alone
     hit = np.zeros(len(moves), np.uint8)
-    kern = implementation(shared["device"])
+    kern = DexelKernels(shared["device"])
     prepared = worker_cached(shared, f"moves {a}", lambda: _direction_moves(shared["lo"], n, shared["step"], a, moves,
                                                                           boxes, kern))
     _cut_direction(stock, a, moves, boxes, kern, hit, rows, prepared)

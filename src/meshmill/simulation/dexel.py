@@ -22,10 +22,8 @@ import numpy as np
 
 from .. import memory
 from ..errors import InputError
+from ..kernels.backend import MAX_HITS, DexelKernels
 from ..kernels.bvh import build_bvh
-from ..kernels import cpu_dexel
-from ..kernels.backend import LineCaster
-from ..kernels.cpu_dexel import MAX_HITS
 from . import partition
 from .exactsum import expansion, total
 
@@ -174,18 +172,17 @@ def uneven_lines_warning(odd: dict | None, mesh) -> list[str]:
             "shells): their material was decided point by point, by the winding of the solid"]
 
 
-def _resolve_lines(a, lines, lo, n, step, dense, count, material, bvh, source, first_row=0):
+def _resolve_lines(kern, a, lines, lo, n, step, dense, count, material, bvh, source, first_row=0):
     """``(dense, count)`` with the material of grid ``lines`` along axis ``a`` decided between
     every two crossings of ``material``'s surface (``bvh``: its BVH arrays) by the inside test of
     the solid ``source`` bounds (winding of its closed pieces and caps, parity under its sheets), as verification
-    decides it. ``lines`` are numbered from the row ``first_row`` of the lattice (a block of it)."""
-    from ..kernels import cpu
-
+    decides it (``kern``: the :class:`~meshmill.kernels.backend.DexelKernels`). ``lines`` are
+    numbered from the row ``first_row`` of the lattice (a block of it)."""
     u, v = (a + 1) % 3, (a + 2) % 3
     nv = n[v]
     us = lo[u] + (first_row + lines // nv + 0.5) * step
     vs = lo[v] + (lines % nv + 0.5) * step
-    w, hits = cpu_dexel.line_hits(a, us, vs, bvh)
+    w, hits = kern.line_hits(a, us, vs, bvh)
     inside = source.solid(float(material.bounds[0, 2])).inside
     rows = []
     for i in range(len(lines)):
@@ -197,7 +194,7 @@ def _resolve_lines(a, lines, lo, n, step, dense, count, material, bvh, source, f
         mid = 0.5 * (t[1:] + t[:-1])
         pts = np.empty((len(mid), 3))
         pts[:, a], pts[:, u], pts[:, v] = mid, us[i], vs[i]
-        ins = cpu.points_inside(pts, inside)
+        ins = kern.points_inside(pts, inside)
         edges = np.diff(np.r_[0, ins.astype(np.int8), 0])
         rows.append(np.column_stack([t[:-1][edges[:-1] == 1], t[1:][edges[1:] == -1]]))
     cap = max(dense.shape[1], max(len(r) for r in rows))
@@ -214,12 +211,12 @@ LINE_BYTES = 112  # a line being cast on a worker: its room for crossings, count
 TRIANGLE_BYTES = 400  # a triangle on a worker: the mesh, the solid, its BVH
 
 
-def _cast(caster, a, lo, n, step, mesh, bvh, source, rows=None):
+def _cast(kern, a, lo, n, step, mesh, bvh, source, rows=None):
     """``(start, iv, uneven lines)`` of the lines along ``a`` of the lattice ``lo, n`` (of its rows
     ``rows = (i0, i1)`` along the axis after ``a``, default all)."""
     u, v = (a + 1) % 3, (a + 2) % 3
     i0, i1 = rows if rows is not None else (0, int(n[u]))
-    dense, count = caster.cast_lines(a, lo[u], lo[v], step, i1 - i0, n[v], i0)
+    dense, count = kern.cast_lines(a, lo[u], lo[v], step, i1 - i0, n[v], i0)
     if (count == -2).any():
         raise InputError(f"{int((count == -2).sum())} line(s) along {'XYZ'[a]} cross the surface more than "
                          f"{MAX_HITS} times: the mesh is too intricate for one line (or has many stacked shells)")
@@ -227,7 +224,7 @@ def _cast(caster, a, lo, n, step, mesh, bvh, source, rows=None):
     if len(bad):  # self-intersecting or overlapping shells: decided point by point
         if bvh is None:  # the cells and k-means indexes hold no BVH: one for these lines
             bvh = build_bvh(mesh.vertices, mesh.faces).arrays
-        dense, count = _resolve_lines(a, bad, lo, n, step, dense, count, mesh, bvh, source, i0)
+        dense, count = _resolve_lines(kern, a, bad, lo, n, step, dense, count, mesh, bvh, source, i0)
     s, iv = compact(dense, count)
     return s, iv, int(len(bad))
 
@@ -235,14 +232,14 @@ def _cast(caster, a, lo, n, step, mesh, bvh, source, rows=None):
 def cast_rows(shared: dict, key: str, a: int, rows) -> tuple:
     """``(start, iv, uneven lines)`` of the lines along ``a`` of the lattice rows ``rows = (i0,
     i1)`` cast on a worker of a cluster: ``shared[key]`` is ``(material mesh, source part)`` (its
-    index and caster built once per worker), ``shared`` also holds the lattice ``lo, n, step``
+    index and kernels built once per worker), ``shared`` also holds the lattice ``lo, n, step``
     and the ``device``."""
     from ..cluster import worker_cached
 
     mesh, source = shared[key]
     idx, _ = worker_cached(shared, f"{key} index", lambda: mesh_index(mesh))
-    caster = worker_cached(shared, f"{key} caster", lambda: LineCaster(idx, shared["device"]))
-    return _cast(caster, a, shared["lo"], shared["n"], shared["step"], mesh, idx[1], source, rows)
+    kern = worker_cached(shared, f"{key} kernels", lambda: DexelKernels(shared["device"], idx))
+    return _cast(kern, a, shared["lo"], shared["n"], shared["step"], mesh, idx[1], source, rows)
 
 
 def cast_block(shared: dict, piece) -> tuple:
@@ -291,12 +288,12 @@ def dexelize(mesh, step: float, index="bvh", partitions=1, init="k-means++", min
     bvh = idx[1] if idx[0] == "bvh" else None
     info["index_seconds"] = round(time.perf_counter() - t0, 4)
     info["device"] = device
-    caster = LineCaster(idx, device)
+    kern = DexelKernels(device, idx)
     starts, ivs = [], []
     t1 = time.perf_counter()
     for a in range(3):
         u, v = (a + 1) % 3, (a + 2) % 3
-        s, iv, bad = _cast(caster, a, lo, n, step, mesh, bvh, source)
+        s, iv, bad = _cast(kern, a, lo, n, step, mesh, bvh, source)
         if bad:
             odd["XYZ"[a]] = bad
         starts.append(s)
