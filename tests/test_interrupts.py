@@ -63,13 +63,13 @@ def ends_interrupted(rc, lines, sent):
 def test_ctrl_c_at_any_moment_of_a_command(path, tmp_path):
     out = tmp_path / "sim"
     argv = ["simulate", "--design", os.path.join(DATA, "vase.stl"), "--toolpath", path, "--tools",
-            os.path.join(DATA, "tools.toml"), "--step", "0.25", "--out", str(out)]
+            os.path.join(DATA, "tools.toml"), "--step", "0.2", "--out", str(out)]
     # a complete earlier result, which must not survive as this run's
     assert subprocess.run([*MESHMILL, *argv, "--quiet"], capture_output=True).returncode in (0, 1)
     assert (out / "summary.json").exists()
     stopped = 0
     # while starting (imports: trimesh's catch BaseException), loading, and inside the numba kernels
-    for when in (0.3, 0.9, 1.6, "cutting ", "cutting lines along Y", "measuring"):
+    for when in (0.3, 0.9, 1.6, "design: ", "cutting ", 2.5):
         rc, lines, sent = interrupted(argv, when)
         stopped += ends_interrupted(rc, lines, sent)
         if rc == 130:
