@@ -205,8 +205,8 @@ def _as_stock(o, v, values):
     if isinstance(v, str) and v.strip().lower().startswith("offset:"):
         from .options import Option
 
-        mm = Option("number", "", unit="mm", low=0.0, name=o.name).from_text(v.split(":", 1)[1].strip())
-        return Stock.offset(Option("number", "", unit="mm", low=0.0, name=o.name).check(mm))
+        mm = Option("number", "", unit="mm", low=0.0, name=o.name)
+        return Stock.offset(mm.check(mm.from_text(v.split(":", 1)[1].strip())))
     if _is_file(v):
         path = os.fspath(v)
         if path.lower().endswith(".npz"):
@@ -291,8 +291,6 @@ def resolve_device(device) -> str:
     return resolve(device)
 
 
-_device = resolve_device
-
 
 def connect(cluster):
     """A context holding the ``distributed.Client`` of ``cluster`` (a number of local workers, a
@@ -312,8 +310,6 @@ def tools_file(tools) -> str:
     path = getattr(tools, "path", "")
     return os.path.abspath(path) if path else ""
 
-
-_part_entry, _tools_file = part_entry, tools_file
 
 
 def _path_result(operation, tp, summary, mesh, tools, device, arrays=None):
@@ -383,7 +379,7 @@ def finish(p) -> PathResult:
     from .ops.finish_areas import AREA_STATUS
     from .ops.finish import finish as run
 
-    device = _device(p.device)
+    device = resolve_device(p.device)
     with connect(p.cluster) as client:
         tp, summary, detail = run(p.part, p.tools, p, progress=p.progress, device=device, machine=p.machine,
                                   cluster=client)
@@ -402,7 +398,7 @@ def raster(p) -> PathResult:
     from .cluster import connect
     from .ops.raster import raster as run
 
-    device = _device(p.device)
+    device = resolve_device(p.device)
     with connect(p.cluster) as client:
         tp, summary = run(p.part, p.tools, p.tool, p, progress=p.progress, device=device, cluster=client)
     return _path_result("raster", tp, summary, p.part, p.tools, device)
@@ -415,7 +411,7 @@ def waterline(p) -> PathResult:
     from .cluster import connect
     from .ops.waterline import waterline as run
 
-    device = _device(p.device)
+    device = resolve_device(p.device)
     with connect(p.cluster) as client:
         tp, summary, _ = run(p.part, p.tools, p.tool, p, progress=p.progress, device=device, cluster=client)
     return _path_result("waterline", tp, summary, p.part, p.tools, device)
@@ -429,7 +425,7 @@ def plunge(p) -> PathResult:
 
     if p.stock is not None and p.axes != 3:
         raise InputError("stock: 5-axis plunge roughing starts from the part's box (give axes 3)", ("stock", "axes"))
-    device = _device(p.device)
+    device = resolve_device(p.device)
     run = plunge3 if p.axes == 3 else plunge5
     tp, summary = run(p.part, p.tools, p.tool, p.replace(device=device), progress=p.progress)
     if p.simulate is not None:
@@ -448,7 +444,7 @@ def verify(p) -> VerifyResult:
     from .cluster import connect
     from .ops.verify import verify as run
 
-    device = _device(p.device)
+    device = resolve_device(p.device)
     with connect(p.cluster) as client:
         report = run(p.part, p.toolpath, p.tools, p.tolerance, p.step, p.stock, p.worst, device, client,
                      p.progress if client is not None else None)
@@ -463,11 +459,11 @@ def dexel(p) -> DexelResult:
     from .cluster import connect
     from .ops.simulate import dexel_model
 
-    device = _device("cpu" if p.index != "bvh" and p.device == "auto" else p.device)  # the seed's indexes: CPU
+    device = resolve_device("cpu" if p.index != "bvh" and p.device == "auto" else p.device)  # the seed's indexes: CPU
     with connect(p.cluster) as client:
         model, summary = dexel_model(p.part, p.step, p.index, p.partitions, p.init, p.minibatch, p.kmax,
                                      progress=p.progress, device=device, cluster=client)
-    summary["part"] = _part_entry(p.part)
+    summary["part"] = part_entry(p.part)
     summary["device"] = device
     return DexelResult(model, summary)
 
@@ -482,7 +478,7 @@ def simulate(p) -> SimulateResult:
 
     from .simulation.stock import Stock
 
-    device = _device(p.device)
+    device = resolve_device(p.device)
     stock = Stock.of(p.stock, "box")
     with connect(p.cluster) as client:
         if client is None or stock.cut_already:  # an in-process stock is cut here (its pieces on the cluster)
@@ -494,8 +490,8 @@ def simulate(p) -> SimulateResult:
                 client, p.design, p.toolpath, p.tools, p.step, stock, p.tolerance, p.mode, p.progress, device,
                 p.outputs)
     summary["device"] = device
-    summary["tools_file"] = _tools_file(p.tools)
-    summary["design"] = _part_entry(p.design)
+    summary["tools_file"] = tools_file(p.tools)
+    summary["design"] = part_entry(p.design)
     summary["toolpath"] = {"file": p.toolpath.source, "warnings": list(p.toolpath.warnings)}
     return SimulateResult(deviation, summary, machined, samples, after)
 
@@ -506,9 +502,9 @@ def analyze(p) -> AnalysisResult:
     with ``theta_step`` (degrees) also the accessibility map over the hemisphere."""
     from .ops.analyze import analyze as run
 
-    summary, arrays = run(p.part, p.direction, p.weighting, p.theta_step, p.delta_step, _device(p.device),
+    summary, arrays = run(p.part, p.direction, p.weighting, p.theta_step, p.delta_step, resolve_device(p.device),
                           p.progress)
-    return AnalysisResult({"part": _part_entry(p.part), **summary}, arrays)
+    return AnalysisResult({"part": part_entry(p.part), **summary}, arrays)
 
 
 @operation(ChooseParams, "surface")
@@ -522,7 +518,7 @@ def choose(p) -> ChooseResult:
     from .ops.choose import tool_pair as pair
 
     tools = pair(p.tool_pair) if p.tool_pair is not None else p.tools
-    device = _device(p.device)
+    device = resolve_device(p.device)
     loaded = load_surface(p.surface, p, flip=p.flip)
     tp, summary, cells, chooser = run(loaded, tools, p.machine, p, progress=p.progress, device=device)
     s = chooser.samples
@@ -545,7 +541,7 @@ def post(p) -> PostResult:
     lines, report = post_program(toolpath, p.tools, p.machine, feed=per_s, tolerance=p.tolerance, origin=p.origin,
                                  clearance=p.clearance)
     report = {"operation": "post", "toolpath": toolpath.source, "program": "",
-              "tools_file": _tools_file(p.tools), "feeds": note, **report}
+              "tools_file": tools_file(p.tools), "feeds": note, **report}
     report["warnings"] = list(toolpath.warnings) + report["warnings"]
     return PostResult(lines, report)
 
@@ -581,7 +577,7 @@ def machining_time(p) -> TimeResult:
         p.progress("timing")
     summary, notes = path_times(p.toolpath, p.machine, p.tools, p.feed)
     summary = {"operation": "time", "toolpath": p.toolpath.source, "moves": len(p.toolpath),
-               "machine": p.machine.summary(), "tools_file": _tools_file(p.tools), "notes": notes, **summary}
+               "machine": p.machine.summary(), "tools_file": tools_file(p.tools), "notes": notes, **summary}
     return TimeResult(summary, list(p.toolpath.warnings))
 
 

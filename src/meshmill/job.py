@@ -126,9 +126,9 @@ class Operation:
                 raise InputError(f"unknown parameter{'s' * (len(unknown) > 1)} {', '.join(unknown)} for {kind} (it "
                                  f"takes {', '.join(n for n in spec.options() if n not in SET_BY_JOB)})",
                                  tuple(unknown))
-            given = {k: v for k, v in d.items()}
-            spec.checked({**given, **{k: PLACEHOLDER.get(k) for k, o in spec.options().items()
-                                      if k in SET_BY_JOB and (o.required or k in PLACEHOLDER)}})  # kinds, ranges
+            set_by_job = {k: PLACEHOLDER.get(k) for k, o in spec.options().items()
+                          if k in SET_BY_JOB and (o.required or k in PLACEHOLDER)}
+            spec.checked({**d, **set_by_job})  # kinds, ranges, between options
         except InputError as exc:
             raise exc.within(where) from None
         return cls(kind, name, d, (None if rest is False else rest) if kind in ("raster", "waterline") else None,
@@ -230,18 +230,23 @@ def _is_operation_folder(path) -> bool:
 
 @dataclass
 class JobResult:
-    """The job's ``operations`` (:class:`OperationResult`), the G-code ``program`` (lines) and its
-    post ``post_report``, and the ``summary`` (job.json)."""
+    """The job's ``operations`` (:class:`OperationResult`), the program as ``posted``
+    (:class:`~meshmill.results.PostResult`: its ``program`` lines and report), and the ``summary``
+    (job.json)."""
 
     job: "Job"
     operations: list
-    program: list
-    post_report: dict
+    posted: object
     summary: dict
 
     @property
     def ok(self) -> bool:
         return bool(self.summary["ok"])
+
+    @property
+    def program(self) -> list:
+        """The G-code lines."""
+        return self.posted.lines
 
     def save(self, folder, report=True, progress=None) -> list:
         """Write the job's folder (a path or a :class:`JobFolder`): per operation ``NN-name/`` (the
@@ -265,8 +270,8 @@ class JobResult:
             op.cut.summary["toolpath"] = {"file": os.path.join(sub, "toolpath.cl"), "warnings": []}
             op.cut.save(os.path.join(sub, "stock"))
             views += [sub, os.path.join(sub, "stock")]
-        self.summary["program"] = folder.write_text("program.nc", "\n".join(self.program) + "\n")
-        written.append(self.summary["program"])
+        written += self.posted.save(os.path.join(folder.path, "program.nc"))
+        self.summary["program"] = written[-1]
         if report:
             self.summary["report"] = api.report(views, os.path.join(folder.path, "report.html"),
                                                 progress=progress)["file"]
@@ -581,7 +586,7 @@ class Job:
                    if r.skipped]
         if skipped:  # (job.json has warnings where there are some)
             summary["warnings"] = skipped
-        return JobResult(self, results, posted.lines, posted.report, summary)
+        return JobResult(self, results, posted, summary)
 
 
 def _entry(r: OperationResult) -> dict:

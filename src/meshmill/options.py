@@ -200,15 +200,19 @@ class Option:
         return text
 
     def help_text(self) -> str:
-        """The command line's help: what it is, its unit and its default."""
+        """The command line's help: what it is, its unit and its default (where the help does not
+        say it already)."""
         text = f"{self.help}, {self.unit}" if self.unit else self.help
-        if self.required or self.kind == "flag":
+        if self.required or self.kind == "flag" or "default" in self.help:
             return text
         d = self.default
-        shown = "default: see above" if d is None and "default" in self.help else "off" if d is None else \
-            f"{d:g}" if _is_number(d) else ",".join(f"{x:g}" for x in d) if isinstance(d, tuple) and \
-            all(_is_number(x) for x in d) else ",".join(map(str, d)) if isinstance(d, tuple) else str(d)
-        return text if "default" in self.help else f"{text} ({shown})"
+        if d is None:
+            shown = "off"
+        elif isinstance(d, tuple):
+            shown = ",".join(f"{x:g}" if _is_number(x) else str(x) for x in d)
+        else:
+            shown = f"{d:g}" if _is_number(d) else str(d)
+        return f"{text} ({shown})"
 
 
 def option(kind: str, help: str, default=REQUIRED, **kw) -> dataclasses.Field:
