@@ -269,6 +269,8 @@ class Stock:
         return s.surface
 
     def surface_mesh(self):
+        """:meth:`surface` as a closed :class:`~meshmill.geometry.mesh.Mesh` (what rest depths are
+        measured from)."""
         from ..geometry.mesh import closed_mesh
 
         v, f, _ = self.surface()
