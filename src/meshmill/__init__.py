@@ -7,7 +7,7 @@ meshmill`` is quick.
 __version__ = "0.1.0"
 
 API = ("load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline", "plunge",
-       "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
+       "rough", "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
        "Stock", "Fixture", "Toolpath")
 __all__ = [*API, "Job", "InputError", "NothingToCut", "__version__"]
 

@@ -31,12 +31,12 @@ from .errors import InputError, NothingToCut
 from .options import Params
 from .params import (OUTPUTS, AnalyzeParams, ChooseParams, ClearFixturesParams, DexelParams, FinishParams,
                      LoadPartParams, LoadToolpathParams, PlungeParams, PostParams, RasterParams, ReportParams,
-                     SimulateParams, TimeParams, VerifyParams, WaterlineParams)
+                     RoughParams, SimulateParams, TimeParams, VerifyParams, WaterlineParams)
 from .results import (AnalysisResult, ChooseResult, DexelResult, FixturesResult, PathResult, PostResult,
                       SimulateResult, TimeResult, VerifyResult)
 
 __all__ = ["load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline", "plunge",
-           "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
+           "rough", "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
            "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
            "VerifyResult", "DexelResult", "SimulateResult", "AnalysisResult", "ChooseResult", "PostResult",
            "TimeResult", "FixturesResult", "InputError", "NothingToCut"]
@@ -435,6 +435,22 @@ def plunge(p) -> PathResult:
                                  "remaining_volume": v["remaining"], "gouged_volume": v["gouged"],
                                  "gouge_max": dev["gouge_max"], "seconds": sim["seconds"]["total"]}
     return _path_result("plunge", tp, summary, p.part, p.tools, device)
+
+
+@operation(RoughParams, "part", "tools")
+def rough(p) -> PathResult:
+    """Adaptive clearing from ``stock`` (default the part's box) with the tool named ``tool``: Z
+    levels whose every step keeps the radial width of cut under ``engagement``, leaving
+    ``allowance`` mm on the walls and ``axial_allowance`` on the floors. ``arrays["move_kind"]``
+    gives each move's kind (indices into ``arrays["kinds"]``: rapid, cut, entry, link)."""
+    import numpy as np
+
+    from .ops.rough import MOVE_KINDS, rough as run
+
+    device = resolve_device(p.device)
+    tp, summary, kind = run(p.part, p.tools, p.replace(device=device), progress=p.progress)
+    return _path_result("rough", tp, summary, p.part, p.tools, device,
+                        dict(move_kind=kind, kinds=np.array(MOVE_KINDS)))
 
 
 @operation(VerifyParams, "part", "toolpath", "tools")

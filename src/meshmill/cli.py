@@ -111,7 +111,7 @@ def _results(paths) -> RunFiles:
 
 
 def _default_out(command):
-    return {"finish": "out", "raster": "out", "waterline": "out", "plunge": "out", "simulate": "sim",
+    return {"finish": "out", "raster": "out", "waterline": "out", "plunge": "out", "rough": "out", "simulate": "sim",
             "analyze": "analysis", "choose": "choose"}[command]
 
 
@@ -150,6 +150,25 @@ def cmd_finish(args):
                f"{_mm(v['max_gouge'])} mm, tolerance {summary['tolerance']:g} mm)")
     _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
                f"(device {summary['device']})")
+    _finish_json(args, summary)
+    return 0 if res.ok else 1
+
+
+def cmd_rough(args):
+    from . import api
+
+    mesh = _load_part(args, args.options.pop("part"))
+    res = api.rough(mesh, progress=_progress(args), **args.options)
+    res.save(args.out)
+    summary = res.summary
+    v, w, length = summary["verify"], summary["planned_width_mm"], summary["length_mm"]
+    _say(args, f"{len(summary['levels'])} levels, {sum(lv['walks'] for lv in summary['levels'])} walks; "
+               f"cut {length['cut'] / 1000:.2f} m, links {length['link'] / 1000:.2f} m at feed; radial width "
+               f"max {w['max']:.3f} mean {w['mean']:.3f} (set {w['set']:g}) mm; left {summary['left_mm2']:.1f} mm^2")
+    _say(args, f"{summary['moves']} moves; verify: {'OK' if v['ok'] else 'PROBLEMS'} "
+               f"(max gouge {_mm(v['max_gouge'])} mm, tolerance {v['tolerance']:g} mm)")
+    _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')}, moves.npz and summary.json in "
+               f"{summary['seconds']['total']:.1f} s (device {summary['device']})")
     _finish_json(args, summary)
     return 0 if res.ok else 1
 
@@ -444,7 +463,7 @@ def _spec(command):
     from . import api
 
     return {"finish": api.finish, "raster": api.raster, "waterline": api.waterline, "plunge": api.plunge,
-            "verify": api.verify, "dexel": api.dexel, "simulate": api.simulate, "analyze": api.analyze,
+            "rough": api.rough, "verify": api.verify, "dexel": api.dexel, "simulate": api.simulate, "analyze": api.analyze,
             "choose": api.choose, "post": api.post, "time": api.machining_time, "report": api.report}[command].spec
 
 
@@ -544,6 +563,8 @@ def build_parser():
     command("raster", "3-axis zigzag finishing (flat, ball or bull-nose)", _three_axis, "out", folder, cluster=True)
     command("waterline", "3-axis Z-level loops (flat, ball or bull-nose)", _three_axis, "out", folder, cluster=True)
     command("plunge", "3- or 5-axis plunge roughing (tréflage)", _three_axis, "out", folder)
+    command("rough", "adaptive clearing from the stock: Z levels with a bounded radial engagement", cmd_rough, "out",
+            folder)
     command("verify", "check an APT CL file or G-code for gouges and collisions", cmd_verify, None,
             "write the report as JSON to this file", cluster=True, json=False)
     command("dexel", "triple-dexel model of a closed part", cmd_dexel, None,

@@ -35,7 +35,7 @@ from .api import InputError, NothingToCut
 from .options import Params, option
 from .tomlfile import read_toml
 
-OPERATIONS = {"plunge": api.plunge, "raster": api.raster, "waterline": api.waterline, "finish": api.finish,
+OPERATIONS = {"rough": api.rough, "plunge": api.plunge, "raster": api.raster, "waterline": api.waterline, "finish": api.finish,
               "choose": api.choose}
 SET_BY_JOB = {"part", "tools", "stock", "device", "progress", "machine", "cluster", "simulate", "surface",
               "tool_pair", "flip"}  # an operation's parameters the job gives it

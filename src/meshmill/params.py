@@ -243,6 +243,38 @@ class PlungeParams(Params):
     progress: object = _progress()
 
 
+@dataclass(frozen=True, kw_only=True)
+class RoughParams(Params):
+    """rough: adaptive clearing from the stock, Z levels with a bounded radial engagement."""
+
+    part: object = _part()
+    tools: object = _tools()
+    tool: str = _tool()
+    engagement: float | None = option("number", "largest radial width of cut (ae) of every step; the path keeps "
+                                                "close to it (default: a quarter of the tool diameter)", None,
+                                      unit="mm", above=0.0)
+    step_down: float | None = option("number", "largest depth between levels (default: the flute length)", None,
+                                     unit="mm", above=0.0)
+    stair: float | None = option("number", "step-up levels where a level leaves a stair higher than this above the "
+                                           "part (shallow areas)", None, unit="mm", above=0.0)
+    allowance: float = option("number", "material left on the part's walls (radial)", 0.5, unit="mm", low=0.0)
+    axial_allowance: float | None = option("number", "material left on floors (default: the allowance)", None,
+                                           unit="mm", low=0.0)
+    direction: str = option("choice", "climb (the material on the tool's right, clockwise spindle) or conventional",
+                            "climb", choices=("climb", "conventional"))
+    helix_diameter: float | None = option("number", "diameter of the helix entering closed material (default: "
+                                                    "three quarters of the tool diameter; smaller where the room "
+                                                    "is short)", None, unit="mm", above=0.0)
+    ramp_angle: float = option("number", "descent angle of the helix", 3.0, unit="deg", above=0.0, high=45.0)
+    sample: float | None = option("number", "grid spacing of the clearing (default: a tenth of the engagement, at "
+                                            "most a sixteenth of the tool radius)", None, unit="mm", above=0.0)
+    clearance: float = _clearance()
+    stock: object = _stock("the material to clear: a closed mesh file, a saved stock (stock.npz), 'box'; in Python "
+                           "a Stock (default: the part's box)")
+    device: str = _device()
+    progress: object = _progress()
+
+
 # ---------------------------------------------------------------- checks and models
 
 

@@ -34,8 +34,8 @@ class _Saved:
 
 @dataclass
 class PathResult(_Saved):
-    """A tool path and its summary: finish, raster, waterline, plunge. ``arrays``: finish's
-    contours and surface status (contours.npz)."""
+    """A tool path and its summary: finish, raster, waterline, plunge, rough. ``arrays``: finish's
+    contours and surface status (contours.npz), rough's kind of every move (moves.npz)."""
 
     operation: str
     toolpath: object
@@ -57,7 +57,7 @@ class PathResult(_Saved):
             import numpy as np
 
             if self.arrays:
-                np.savez_compressed(at("contours.npz"), **self.arrays)
+                np.savez_compressed(at("moves.npz" if self.operation == "rough" else "contours.npz"), **self.arrays)
             write_apt(at("toolpath.cl"), self.toolpath, self.tools, partno=os.path.basename(self.part.source or "part"))
             write_part(at("part.stl"), self.part)
             write_json(at("summary.json"), self.summary)

@@ -22,6 +22,7 @@ FOLDER_OUTPUTS = {
     "raster": ("toolpath.cl", "part.stl", "summary.json"),
     "waterline": ("toolpath.cl", "part.stl", "summary.json"),
     "plunge": ("toolpath.cl", "part.stl", "summary.json"),
+    "rough": ("moves.npz", "toolpath.cl", "part.stl", "summary.json"),
     "simulate": ("deviation.npz", "machined.stl", "deviation.json", "summary.json"),
     "analyze": ("analysis.npz", "summary.json"),
     "choose": ("tools.toml", "toolpath.cl", "zones.npz", "summary.json"),

@@ -84,16 +84,19 @@ class ToolDrop:
     grows them (radius and both ends by g: a little more than the Minkowski sum): a flat end stays
     flat, and the flutes above a rounded end start g below its equator. ``body_grow`` grows the
     shank and holder alone (radius and bottom by b): the cutter may touch the mesh, the rest stays
-    out of the material ``b`` mm on it (the stock allowance an operation starts from)."""
+    out of the material ``b`` mm on it (the stock allowance an operation starts from). ``widen``
+    grows the whole (grown) tool sideways by a disk of that radius (a cutter of radius R + w and
+    the same corner, body cylinders w wider): a height clear there keeps the tool clear anywhere
+    within w mm of the point at that height."""
 
     def __init__(self, tool, bvh, floor: float, device: str = "cpu", grow: float = 0.0, square: bool = False,
-                 body_grow: float = 0.0):
-        g, b = float(grow), float(body_grow)
+                 body_grow: float = 0.0, widen: float = 0.0):
+        g, b, w = float(grow), float(body_grow), float(widen)
         square_flat = square and tool.type == "flat"  # a flat end grown as a cylinder: a wider flat end
-        self.radius, self.corner, self.grow = tool.radius + g, tool.corner_radius + (0.0 if square_flat else g), g
-        parts = [(0.5 * tool.shank_diameter + g + b, max(0.0, tool.flute_length - b))]
+        self.radius, self.corner, self.grow = tool.radius + g + w, tool.corner_radius + (0.0 if square_flat else g), g
+        parts = [(0.5 * tool.shank_diameter + g + b + w, max(0.0, tool.flute_length - b))]
         if tool.holder_diameter > 0:
-            parts.append((0.5 * tool.holder_diameter + g + b, max(0.0, tool.gauge_length - b)))
+            parts.append((0.5 * tool.holder_diameter + g + b + w, max(0.0, tool.gauge_length - b)))
         self.body = (np.array([p[0] for p in parts]), np.array([p[1] for p in parts]))
         # flat disks (radius, height over the grown tip) the kernel's body cylinders cannot stand
         # for (no wider than the cutter): the grown flutes, and a bull-nose's grown flat bottom

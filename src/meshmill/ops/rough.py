@@ -1,0 +1,366 @@
+"""Adaptive clearing (3-axis roughing from the stock) with a bounded radial engagement.
+
+Levels: from the stock's top down, ``step_down`` apart (default the flute length), the part's
+bottom, and the height of every flat upward facet of the part (plus the axial allowance: a floor
+is cut at its height, not left as a step); with ``stair``, step-up levels between two levels
+where the one below left a stair higher than that, cut after it, bottom up.
+
+Everything lives on one grid of nodes ``sample`` mm apart over the stock and the part, widened so
+the tool can go round the stock:
+
+- ``top (nx, ny)``: the stock's height at each node (its surface mesh dropped on with a flat disk
+  of half a node: a mesh or in-process stock with overhangs counts as full below its top, which
+  can only overstate the material), lowered to the level wherever a level's tool passed;
+- ``drop (nx, ny)``: the drop-cutter height of the whole tool (cutter, shank, holder) grown by the
+  radial allowance and widened sideways by one node, so that the tool centre anywhere within a
+  node of a free node keeps the allowance from the part: the free region of a level at z is
+  ``drop + (axial - radial allowance) <= z``.
+
+The material of a level is the nodes whose stock top is above it within the tool's reach from
+the free region; :class:`~meshmill.pathing.clearing.LevelClearing` clears it in walks whose every
+step removes at most ``engagement · step`` mm² (the radial width of cut), entered from the side
+where the stock is open or cleared, else by a helix at ``ramp_angle``. Walks are joined at the
+level where the way is clear of the material and in the free region, else over what lies between
+(the highest stock top within the tool's reach along the way, plus the clearance), by rapids
+where that is above the stock's own top. The path is verified like every path: gouges against
+the design, shank and holder against the part, rapids against the stock.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .. import memory
+from ..errors import InputError, NothingToCut
+from ..kernels.backend import resolve, solid_kernels
+from ..params import RoughParams
+from ..pathing.clearing import LevelClearing
+from ..pathing.dropcutter import ToolDrop, pick_tool, stock_check
+from ..pathing.verify import DEFAULT_STEP, verify_toolpath
+from ..progress import Meter
+from ..tolerances import GOUGE_TOL
+from ..toolpath.model import Toolpath
+
+NODE_BYTES = 48  # per grid node: heights, masks and the distance fields of a level
+FLAT_NORMAL = 1.0 - 1e-6  # a facet this close to facing +Z is flat
+FLAT_AREA = 1.0  # mm²: the least area of flat facets at one height that makes a level
+HELIX_SMALLEST = 0.1  # of the tool diameter: the smallest helix tried where the room is short
+HELIX_POINTS = 36  # points per turn of a helix
+MOVE_KINDS = ("rapid", "cut", "entry", "link")
+NODE_SLACK = 1.5  # nodes: the width of cut a step is planned at stays this far under the engagement
+
+
+@dataclass
+class RoughSetup:
+    """What the levels share: ``params``, the ``tool`` (``index`` in the table), the grid ``xs
+    (nx,)``, ``ys (ny,)`` (``h`` mm apart), the stock ``top`` and the tool ``drop`` heights ``(nx,
+    ny)``, the ``levels`` (top down, step-up levels after the one below them), the stock's solid
+    (what rapids keep clear of), its top ``stock_top`` and the plane of the rapids ``safe_z``."""
+
+    params: RoughParams
+    index: int
+    tool: object
+    xs: np.ndarray
+    ys: np.ndarray
+    h: float
+    top: np.ndarray
+    drop: np.ndarray
+    levels: list
+    solid: object
+    stock_top: float
+    safe_z: float
+
+
+def flat_heights(mesh) -> np.ndarray:
+    """Heights ``(k,)`` of the part's flat upward facets, at least ``FLAT_AREA`` mm² at each."""
+    tri = mesh.vertices[mesh.faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area2 = np.linalg.norm(cross, axis=1)
+    up = cross[:, 2] >= FLAT_NORMAL * np.maximum(area2, 1e-300)
+    if not up.any():
+        return np.empty(0)
+    z = np.round(tri[up][:, :, 2].mean(axis=1), 6)
+    heights, inv = np.unique(z, return_inverse=True)
+    area = np.bincount(inv, weights=0.5 * area2[up])
+    return heights[area >= FLAT_AREA]
+
+
+def rough_levels(top: float, bottom: float, step: float, flats, stair) -> list:
+    """``[(z, kind)]``: the main levels from ``top`` down (``step`` apart, the last at ``bottom``,
+    the ``flats`` between them), each followed by its step-up levels (kind "stair": ``stair`` mm
+    apart above it, below the level before, bottom up)."""
+    main = list(np.arange(top - step, bottom + 1e-9, -step))
+    if not main or main[-1] > bottom + 1e-6:
+        main.append(bottom)
+    main = sorted({round(float(z), 6) for z in main + [f for f in flats if bottom - 1e-9 <= f < top - 1e-6]},
+                  reverse=True)
+    out, above = [], top
+    for z in main:
+        out.append((z, "level"))
+        if stair:
+            ups = np.arange(z + stair, above - 1e-6, stair)
+            out += [(round(float(u), 6), "stair") for u in ups]
+        above = z
+    return out
+
+
+def rough_setup(mesh, tools, params: RoughParams, device: str) -> RoughSetup:
+    """The :class:`RoughSetup` of ``mesh``: InputError for a tool not in the table, an engagement
+    wider than the tool, a stock that is the part offset, a grid larger than the memory."""
+    from ..simulation.stock import Stock
+
+    index, tool = pick_tool(tools, params.tool)
+    stock = Stock.of(params.stock, "box")
+    if stock.kind == "offset":
+        raise InputError("stock: roughing starts from a stock that holds material around the part: box, cylinder, "
+                         "a mesh, or an in-process stock (not the part offset)", "stock")
+    solid, _, margin = stock.material(mesh)
+    surface = stock.rest_surface(mesh)
+    ae = params.engagement if params.engagement is not None else 0.25 * tool.diameter
+    if ae > tool.diameter:
+        raise InputError(f"engagement {ae:g} mm is wider than the tool ({tool.diameter:g} mm)", "engagement")
+    step_down = params.step_down if params.step_down is not None else tool.flute_length
+    if step_down > tool.flute_length + 1e-9:
+        raise InputError(f"step_down {step_down:g} mm is deeper than {tool.name}'s flutes "
+                         f"({tool.flute_length:g} mm): the shank would cut", "step_down")
+    h = params.sample if params.sample is not None else min(ae / 10.0, tool.radius / 16.0)
+    params = replace(params, engagement=ae, step_down=step_down, sample=h, clearance=params.clearance + margin)
+    reach = max(tool.radius, 0.5 * tool.shank_diameter, 0.5 * tool.holder_diameter)
+    lo = np.minimum(solid.bounds[0], mesh.bounds[0])
+    hi = np.maximum(solid.bounds[1], mesh.bounds[1])
+    pad = tool.radius + params.clearance + 4 * h
+    nx = int(math.ceil((hi[0] - lo[0] + 2 * pad) / h)) + 1
+    ny = int(math.ceil((hi[1] - lo[1] + 2 * pad) / h)) + 1
+    memory.check(NODE_BYTES * float(nx) * ny, f"{nx:,} x {ny:,} grid nodes", "use a larger sample", ("sample",))
+    xs = lo[0] - pad + h * np.arange(nx)
+    ys = lo[1] - pad + h * np.arange(ny)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    xy = np.column_stack([gx.ravel(), gy.ravel()])
+    floor = float(min(lo[2], mesh.bounds[0, 2])) - 1.0
+    top = solid_kernels(surface, device).drop_cutter(xy, 0.5 * h, 0.0, floor)[0].reshape(nx, ny)
+    kern = solid_kernels(mesh, device)
+    a_r = params.allowance
+    drop = ToolDrop(tool, kern, floor, grow=a_r, widen=h)(xy).reshape(nx, ny)
+    drop += (params.axial_allowance if params.axial_allowance is not None else a_r) - a_r
+    del reach
+    stock_top = float(top.max())
+    bottom = float(mesh.bounds[0, 2]) + (params.axial_allowance if params.axial_allowance is not None else a_r)
+    if stock_top <= bottom + 1e-6:
+        raise NothingToCut("nothing to cut: the stock does not rise above the part's bottom", "stock")
+    flats = flat_heights(mesh) + (params.axial_allowance if params.axial_allowance is not None else a_r)
+    levels = rough_levels(stock_top, bottom, step_down, flats, params.stair)
+    safe_z = float(max(stock_top, mesh.bounds[1, 2]) + params.clearance + 1.0)
+    return RoughSetup(params, index, tool, xs, ys, h, top, drop, levels, solid, stock_top, safe_z)
+
+
+def _dilated(mask, radius) -> np.ndarray:
+    """``mask`` grown by ``radius`` nodes (Euclidean)."""
+    from scipy.ndimage import distance_transform_edt
+
+    return distance_transform_edt(~mask) <= radius
+
+
+def _max_near(top, radius) -> np.ndarray:
+    """The highest of ``top`` within ``radius`` nodes of each node."""
+    from scipy.ndimage import maximum_filter
+
+    k = int(math.ceil(radius))
+    ii, jj = np.mgrid[-k:k + 1, -k:k + 1]
+    return maximum_filter(top, footprint=ii ** 2 + jj ** 2 <= radius ** 2, mode="nearest")
+
+
+class PathBuilder:
+    """The moves of a roughing path (tips mm, rapid flags, kinds of :data:`MOVE_KINDS`)."""
+
+    def __init__(self, setup: RoughSetup):
+        self.s = setup
+        self.tips, self.kind = [], []
+        self.at = None
+
+    def xy(self, g) -> np.ndarray:
+        """Grid units ``(..., 2)`` to mm."""
+        g = np.asarray(g, float)
+        return np.stack([self.s.xs[0] + self.s.h * g[..., 0], self.s.ys[0] + self.s.h * g[..., 1]], axis=-1)
+
+    def add(self, p, kind):
+        self.tips.append(np.asarray(p, float))
+        self.kind.append(kind)
+        self.at = self.tips[-1]
+
+    def over(self, a, b, z_cross, z_to, z_clear=None):
+        """From the tool's position ``a`` up to ``z_cross``, across above ``b`` and down to
+        ``z_to``: rapids above the stock's top plus the clearance (down to ``z_clear`` at ``b``,
+        where the tool keeps the clearance from the stock), feeds below it."""
+        rapid_z = self.s.stock_top + self.s.params.clearance
+        if self.at is None:
+            self.add([b[0], b[1], self.s.safe_z], "rapid")
+        else:
+            kind = "rapid" if z_cross >= rapid_z else "link"
+            if z_cross > self.at[2]:
+                if kind == "rapid" and self.at[2] < rapid_z:
+                    self.add([a[0], a[1], rapid_z], "link")
+                self.add([a[0], a[1], z_cross], kind)
+            self.add([b[0], b[1], z_cross], kind)
+        if self.at[2] > rapid_z and z_to < rapid_z:
+            low = rapid_z if z_clear is None else max(z_to, min(rapid_z, z_clear))
+            self.add([b[0], b[1], low], "rapid")
+        if z_to < self.at[2]:
+            self.add([b[0], b[1], z_to], "entry")
+
+    def helix(self, centre, rh, z_from, z_to, side):
+        """A helix about ``centre`` (mm) of radius ``rh`` mm from ``z_from`` down to ``z_to`` at
+        the ramp angle, then a whole turn at ``z_to``; it starts and ends at angle 0."""
+        pitch = 2 * math.pi * rh * math.tan(math.radians(self.s.params.ramp_angle))
+        turns = max(1e-9, z_from - z_to) / pitch
+        n = max(1, int(math.ceil(turns * HELIX_POINTS)))
+        ang = side * 2 * math.pi * turns * np.arange(1, n + 1) / n
+        for a, z in zip(ang, z_from - (z_from - z_to) * np.arange(1, n + 1) / n):
+            self.add([centre[0] + rh * math.cos(a), centre[1] + rh * math.sin(a), z], "entry")
+        a0 = ang[-1]
+        for k in range(1, HELIX_POINTS + 1):
+            a = a0 + side * 2 * math.pi * k / HELIX_POINTS
+            self.add([centre[0] + rh * math.cos(a), centre[1] + rh * math.sin(a), z_to], "entry")
+        end = [centre[0] + rh, centre[1], z_to]
+        if np.linalg.norm(self.at - end) > 1e-9:
+            self.add(end, "entry")
+
+    def toolpath(self) -> tuple[Toolpath, np.ndarray]:
+        tips = np.array(self.tips)
+        kind = np.array([MOVE_KINDS.index(k) for k in self.kind], np.int8)
+        axis = np.zeros_like(tips)
+        axis[:, 2] = 1.0
+        return Toolpath(tips, axis, kind == 0, np.full(len(tips), self.s.index, np.int64)), kind
+
+
+def _crossing(setup: RoughSetup, high, a, b) -> float:
+    """The height a link from ``a`` to ``b`` (grid units) crosses at: the highest of ``high``
+    (the stock top near each node) along it plus the clearance, at most the safe plane."""
+    d = float(np.hypot(*(np.asarray(b) - a)))
+    t = np.linspace(0.0, 1.0, max(2, int(math.ceil(2 * d)) + 1))
+    p = np.asarray(a)[None] + t[:, None] * (np.asarray(b) - a)[None]
+    i = np.clip(np.floor(p[:, 0] + 0.5).astype(int), 0, high.shape[0] - 1)
+    j = np.clip(np.floor(p[:, 1] + 0.5).astype(int), 0, high.shape[1] - 1)
+    return float(min(setup.safe_z, high[i, j].max() + setup.params.clearance))
+
+
+def rough_level(setup: RoughSetup, z: float, top: np.ndarray, pos):
+    """Clear the level at ``z`` from the stock heights ``top`` (lowered in place where the tool
+    passes): ``(LevelClearing, high)``, ``high`` the stock top within the tool's reach at the
+    level's start."""
+    p, t = setup.params, setup.tool
+    r = t.radius / setup.h
+    feas = setup.drop <= z + 1e-9
+    feas[0, :] = feas[-1, :] = feas[:, 0] = feas[:, -1] = False
+    material = top > z + 1e-6
+    rem = material & _dilated(feas, r)
+    high = _max_near(top, r + 1.5)
+    s = max(2.0, 0.25 * r)  # the step, nodes
+    target = (p.engagement / setup.h - NODE_SLACK) * s  # the cleared border is known to a node
+    side = 1 if p.direction == "climb" else -1
+    helix = (0.5 * p.helix_diameter / setup.h if p.helix_diameter is not None else 0.375 * t.diameter / setup.h,
+             HELIX_SMALLEST * t.radius / setup.h)
+    level = LevelClearing(rem, feas, r, s, target, side, helix, pos)
+    level.material = int(material.sum())
+    level.unreachable = int((material & ~_dilated(feas, r)).sum())
+    top[level.swept] = np.minimum(top[level.swept], z)
+    return level, high, s
+
+
+def rough(mesh, tools, params: RoughParams, progress=None):
+    """Adaptive clearing of ``mesh`` from ``params.stock`` (default its box) with the tool
+    ``params.tool``. Returns ``(toolpath, summary, move_kind (k,) int8)`` (indices into
+    :data:`MOVE_KINDS`)."""
+    say = progress or (lambda stage: None)
+    t0 = time.perf_counter()
+    device = resolve(params.device)
+    setup = rough_setup(mesh, tools, replace(params, device=device), device)
+    p = setup.params
+    say(f"{len(setup.levels)} levels on {len(setup.xs):,} x {len(setup.ys):,} nodes")
+    top = setup.top.copy()
+    build = PathBuilder(setup)
+    side = 1 if p.direction == "climb" else -1
+    meter = Meter(say, "levels", len(setup.levels))
+    per_level, removed, pos = [], [], None
+    # where a rapid down may stop: the clearance over the stock as it was, within the tool's reach
+    clear_at = _max_near(setup.top, setup.tool.radius / setup.h + 1.5 + p.clearance / setup.h) + p.clearance
+    t_levels = time.perf_counter()
+    for z, kind in setup.levels:
+        level, high, step = rough_level(setup, z, top, pos)
+        for (entry, link, pts), got in zip(level.events, level.removed):
+            start = build.xy(pts[0])
+            if entry[0] == "helix":
+                centre, rh = build.xy(entry[1][0]), entry[1][1] * setup.h
+                z_from = min(float(high[int(entry[1][0][0]), int(entry[1][0][1])]) + p.clearance, setup.safe_z)
+                a = build.at[:2] if build.at is not None else start
+                build.over(a, [centre[0] + rh, centre[1]], _crossing(setup, high, pos, pts[0])
+                           if pos is not None else setup.safe_z, z_from)
+                build.helix(centre, rh, z_from, z, side)
+            elif not isinstance(link, str) and build.at is not None and abs(build.at[2] - z) < 1e-9:
+                for q in build.xy(link[1:]):
+                    build.add([q[0], q[1], z], "link")
+            else:
+                a = build.at[:2] if build.at is not None else start
+                i, j = np.floor(pts[0] + 0.5).astype(int)
+                build.over(a, start, _crossing(setup, high, pos, pts[0]) if pos is not None else setup.safe_z, z,
+                           float(clear_at[i, j]))
+            for q in build.xy(pts[1:]):
+                build.add([q[0], q[1], z], "cut")
+            removed.append(got)
+            pos = pts[-1]
+        per_level.append({"z": z, "kind": kind, "walks": len(level.events),
+                          "helices": sum(e[0][0] == "helix" for e in level.events),
+                          "material_mm2": round(level.material * setup.h ** 2, 3),
+                          "left_mm2": round(level.left * setup.h ** 2, 3),
+                          "unreachable_mm2": round(level.unreachable * setup.h ** 2, 3)})
+        if level.helix_failed and level.left:
+            per_level[-1]["no_entry_mm2"] = per_level[-1]["left_mm2"]  # left where no helix fits
+        meter.done()
+    t_levels = time.perf_counter() - t_levels
+    if build.at is None:
+        raise NothingToCut("nothing to cut: the stock holds no material the tool can reach at any level", "stock")
+    build.over(build.at[:2], build.at[:2], setup.safe_z, setup.safe_z)
+    tp, kind = build.toolpath()
+    say("verify")
+    t_verify = time.perf_counter()
+    check = stock_check(setup.solid, 0.0, p.clearance, device)
+    check = replace(check, feed_body=False)  # the walks make room for the shank; simulate checks it
+    report = verify_toolpath(solid_kernels(mesh, device), tp, tools, GOUGE_TOL, DEFAULT_STEP, stock=check)
+    report.pop("problem_moves")
+    t_verify = time.perf_counter() - t_verify
+    summary = rough_summary(setup, tp, kind, per_level, removed, step, report)
+    summary["seconds"] = {"levels": round(t_levels, 4), "verify": round(t_verify, 4),
+                          "total": round(time.perf_counter() - t0, 4)}
+    return tp, summary, kind
+
+
+def rough_summary(setup: RoughSetup, tp, kind, per_level, removed, step, report) -> dict:
+    """``summary.json`` of a roughing: levels, lengths by kind of move, the engagement the
+    planner held (the radial width of each step: its removed area over its length), the verify
+    report, then the parameters."""
+    p, t = setup.params, setup.tool
+    seg = np.linalg.norm(np.diff(tp.tip, axis=0), axis=1)
+    length = {k: round(float(seg[kind[1:] == i].sum()), 3) for i, k in enumerate(MOVE_KINDS)}
+    widths = np.concatenate(removed) * setup.h ** 2 / (step * setup.h) if removed else np.zeros(1)
+    feed = length["cut"] + length["entry"] + length["link"]
+    return {
+        "operation": "rough",
+        "axes": 3,
+        "tool": t.name,
+        "levels": per_level,
+        "grid": {"sample": setup.h, "nodes": [len(setup.xs), len(setup.ys)]},
+        "length_mm": length,
+        "feed_not_cutting_share": round((length["link"]) / feed, 4) if feed else 0.0,
+        "planned_width_mm": {"max": round(float(widths.max()), 4), "mean": round(float(widths.mean()), 4),
+                             "set": p.engagement},
+        "left_mm2": round(sum(lv["left_mm2"] for lv in per_level), 3),
+        "moves": len(tp),
+        "cutting_length": tp.cutting_length(),
+        "stock_top": setup.stock_top,
+        "safe_z": setup.safe_z,
+        "verify": report,
+        **{k: getattr(p, k) for k in ("engagement", "step_down", "allowance", "axial_allowance", "stair",
+                                      "direction", "helix_diameter", "ramp_angle", "sample", "clearance")},
+    }

@@ -1,0 +1,70 @@
+"""The material each move of a path removes, measured on the in-process dexel stock.
+
+The path is cut in order; before and after each move of interest the volume held by the stock's
+Z dexels is summed (``step²`` times the lengths of their intervals), so the difference is what
+that move removed, at the resolution of the dexels and independent of how the path was planned.
+For a 3-axis move at one height, its volume over its length and the axial depth of its layer is
+the mean radial width of cut (ae) of the move.
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+MOVE_FIELDS = ("pa", "pb", "xa", "xb", "radius", "corner", "flutes", "strips", "rapid", "source", "body")
+
+
+@numba.njit(cache=True)
+def _line_volume(iv, off, count, step):
+    total = 0.0
+    for i in range(len(count)):
+        for k in range(off[i], off[i] + count[i]):
+            total += iv[k, 1] - iv[k, 0]
+    return total * step * step
+
+
+def z_volume(st) -> float:
+    """mm³ the Z dexels of a cutting stock (:class:`~meshmill.simulation.cut.Stock`) hold."""
+    return float(_line_volume(st.iv[2], st.off[2], st.count[2], st.step))
+
+
+def _subset(moves, sel):
+    from .cut import Moves
+
+    return Moves(**{f: getattr(moves, f)[sel] for f in MOVE_FIELDS})
+
+
+def removed_per_move(stock, toolpath, tools, which, device: str = "cpu") -> np.ndarray:
+    """mm³ ``(len(which),)`` removed by each move ``which`` (indices of tool-path points: the move
+    ends there) of ``toolpath`` from ``stock`` (an in-process :class:`~meshmill.simulation.stock.
+    Stock`, left as it was), the path cut in order."""
+    from . import cut as cutting
+    from .stock import copy_cutting
+
+    st = copy_cutting(stock.state.cutting)
+    moves = cutting.toolpath_moves(toolpath, tools)
+    which = np.asarray(which, np.int64)
+    out = np.zeros(len(which))
+    done = -1  # moves up to this point index are cut
+    for n, j in enumerate(which):
+        before = (moves.source > done) & (moves.source < j)
+        if before.any():
+            cutting.cut(st, _subset(moves, before), device=device)
+        v0 = z_volume(st)
+        this = moves.source == j
+        if this.any():
+            cutting.cut(st, _subset(moves, this), device=device)
+        out[n] = v0 - z_volume(st)
+        done = j
+    return out
+
+
+def level_widths(stock, toolpath, tools, which, layer_top, device: str = "cpu") -> np.ndarray:
+    """The mean radial width of cut (mm) ``(len(which),)`` of the level moves ``which`` of
+    ``toolpath``: what each removes from ``stock`` (:func:`removed_per_move`) over its length and
+    the depth of its layer, from its height up to ``layer_top (len(which),)``."""
+    which = np.asarray(which, np.int64)
+    volume = removed_per_move(stock, toolpath, tools, which, device)
+    length = np.linalg.norm(toolpath.tip[which] - toolpath.tip[which - 1], axis=1)
+    depth = np.asarray(layer_top, float) - toolpath.tip[which, 2]
+    return volume / np.maximum(length * depth, 1e-12)
