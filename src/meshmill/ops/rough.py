@@ -37,7 +37,7 @@ from .. import memory
 from ..errors import InputError, NothingToCut
 from ..kernels.backend import resolve, solid_kernels
 from ..params import RoughParams
-from ..pathing.clearing import LevelClearing
+from ..pathing.clearing import LevelClearing, heightmap_pass
 from ..pathing.dropcutter import ToolDrop, pick_tool, stock_check
 from ..pathing.verify import DEFAULT_STEP, verify_toolpath
 from ..progress import Meter
@@ -173,7 +173,9 @@ def _max_near(top, radius) -> np.ndarray:
 
 
 class PathBuilder:
-    """The moves of a roughing path (tips mm, rapid flags, kinds of :data:`MOVE_KINDS`)."""
+    """The moves of a roughing path (tips mm, kinds of :data:`MOVE_KINDS`): every move but the
+    walks' steps is first a link or an entry at feed; :meth:`toolpath` makes rapids of those the
+    stock as the path leaves it lets be (:func:`~meshmill.pathing.clearing.heightmap_pass`)."""
 
     def __init__(self, setup: RoughSetup):
         self.s = setup
@@ -186,29 +188,23 @@ class PathBuilder:
         return np.stack([self.s.xs[0] + self.s.h * g[..., 0], self.s.ys[0] + self.s.h * g[..., 1]], axis=-1)
 
     def add(self, p, kind):
-        self.tips.append(np.asarray(p, float))
+        p = np.asarray(p, float)
+        if self.at is not None and np.all(np.abs(p - self.at) < 1e-9):
+            return
+        self.tips.append(p)
         self.kind.append(kind)
-        self.at = self.tips[-1]
+        self.at = p
 
-    def over(self, a, b, z_cross, z_to, z_clear=None):
-        """From the tool's position ``a`` up to ``z_cross``, across above ``b`` and down to
-        ``z_to``: rapids above the stock's top plus the clearance (down to ``z_clear`` at ``b``,
-        where the tool keeps the clearance from the stock), feeds below it."""
-        rapid_z = self.s.stock_top + self.s.params.clearance
+    def over(self, b, z_cross, z_to):
+        """Up to ``z_cross``, across to above ``b`` and down to ``z_to`` (from the safe plane at
+        the start of the path)."""
         if self.at is None:
             self.add([b[0], b[1], self.s.safe_z], "rapid")
         else:
-            kind = "rapid" if z_cross >= rapid_z else "link"
-            if z_cross > self.at[2]:
-                if kind == "rapid" and self.at[2] < rapid_z:
-                    self.add([a[0], a[1], rapid_z], "link")
-                self.add([a[0], a[1], z_cross], kind)
-            self.add([b[0], b[1], z_cross], kind)
-        if self.at[2] > rapid_z and z_to < rapid_z:
-            low = rapid_z if z_clear is None else max(z_to, min(rapid_z, z_clear))
-            self.add([b[0], b[1], low], "rapid")
-        if z_to < self.at[2]:
-            self.add([b[0], b[1], z_to], "entry")
+            z_cross = max(z_cross, self.at[2])
+            self.add([self.at[0], self.at[1], z_cross], "link")
+            self.add([b[0], b[1], z_cross], "link")
+        self.add([b[0], b[1], z_to], "entry")
 
     def helix(self, centre, rh, z_from, z_to, side):
         """A helix about ``centre`` (mm) of radius ``rh`` mm from ``z_from`` down to ``z_to`` at
@@ -223,16 +219,37 @@ class PathBuilder:
         for k in range(1, HELIX_POINTS + 1):
             a = a0 + side * 2 * math.pi * k / HELIX_POINTS
             self.add([centre[0] + rh * math.cos(a), centre[1] + rh * math.sin(a), z_to], "entry")
-        end = [centre[0] + rh, centre[1], z_to]
-        if np.linalg.norm(self.at - end) > 1e-9:
-            self.add(end, "entry")
+        self.add([centre[0] + rh, centre[1], z_to], "entry")
 
     def toolpath(self) -> tuple[Toolpath, np.ndarray]:
+        """The path and its moves' kinds ``(k,) int8``: a link or entry clear of the stock as the
+        moves before it left it (by the clearance) is a rapid; a vertical one clear above some
+        height is split there (rapid above, feed below)."""
+        s = self.s
         tips = np.array(self.tips)
         kind = np.array([MOVE_KINDS.index(k) for k in self.kind], np.int8)
+        tool = s.tool
+        low = heightmap_pass(s.top.copy(), s.xs[0], s.ys[0], s.h, tips, tool.radius, tool.corner_radius,
+                             s.params.clearance, kind != 0)
+        out_t, out_k = [tips[0]], [kind[0]]
+        for i in range(1, len(tips)):
+            a, b, k = tips[i - 1], tips[i], kind[i]
+            if k in (2, 3):
+                vertical = abs(a[0] - b[0]) < 1e-12 and abs(a[1] - b[1]) < 1e-12
+                if low[i] <= min(a[2], b[2]):
+                    k = 0
+                elif vertical and low[i] < max(a[2], b[2]):
+                    split = [b[0], b[1], low[i]]
+                    out_t.append(np.array(split))
+                    out_k.append(0 if b[2] < a[2] else k)
+                    if b[2] > a[2]:
+                        k = 0
+            out_t.append(b)
+            out_k.append(k)
+        tips, kind = np.array(out_t), np.array(out_k, np.int8)
         axis = np.zeros_like(tips)
         axis[:, 2] = 1.0
-        return Toolpath(tips, axis, kind == 0, np.full(len(tips), self.s.index, np.int64)), kind
+        return Toolpath(tips, axis, kind == 0, np.full(len(tips), s.index, np.int64)), kind
 
 
 def _crossing(setup: RoughSetup, high, a, b) -> float:
@@ -246,13 +263,29 @@ def _crossing(setup: RoughSetup, high, a, b) -> float:
     return float(min(setup.safe_z, high[i, j].max() + setup.params.clearance))
 
 
+def _body_free(setup: RoughSetup, top, z) -> np.ndarray:
+    """``(nx, ny) bool``: where the tool at ``z`` keeps its shank above the stock ``top`` (what
+    stands within its radius rises at most to the flutes' end) and its holder the clearance over
+    it (a square around the holder: the filter is fast). The tool may stand a node from a free
+    node, and a node's height stands for the stock within 0.71 nodes of it: the radii grow by 2
+    nodes."""
+    from scipy.ndimage import maximum_filter
+
+    t, h = setup.tool, setup.h
+    ok = _max_near(top, max(t.radius, 0.5 * t.shank_diameter) / h + 2.0) <= z + t.flute_length + 1e-9
+    if t.holder_diameter > 0:
+        k = int(math.ceil(0.5 * t.holder_diameter / h)) + 2
+        ok &= maximum_filter(top, size=2 * k + 1, mode="nearest") <= z + t.gauge_length - setup.params.clearance
+    return ok
+
+
 def rough_level(setup: RoughSetup, z: float, top: np.ndarray, pos):
     """Clear the level at ``z`` from the stock heights ``top`` (lowered in place where the tool
-    passes): ``(LevelClearing, high)``, ``high`` the stock top within the tool's reach at the
-    level's start."""
+    passes): ``(LevelClearing, high, step)``, ``high`` the stock top within the tool's reach at
+    the level's start, ``step`` the walks' step (nodes)."""
     p, t = setup.params, setup.tool
     r = t.radius / setup.h
-    feas = setup.drop <= z + 1e-9
+    feas = (setup.drop <= z + 1e-9) & _body_free(setup, top, z)
     feas[0, :] = feas[-1, :] = feas[:, 0] = feas[:, -1] = False
     material = top > z + 1e-6
     rem = material & _dilated(feas, r)
@@ -283,29 +316,24 @@ def rough(mesh, tools, params: RoughParams, progress=None):
     build = PathBuilder(setup)
     side = 1 if p.direction == "climb" else -1
     meter = Meter(say, "levels", len(setup.levels))
-    per_level, removed, pos = [], [], None
-    # where a rapid down may stop: the clearance over the stock as it was, within the tool's reach
-    clear_at = _max_near(setup.top, setup.tool.radius / setup.h + 1.5 + p.clearance / setup.h) + p.clearance
+    per_level, removed, pos, step = [], [], None, 2.0
     t_levels = time.perf_counter()
     for z, kind in setup.levels:
         level, high, step = rough_level(setup, z, top, pos)
         for (entry, link, pts), got in zip(level.events, level.removed):
             start = build.xy(pts[0])
+            cross = _crossing(setup, high, pos, pts[0]) if pos is not None else setup.safe_z
             if entry[0] == "helix":
-                centre, rh = build.xy(entry[1][0]), entry[1][1] * setup.h
-                z_from = min(float(high[int(entry[1][0][0]), int(entry[1][0][1])]) + p.clearance, setup.safe_z)
-                a = build.at[:2] if build.at is not None else start
-                build.over(a, [centre[0] + rh, centre[1]], _crossing(setup, high, pos, pts[0])
-                           if pos is not None else setup.safe_z, z_from)
-                build.helix(centre, rh, z_from, z, side)
+                (ci, cj), rh = entry[1][0], entry[1][1]
+                centre = build.xy(entry[1][0])
+                z_from = min(float(high[int(ci), int(cj)]) + p.clearance, setup.safe_z)
+                build.over([centre[0] + rh * setup.h, centre[1]], cross, z_from)
+                build.helix(centre, rh * setup.h, z_from, z, side)
             elif not isinstance(link, str) and build.at is not None and abs(build.at[2] - z) < 1e-9:
                 for q in build.xy(link[1:]):
                     build.add([q[0], q[1], z], "link")
             else:
-                a = build.at[:2] if build.at is not None else start
-                i, j = np.floor(pts[0] + 0.5).astype(int)
-                build.over(a, start, _crossing(setup, high, pos, pts[0]) if pos is not None else setup.safe_z, z,
-                           float(clear_at[i, j]))
+                build.over(start, cross, z)
             for q in build.xy(pts[1:]):
                 build.add([q[0], q[1], z], "cut")
             removed.append(got)
@@ -321,12 +349,13 @@ def rough(mesh, tools, params: RoughParams, progress=None):
     t_levels = time.perf_counter() - t_levels
     if build.at is None:
         raise NothingToCut("nothing to cut: the stock holds no material the tool can reach at any level", "stock")
-    build.over(build.at[:2], build.at[:2], setup.safe_z, setup.safe_z)
+    build.over(build.at[:2], setup.safe_z, setup.safe_z)
     tp, kind = build.toolpath()
     say("verify")
     t_verify = time.perf_counter()
-    check = stock_check(setup.solid, 0.0, p.clearance, device)
-    check = replace(check, feed_body=False)  # the walks make room for the shank; simulate checks it
+    # rapids keep clear of the design here, and of the stock as the path leaves it by construction
+    # (heightmap_pass); the walks make room for the shank, which rough_level keeps out of the stock
+    check = replace(stock_check(None, 0.0, p.clearance, device), feed_body=False)
     report = verify_toolpath(solid_kernels(mesh, device), tp, tools, GOUGE_TOL, DEFAULT_STEP, stock=check)
     report.pop("problem_moves")
     t_verify = time.perf_counter() - t_verify

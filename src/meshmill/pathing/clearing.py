@@ -31,18 +31,24 @@ import numpy as np
 SCAN = 25  # headings tried before each step
 TURN = math.radians(150.0)  # how far the heading may turn each way in one step
 BISECT = 8  # halvings of the bracket between the last heading within the target and the first beyond it
+CLEAR_SLACK = 0.75  # nodes: a node this much farther than the radius from the material holds a clear tool near it
 START_BAND = 3.0  # nodes: a walk starts at most this far outside the reach of the material
+WALL_IN = 0.75  # nodes: the wall walk follows the free region's border this far inside it
+WALL_GAP = 4.0  # tool radii: the longest stretch of a wall walk that removes nothing before it lifts
 SLIVER = 0.5  # of a step's target: less material than this near a start is left to the walk along the walls
 
 
 @numba.njit(cache=True)
 def _free(feas, qi, qj):
-    """Whether the node nearest ``(qi, qj)`` lies in the free region."""
+    """Whether a node of the free region lies within one node of ``(qi, qj)`` (the free region's
+    heights are those of the tool widened by a node: the tool there keeps clear of the part)."""
     nx, ny = feas.shape
-    ci, cj = int(math.floor(qi + 0.5)), int(math.floor(qj + 0.5))
-    if ci < 0 or cj < 0 or ci >= nx or cj >= ny:
-        return False
-    return feas[ci, cj]
+    i0, j0 = int(math.floor(qi)), int(math.floor(qj))
+    for i in range(i0, i0 + 2):
+        for j in range(j0, j0 + 2):
+            if 0 <= i < nx and 0 <= j < ny and feas[i, j] and (i - qi) ** 2 + (j - qj) ** 2 <= 1.0:
+                return True
+    return False
 
 
 @numba.njit(cache=True)
@@ -167,15 +173,16 @@ def free_along(feas, ai, aj, bi, bj):
 
 @numba.njit(cache=True)
 def clear_along(dist, ai, aj, bi, bj, r):
-    """Whether the segment a-b (sampled every half node) keeps more than ``r`` from the material,
-    ``dist (nx, ny)`` being each node's distance to it."""
+    """Whether the segment a-b keeps more than ``r`` from the material, ``dist (nx, ny)`` being
+    each node's distance to it: every node nearest to it (sampled every half node; its ends, known
+    clear, left out) lies farther than ``r`` and the way to the node from the segment."""
     nx, ny = dist.shape
     d = math.hypot(bi - ai, bj - aj)
     k = max(1, int(math.ceil(2.0 * d)))
-    for t in range(k + 1):
+    for t in range(1, k):
         ci = int(math.floor(ai + (bi - ai) * t / k + 0.5))
         cj = int(math.floor(aj + (bj - aj) * t / k + 0.5))
-        if ci < 0 or cj < 0 or ci >= nx or cj >= ny or dist[ci, cj] <= r + 0.5:
+        if ci < 0 or cj < 0 or ci >= nx or cj >= ny or dist[ci, cj] <= r + CLEAR_SLACK:
             return False
     return True
 
@@ -267,7 +274,7 @@ class LevelClearing:
         self.left = int(rem.sum())
 
     def _walls(self, rem, feas, r, s, target, side, pos):
-        """Walk the border of the free region (3/4 of a node inside it) where material is left
+        """Walk the border of the free region (``WALL_IN`` nodes inside it) where material is left
         along it, each step removing at most ``target`` per ``s``: the slivers the walks leave
         against the walls. Returns the tool's last position."""
         from scipy.ndimage import distance_transform_edt
@@ -276,7 +283,7 @@ class LevelClearing:
         room = distance_transform_edt(feas)
         near = distance_transform_edt(~rem)  # each node's distance to the material left
         swept = self.swept
-        for c in find_contours(room, 0.75):
+        for c in find_contours(room, WALL_IN):
             if len(c) < 2:
                 continue
             ci = np.clip(np.floor(c + 0.5).astype(int), 0, np.array(rem.shape) - 1)
@@ -285,7 +292,7 @@ class LevelClearing:
             t = c[1] - c[0]
             mid = 0.5 * (c[0] + c[1]) + 0.5 * np.array([t[1], -t[0]]) / max(np.hypot(*t), 1e-12)
             mi = np.clip(np.floor(mid + 0.5).astype(int), 0, np.array(rem.shape) - 1)
-            wall_right = room[mi[0], mi[1]] < 0.75
+            wall_right = room[mi[0], mi[1]] < WALL_IN
             if wall_right != (side == 1):
                 c = c[::-1]
             seg = np.hypot(*np.diff(c, axis=0).T)
@@ -294,15 +301,17 @@ class LevelClearing:
             n = max(2, int(math.ceil(arc[-1] / fine)) + 1)
             at = np.linspace(0.0, arc[-1], n)
             pts = np.column_stack([np.interp(at, arc, c[:, 0]), np.interp(at, arc, c[:, 1])])
-            run, got = [pts[0]], [0]
+            run, got, gap = [pts[0]], [0], 0.0
             for a, b in zip(pts[:-1], pts[1:]):
-                e = _removal(rem, feas, a[0], a[1], math.atan2(b[1] - a[1], b[0] - a[0]), float(np.hypot(*(b - a))), r)
-                if 0 <= e <= target * fine / s:
+                step = float(np.hypot(*(b - a)))
+                e = _removal(rem, feas, a[0], a[1], math.atan2(b[1] - a[1], b[0] - a[0]), step, r)
+                if 0 <= e <= target * fine / s and gap <= WALL_GAP * r:
                     got.append(sweep(rem, swept, a[0], a[1], b[0], b[1], r))
                     run.append(b)
+                    gap = 0.0 if got[-1] else gap + step
                     continue
                 pos = self._wall_run(run, got, pos)
-                run, got = [b], [0]
+                run, got, gap = [b], [0], 0.0
             pos = self._wall_run(run, got, pos)
         return pos
 
@@ -381,13 +390,12 @@ def way_down(feas, dist, lo, a, b, r) -> np.ndarray | None:
     three times the straight distance (plus the tool's diameter) long."""
     if free_along(feas, a[0], a[1], b[0], b[1]) and _clear_in(dist, lo, a, b, r):
         return np.array([a, b], float)
-    sub = feas[lo[0]:lo[0] + dist.shape[0], lo[1]:lo[1] + dist.shape[1]] & (dist > r + 0.5)
+    sub = feas[lo[0]:lo[0] + dist.shape[0], lo[1]:lo[1] + dist.shape[1]] & (dist > r + CLEAR_SLACK)
     ai, aj = np.floor(np.asarray(a) - lo + 0.5).astype(int)
     bi, bj = np.floor(np.asarray(b) - lo + 0.5).astype(int)
     if not (0 <= ai < sub.shape[0] and 0 <= aj < sub.shape[1] and 0 <= bi < sub.shape[0] and 0 <= bj < sub.shape[1]):
         return None
-    if not (sub[ai, aj] and sub[bi, bj]):
-        return None
+    sub[ai, aj] = sub[bi, bj] = True  # the ends are clear: the walk's last disk, the next one's first
     limit = int(3 * math.hypot(bi - ai, bj - aj) + 4 * r) + 2
     nodes = _way(sub, ai, aj, bi, bj, limit)
     if not len(nodes):
@@ -401,3 +409,56 @@ def way_down(feas, dist, lo, a, b, r) -> np.ndarray | None:
         corners.append(pts[m])
         k = m
     return np.array(corners)
+
+
+@numba.njit(cache=True)
+def _tool_height(rho, radius, corner):
+    """Height of a vertical cutter's end over its tip at ``rho`` mm from its axis (inf outside)."""
+    if rho > radius:
+        return np.inf
+    flat = radius - corner
+    if rho <= flat:
+        return 0.0
+    d = rho - flat
+    return corner - math.sqrt(max(0.0, corner * corner - d * d))
+
+
+@numba.njit(cache=True)
+def heightmap_pass(top, x0, y0, h, tips, radius, corner, clearance, cuts):
+    """Run a 3-axis path (vertical tool) over the stock heights ``top (nx, ny)`` (nodes ``h`` mm
+    apart from ``(x0, y0)``; changed in place: lowered where a move with ``cuts[i]`` set passes).
+    Returns ``(k,)``: for each move (tip i-1 to tip i) the lowest tip height at which it keeps
+    ``clearance`` from the stock as the moves before it left it (the highest node within the
+    tool's radius plus the clearance and a node of any point of it, plus the clearance). A move
+    cuts as its tool at its lower end if vertical, else at its higher end (never more than it does)."""
+    nx, ny = top.shape
+    k = len(tips)
+    low = np.full(k, -np.inf)
+    reach = radius + clearance + h
+    for i in range(1, k):
+        ax, ay, az = tips[i - 1, 0], tips[i - 1, 1], tips[i - 1, 2]
+        bx, by, bz = tips[i, 0], tips[i, 1], tips[i, 2]
+        i0 = max(0, int(math.floor((min(ax, bx) - reach - x0) / h)))
+        i1 = min(nx - 1, int(math.ceil((max(ax, bx) + reach - x0) / h)))
+        j0 = max(0, int(math.floor((min(ay, by) - reach - y0) / h)))
+        j1 = min(ny - 1, int(math.ceil((max(ay, by) + reach - y0) / h)))
+        dx, dy = bx - ax, by - ay
+        ll = dx * dx + dy * dy
+        zc = min(az, bz) if ll == 0.0 else max(az, bz)  # a sloped move is taken to cut no lower than its top
+        high = -np.inf
+        for ii in range(i0, i1 + 1):
+            for jj in range(j0, j1 + 1):
+                px, py = x0 + ii * h, y0 + jj * h
+                t = 0.0
+                if ll > 0.0:
+                    t = min(1.0, max(0.0, ((px - ax) * dx + (py - ay) * dy) / ll))
+                ex, ey = px - ax - t * dx, py - ay - t * dy
+                rho = math.sqrt(ex * ex + ey * ey)
+                if rho <= reach and top[ii, jj] > high:
+                    high = top[ii, jj]
+                if cuts[i] and rho <= radius:
+                    z = zc + _tool_height(rho, radius, corner)
+                    if z < top[ii, jj]:
+                        top[ii, jj] = z
+        low[i] = high + clearance
+    return low

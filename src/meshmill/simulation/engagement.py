@@ -15,17 +15,18 @@ MOVE_FIELDS = ("pa", "pb", "xa", "xb", "radius", "corner", "flutes", "strips", "
 
 
 @numba.njit(cache=True)
-def _line_volume(iv, off, count, step):
+def _line_volume(iv, off, count, step, z0, z1):
     total = 0.0
     for i in range(len(count)):
         for k in range(off[i], off[i] + count[i]):
-            total += iv[k, 1] - iv[k, 0]
+            total += max(0.0, min(iv[k, 1], z1) - max(iv[k, 0], z0))
     return total * step * step
 
 
-def z_volume(st) -> float:
-    """mm³ the Z dexels of a cutting stock (:class:`~meshmill.simulation.cut.Stock`) hold."""
-    return float(_line_volume(st.iv[2], st.off[2], st.count[2], st.step))
+def z_volume(st, band=(-np.inf, np.inf)) -> float:
+    """mm³ the Z dexels of a cutting stock (:class:`~meshmill.simulation.cut.Stock`) hold between
+    the heights ``band`` (mm)."""
+    return float(_line_volume(st.iv[2], st.off[2], st.count[2], st.step, band[0], band[1]))
 
 
 def _subset(moves, sel):
@@ -34,10 +35,11 @@ def _subset(moves, sel):
     return Moves(**{f: getattr(moves, f)[sel] for f in MOVE_FIELDS})
 
 
-def removed_per_move(stock, toolpath, tools, which, device: str = "cpu") -> np.ndarray:
+def removed_per_move(stock, toolpath, tools, which, bands=None, device: str = "cpu") -> np.ndarray:
     """mm³ ``(len(which),)`` removed by each move ``which`` (indices of tool-path points: the move
     ends there) of ``toolpath`` from ``stock`` (an in-process :class:`~meshmill.simulation.stock.
-    Stock`, left as it was), the path cut in order."""
+    Stock`, left as it was), the path cut in order; with ``bands (len(which), 2)`` only what lay
+    between those heights (mm)."""
     from . import cut as cutting
     from .stock import copy_cutting
 
@@ -50,21 +52,23 @@ def removed_per_move(stock, toolpath, tools, which, device: str = "cpu") -> np.n
         before = (moves.source > done) & (moves.source < j)
         if before.any():
             cutting.cut(st, _subset(moves, before), device=device)
-        v0 = z_volume(st)
+        band = (-np.inf, np.inf) if bands is None else np.asarray(bands[n], float)
+        v0 = z_volume(st, band)
         this = moves.source == j
         if this.any():
             cutting.cut(st, _subset(moves, this), device=device)
-        out[n] = v0 - z_volume(st)
+        out[n] = v0 - z_volume(st, band)
         done = j
     return out
 
 
 def level_widths(stock, toolpath, tools, which, layer_top, device: str = "cpu") -> np.ndarray:
     """The mean radial width of cut (mm) ``(len(which),)`` of the level moves ``which`` of
-    ``toolpath``: what each removes from ``stock`` (:func:`removed_per_move`) over its length and
-    the depth of its layer, from its height up to ``layer_top (len(which),)``."""
+    ``toolpath``: what each removes from ``stock`` (:func:`removed_per_move`) between its height
+    and ``layer_top (len(which),)``, over its length and that depth."""
     which = np.asarray(which, np.int64)
-    volume = removed_per_move(stock, toolpath, tools, which, device)
+    bands = np.column_stack([toolpath.tip[which, 2], layer_top])
+    volume = removed_per_move(stock, toolpath, tools, which, bands, device)
     length = np.linalg.norm(toolpath.tip[which] - toolpath.tip[which - 1], axis=1)
     depth = np.asarray(layer_top, float) - toolpath.tip[which, 2]
     return volume / np.maximum(length * depth, 1e-12)
