@@ -306,6 +306,7 @@ def test_round_trip_5axis(tmp_path, tools, name, tcp, seed):
 @pytest.mark.parametrize("name", ["generic-3axis", "linuxcnc-3axis", "grbl-3axis"])
 def test_round_trip_3axis(tmp_path, tools, name):
     machine = load_machine(name)
+    machine = dataclasses.replace(machine, gcode=dataclasses.replace(machine.gcode, arcs=False))  # G1 for G1
     rng = np.random.default_rng(7)
     t = np.linspace(0.0, 1.0, 80)
     tip = np.column_stack([50 + 40 * t + smooth(rng, t, 10), 50 + smooth(rng, t, 30), -20 + smooth(rng, t, 8)])
@@ -444,3 +445,33 @@ def test_a_retract_before_a_tool_change_leaves_z_unknown_until_given(tmp_path):
     after = tp.tip[tp.tool == 1]
     assert np.allclose(after[0], [20, 0, 5]) and np.allclose(after[-1], [20, 0, -1])
     assert not np.any(np.isnan(tp.tip))
+
+
+@pytest.mark.parametrize("name", ["generic-3axis", "linuxcnc-3axis", "table-table-ac"])
+def test_arcs_are_written_where_moves_lie_on_one_and_read_back_within_the_tolerance(tmp_path, tools, name):
+    # a circle of 120 moves at one height, a descending helix, then a zigzag (no arc), on an exact grid
+    t = np.linspace(0.0, 2 * np.pi * 0.9, 120)
+    circle = np.column_stack([20 + 10 * np.cos(t), 10 * np.sin(t), np.full(len(t), -5.0)])
+    u = np.linspace(0.0, -4 * np.pi, 150)
+    helix = np.column_stack([3 * np.cos(u), 3 * np.sin(u), -6.0 + u / (4 * np.pi)])
+    zig = np.column_stack([np.arange(10.0), 20 + (np.arange(10) % 2) * 2.0, np.full(10, -5.0)])
+    tip = np.vstack([[30.0, 0.0, 10.0], circle, [3.0, 0.0, 10.0], helix, zig])
+    rapid = np.zeros(len(tip), bool)
+    rapid[[0, 1 + len(circle)]] = True
+    cl = Toolpath(tip, np.tile([0.0, 0.0, 1.0], (len(tip), 1)), rapid, np.full(len(tip), 2, np.int64))
+    machine = load_machine(name)
+    lines, report = post_program(cl, tools, machine)
+    def arcs(lines):
+        return [w for ln in lines for w in ln.split() if w in ("G2", "G3")]
+
+    g2 = arcs(lines)
+    assert len(g2) >= 2 and report["blocks"] < len(tip) - 200  # the circle and the helix are arcs
+    assert "G3" in g2 and "G2" in g2  # each way round
+    (tmp_path / "p.nc").write_text("\n".join(lines) + "\n")
+    back, _ = read_gcode(tmp_path / "p.nc", tools, tool_name="B6", machine=machine)
+    feed = ~back.rapid
+    dist, _, _ = segment_distances(back.tip[feed], cl.tip)
+    assert dist.max() <= POST_TOL + CHORD  # the arcs keep to the CL moves within the post's tolerance
+    assert np.abs(back.tip[-1] - cl.tip[-1]).max() < 1e-3
+    off = dataclasses.replace(machine, gcode=dataclasses.replace(machine.gcode, arcs=False))
+    assert not arcs(post_program(cl, tools, off)[0])

@@ -170,9 +170,9 @@ JOB_FILES = [
     ("a fixture with an unknown key", dict(fixtures="[[fixtures]]\nbox = [20, 20, -5, 30, 30, -1]\ncolour = 1"),
      "unknown parameter colour"),
     ("an operation without a type", dict(text=BASE.replace('type = "raster"\n', "").format(
-        top="", part="", stock="", fixtures="", op="")), "operation 1: type must be one of plunge, raster"),
+        top="", part="", stock="", fixtures="", op="")), "operation 1: type must be one of rough, plunge, raster"),
     ("an unknown operation", dict(text=BASE.replace('type = "raster"', 'type = "drill"').format(
-        top="", part="", stock="", fixtures="", op="")), "type must be one of plunge, raster, waterline, finish"),
+        top="", part="", stock="", fixtures="", op="")), "type must be one of rough, plunge, raster, waterline, finish"),
     ("the tool as a number", dict(text=BASE.replace('tool = "B4"', "tool = 5").format(
         top="", part="", stock="", fixtures="", op="")), "tool must be text, got 5"),
     ("a tool not in the table", dict(text=BASE.replace('tool = "B4"', 'tool = "B3"').format(

@@ -252,6 +252,8 @@ def _as_folders(o, v, values):
 def _as_fixtures(o, v, values):
     from .ops.fixtures import Fixture
 
+    if v is None and o.default is None:  # optional: none
+        return None
     items = v if isinstance(v, (list, tuple)) else [v]
     out = []
     for k, f in enumerate(items):

@@ -37,7 +37,7 @@ from .tomlfile import read_toml
 
 OPERATIONS = {"rough": api.rough, "plunge": api.plunge, "raster": api.raster, "waterline": api.waterline, "finish": api.finish,
               "choose": api.choose}
-SET_BY_JOB = {"part", "tools", "stock", "device", "progress", "machine", "cluster", "simulate", "surface",
+SET_BY_JOB = {"part", "tools", "stock", "fixtures", "device", "progress", "machine", "cluster", "simulate", "surface",
               "tool_pair", "flip"}  # an operation's parameters the job gives it
 JOB_TABLES = ("part", "stock", "fixtures", "operations")
 REMOVES_NOTHING = 1e-6  # mm^3: an operation that removes less of the in-process stock cut nothing
@@ -540,6 +540,8 @@ class Job:
             params["cluster"] = client
         if stock is not None and op.kind != "choose":  # choose links its zones over the part alone
             params["stock"] = stock
+        if op.kind == "rough" and self.fixtures:  # its walks and links go round them
+            params["fixtures"] = self.fixtures
         try:
             if op.kind == "choose":
                 res = run(self.part, tools=tools, device=device, progress=stage, **params)

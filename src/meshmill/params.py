@@ -262,6 +262,9 @@ class RoughParams(Params):
                                            unit="mm", low=0.0)
     direction: str = option("choice", "climb (the material on the tool's right, clockwise spindle) or conventional",
                             "climb", choices=("climb", "conventional"))
+    axis: str = option("text", "the tool axis (spindle side) for indexed 3+2 roughing: +Z (3-axis), an axis (+X, -Y, "
+                               "...) or three numbers x,y,z; the same clearing in that direction, from the stock as "
+                               "it is", "+Z")
     helix_diameter: float | None = option("number", "diameter of the helix entering closed material (default: "
                                                     "three quarters of the tool diameter; smaller where the room "
                                                     "is short)", None, unit="mm", above=0.0)
@@ -271,6 +274,8 @@ class RoughParams(Params):
     clearance: float = _clearance()
     stock: object = _stock("the material to clear: a closed mesh file, a saved stock (stock.npz), 'box'; in Python "
                            "a Stock (default: the part's box)")
+    fixtures: object = option("object", "solids the tool keeps the clearance from (in Python Fixtures or closed "
+                                        "Meshes; a job gives its own)", None, role="fixtures", cli=False)
     device: str = _device()
     progress: object = _progress()
 

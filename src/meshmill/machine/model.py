@@ -59,7 +59,9 @@ class GcodeFormat:
     ``retract``: the lines that raise the tool to the machine's Z home before each tool change's
     spindle stop (after the first tool); ``rapid``: how the control moves in G0, "linear" (all axes
     on the straight line, as LinuxCNC and grbl) or "dogleg" (each axis at its own rapid rate, so
-    the path bends where the shorter moves end: Fanuc's default, parameter 1401 LRP = 0)."""
+    the path bends where the shorter moves end: Fanuc's default, parameter 1401 LRP = 0); ``arcs``:
+    a run of feed blocks on an arc in the XY plane (within the post's tolerance) written as one
+    G2/G3 with I J (incremental centre; a helix where Z changes with the angle)."""
 
     dialect: str = "fanuc"
     decimals: int = 4
@@ -79,6 +81,7 @@ class GcodeFormat:
     tcp: str = ""
     tcp_off: str = "G49"
     line_numbers: bool = False
+    arcs: bool = True
 
 
 @dataclass(frozen=True)

@@ -763,7 +763,23 @@ def _feed_values(run, machine, inverse_time):
         return np.where(run.rapid, np.nan, 60.0 / seconds)
 
 
-def _write(runs, tools, machine, mode, inverse_time):
+def _arcs(run, f_values, places, tolerance) -> dict:
+    """{first block: (last block, centre (2,), ccw)} of the arcs among a run's feed blocks
+    (:func:`~meshmill.machine.arcs.arc_runs`): blocks at the same written feed and rotaries as
+    the block before, not part of a rewind."""
+    from .arcs import arc_runs
+
+    j = run.joints
+    same = np.zeros(len(j), bool)
+    if len(j) > 1:
+        f_text = np.array([format_number(f, 1) if np.isfinite(f) else "" for f in f_values])
+        same[1:] = (~run.rapid[1:] & ~run.rapid[:-1] & ~run.rewind[1:] & (f_text[1:] == f_text[:-1])
+                    & np.all(np.abs(j[1:, 3:] - j[:-1, 3:]) < 10.0 ** -places, axis=1))
+    first, last, centre, ccw = arc_runs(np.ascontiguousarray(j[:, :3], float), same, float(tolerance))
+    return {int(a): (int(b), c, bool(d)) for a, b, c, d in zip(first, last, centre, ccw)}
+
+
+def _write(runs, tools, machine, mode, inverse_time, tolerance=0.005):
     """The program's lines and the number of motion blocks among them."""
     g = machine.gcode
     letters = machine.axes
@@ -792,8 +808,37 @@ def _write(runs, tools, machine, mode, inverse_time):
             lines.append(_fill(g.tool_length, tool, rpm))
         lines += [_fill(g.spindle, tool, rpm), _fill(g.coolant_on, tool, rpm)]
         f_values = _feed_values(run, machine, inverse_time)
+        arcs = _arcs(run, f_values if not inverse_time else np.where(run.rapid, np.nan, 0.0), g.angle_decimals,
+                     tolerance) if g.arcs else {}
         modal = {}
+        skip_to = -1
         for b in range(len(run.joints)):
+            if b <= skip_to:
+                continue
+            if b in arcs:  # one G2/G3 from the end of block b-1 to the end of the arc's last block
+                last, centre, ccw = arcs[b]
+                motion = "G3" if ccw else "G2"
+                end = [format_number(v, places[n]) for n, v in enumerate(run.joints[last][:3])]
+                words = [motion] + [f"{letters[n]}{end[n]}" for n in range(3) if n < 2 or modal.get(letters[n]) != end[n]]
+                words += [f"I{format_number(centre[0] - run.joints[b - 1][0], g.decimals)}",
+                          f"J{format_number(centre[1] - run.joints[b - 1][1], g.decimals)}"]
+                if inverse_time:  # F: 1 / the minutes of the blocks it replaces
+                    minutes = float(np.sum(1.0 / f_values[b:last + 1]))
+                    if not g93:
+                        words.insert(0, "G93")
+                        g93 = True
+                    words.append(f"F{format_number(1.0 / minutes, g.decimals)}")
+                else:
+                    f_text = format_number(f_values[b], 1)
+                    if modal.get("F") != f_text:
+                        words.append(f"F{f_text}")
+                        modal["F"] = f_text
+                modal["G"] = motion
+                modal.update((letters[n], end[n]) for n in range(3))
+                lines.append(" ".join(words))
+                motion_blocks += 1
+                skip_to = last
+                continue
             texts = [format_number(v, p) for v, p in zip(run.joints[b], places)]
             groups = [[n for n in range(len(letters)) if n != 2], [2]] if b == 0 else [range(len(letters))]
             for group in groups:
@@ -963,7 +1008,7 @@ def post_program(toolpath, tools, machine, feed=None, tolerance=0.005, tcp=None,
     program = program_blocks(toolpath, tools, _move_feeds(feed, len(toolpath), machine), machine, mode, tolerance,
                              clearance)
     origin_range = _check_limits(program.runs, toolpath, machine, origin, program.tcp, tools)
-    lines, blocks = _write(program.runs, tools, machine, mode, program.inverse_time(machine))
+    lines, blocks = _write(program.runs, tools, machine, mode, program.inverse_time(machine), tolerance)
     warnings = program.warnings + program_warnings(toolpath, tools, machine, program, clearance)
     return lines, program_report(toolpath, tools, machine, program, lines, blocks, tolerance, origin, origin_range,
                                  warnings)

@@ -48,7 +48,7 @@ NODE_BYTES = 48  # per grid node: heights, masks and the distance fields of a le
 FLAT_NORMAL = 1.0 - 1e-6  # a facet this close to facing +Z is flat
 FLAT_AREA = 1.0  # mm²: the least area of flat facets at one height that makes a level
 HELIX_SMALLEST = 0.1  # of the tool diameter: the smallest helix tried where the room is short
-HELIX_POINTS = 36  # points per turn of a helix
+HELIX_POINTS = 72  # points per turn of a helix (chords within 0.005 mm of it up to 6 mm radius: posted as arcs)
 MOVE_KINDS = ("rapid", "cut", "entry", "link")
 NODE_SLACK = 1.5  # nodes: the width of cut a step is planned at stays this far under the engagement
 
@@ -58,7 +58,8 @@ class RoughSetup:
     """What the levels share: ``params``, the ``tool`` (``index`` in the table), the grid ``xs
     (nx,)``, ``ys (ny,)`` (``h`` mm apart), the stock ``top`` and the tool ``drop`` heights ``(nx,
     ny)``, the ``levels`` (top down, step-up levels after the one below them), the stock's solid
-    (what rapids keep clear of), its top ``stock_top`` and the plane of the rapids ``safe_z``."""
+    (what rapids keep clear of), its top ``stock_top``, the plane of the rapids ``safe_z`` and the
+    fixtures' heights ``obstacle``."""
 
     params: RoughParams
     index: int
@@ -72,6 +73,7 @@ class RoughSetup:
     solid: object
     stock_top: float
     safe_z: float
+    obstacle: np.ndarray  # (nx, ny) the fixtures' heights over the nodes (-inf where none)
 
 
 def flat_heights(mesh) -> np.ndarray:
@@ -145,6 +147,16 @@ def rough_setup(mesh, tools, params: RoughParams, device: str) -> RoughSetup:
     a_r = params.allowance
     drop = ToolDrop(tool, kern, floor, grow=a_r, widen=h)(xy).reshape(nx, ny)
     drop += (params.axial_allowance if params.axial_allowance is not None else a_r) - a_r
+    obstacle = np.full((nx, ny), -np.inf)
+    if params.fixtures:
+        from .fixtures import union
+
+        fixed = union([f if hasattr(f, "vertices") else f.solid(mesh) for f in params.fixtures])
+        fix = solid_kernels(fixed, device)
+        # the tool keeps the clearance from them at every level; links and rapids pass over them
+        drop = np.maximum(drop, ToolDrop(tool, fix, floor, grow=params.clearance, widen=h)(xy).reshape(nx, ny))
+        obstacle = fix.drop_cutter(xy, 0.5 * h, 0.0, floor)[0].reshape(nx, ny)
+        obstacle[obstacle <= floor + 1e-9] = -np.inf
     del reach
     stock_top = float(top.max())
     bottom = float(mesh.bounds[0, 2]) + (params.axial_allowance if params.axial_allowance is not None else a_r)
@@ -152,8 +164,8 @@ def rough_setup(mesh, tools, params: RoughParams, device: str) -> RoughSetup:
         raise NothingToCut("nothing to cut: the stock does not rise above the part's bottom", "stock")
     flats = flat_heights(mesh) + (params.axial_allowance if params.axial_allowance is not None else a_r)
     levels = rough_levels(stock_top, bottom, step_down, flats, params.stair)
-    safe_z = float(max(stock_top, mesh.bounds[1, 2]) + params.clearance + 1.0)
-    return RoughSetup(params, index, tool, xs, ys, h, top, drop, levels, solid, stock_top, safe_z)
+    safe_z = float(max(stock_top, mesh.bounds[1, 2], obstacle.max()) + params.clearance + 1.0)
+    return RoughSetup(params, index, tool, xs, ys, h, top, drop, levels, solid, stock_top, safe_z, obstacle)
 
 
 def _dilated(mask, radius) -> np.ndarray:
@@ -229,7 +241,7 @@ class PathBuilder:
         tips = np.array(self.tips)
         kind = np.array([MOVE_KINDS.index(k) for k in self.kind], np.int8)
         tool = s.tool
-        low = heightmap_pass(s.top.copy(), s.xs[0], s.ys[0], s.h, tips, tool.radius, tool.corner_radius,
+        low = heightmap_pass(np.maximum(s.top, s.obstacle), s.xs[0], s.ys[0], s.h, tips, tool.radius, tool.corner_radius,
                              s.params.clearance, kind != 0)
         out_t, out_k = [tips[0]], [kind[0]]
         for i in range(1, len(tips)):
@@ -289,7 +301,7 @@ def rough_level(setup: RoughSetup, z: float, top: np.ndarray, pos):
     feas[0, :] = feas[-1, :] = feas[:, 0] = feas[:, -1] = False
     material = top > z + 1e-6
     rem = material & _dilated(feas, r)
-    high = _max_near(top, r + 1.5)
+    high = _max_near(np.maximum(top, setup.obstacle), r + 1.5)
     s = max(2.0, 0.25 * r)  # the step, nodes
     target = (p.engagement / setup.h - NODE_SLACK) * s  # the cleared border is known to a node
     side = 1 if p.direction == "climb" else -1
@@ -302,10 +314,53 @@ def rough_level(setup: RoughSetup, z: float, top: np.ndarray, pos):
     return level, high, s
 
 
+def tool_axis(text: str) -> np.ndarray:
+    """The unit vector ``(3,)`` of an axis option: +X, -Y, ... or three numbers ``x,y,z``."""
+    from ..geometry.placement import AXES
+
+    key = text.strip().upper()
+    if key in ("X", "Y", "Z"):
+        key = "+" + key
+    if key in AXES:
+        return np.array(AXES[key], float)
+    try:
+        v = np.array([float(t) for t in text.replace(" ", "").split(",")])
+    except ValueError:
+        v = np.zeros(0)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) < 1e-9:
+        raise InputError(f"axis '{text}': give an axis (+X, -Y, ...) or three numbers x,y,z (not all zero)", "axis")
+    return v / np.linalg.norm(v)
+
+
 def rough(mesh, tools, params: RoughParams, progress=None):
     """Adaptive clearing of ``mesh`` from ``params.stock`` (default its box) with the tool
-    ``params.tool``. Returns ``(toolpath, summary, move_kind (k,) int8)`` (indices into
+    ``params.tool``, along ``params.axis`` (indexed: the part and the stock turned so that it is
+    +Z, the path turned back). Returns ``(toolpath, summary, move_kind (k,) int8)`` (indices into
     :data:`MOVE_KINDS`)."""
+    u = tool_axis(params.axis)
+    if u[2] > 1 - 1e-12:
+        return _rough(mesh, tools, params, progress)
+    from ..simulation.stock import Stock
+    from .plunge import tool_frame
+
+    frame = np.stack([*tool_frame(u), u])  # rows: the tool frame's axes in the work frame
+    stock = Stock.of(params.stock, "box")
+    if stock.kind == "offset":
+        _rough(mesh, tools, params, progress)  # refused there
+    surface = stock.rest_surface(mesh)
+    margin = stock.material(mesh)[2]
+    turned = Stock.mesh(surface.transformed(frame))
+    fixtures = [(f if hasattr(f, "vertices") else f.solid(mesh)).transformed(frame) for f in params.fixtures or ()]
+    tp, summary, kind = _rough(mesh.transformed(frame), tools, replace(params, stock=turned, axis="+Z",
+                                                                        clearance=params.clearance + margin,
+                                                                        fixtures=fixtures or None), progress)
+    tp = Toolpath(tp.tip @ frame, np.tile(u, (len(tp), 1)), tp.rapid, tp.tool)
+    summary.update(axes="3+2", axis=u.round(9).tolist(), frame=frame.round(9).tolist())
+    return tp, summary, kind
+
+
+def _rough(mesh, tools, params: RoughParams, progress=None):
+    """:func:`rough` along +Z."""
     say = progress or (lambda stage: None)
     t0 = time.perf_counter()
     device = resolve(params.device)
@@ -377,6 +432,7 @@ def rough_summary(setup: RoughSetup, tp, kind, per_level, removed, step, report)
     return {
         "operation": "rough",
         "axes": 3,
+        "axis": [0.0, 0.0, 1.0],
         "tool": t.name,
         "levels": per_level,
         "grid": {"sample": setup.h, "nodes": [len(setup.xs), len(setup.ys)]},
