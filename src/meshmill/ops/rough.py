@@ -59,7 +59,7 @@ class RoughSetup:
     (nx,)``, ``ys (ny,)`` (``h`` mm apart), the stock ``top`` and the tool ``drop`` heights ``(nx,
     ny)``, the ``levels`` (top down, step-up levels after the one below them), the stock's solid
     (what rapids keep clear of), its top ``stock_top``, the plane of the rapids ``safe_z`` and the
-    fixtures' heights ``obstacle``."""
+    fixtures' heights ``obstacle``, the stock's heights ``beyond`` the part and its allowance."""
 
     params: RoughParams
     index: int
@@ -74,6 +74,7 @@ class RoughSetup:
     stock_top: float
     safe_z: float
     obstacle: np.ndarray  # (nx, ny) the fixtures' heights over the nodes (-inf where none)
+    beyond: np.ndarray  # (nx, ny) the stock's heights where it rises above the part and its allowance (else -inf)
 
 
 def flat_heights(mesh) -> np.ndarray:
@@ -162,10 +163,15 @@ def rough_setup(mesh, tools, params: RoughParams, device: str) -> RoughSetup:
     bottom = float(mesh.bounds[0, 2]) + (params.axial_allowance if params.axial_allowance is not None else a_r)
     if stock_top <= bottom + 1e-6:
         raise NothingToCut("nothing to cut: the stock does not rise above the part's bottom", "stock")
-    flats = flat_heights(mesh) + (params.axial_allowance if params.axial_allowance is not None else a_r)
+    a_a = params.axial_allowance if params.axial_allowance is not None else a_r
+    # the flats, and the part's top: the stock over it is faced, not left as a cap
+    flats = np.r_[flat_heights(mesh), mesh.bounds[1, 2]] + a_a
     levels = rough_levels(stock_top, bottom, step_down, flats, params.stair)
     safe_z = float(max(stock_top, mesh.bounds[1, 2], obstacle.max()) + params.clearance + 1.0)
-    return RoughSetup(params, index, tool, xs, ys, h, top, drop, levels, solid, stock_top, safe_z, obstacle)
+    # the stock that is not the part and its allowance: what the shank and holder must keep above
+    design = kern.drop_cutter(xy, 0.5 * h, 0.0, floor)[0].reshape(nx, ny)
+    beyond = np.where(top > design + min(a_r, a_a) + 1e-6, top, -np.inf)
+    return RoughSetup(params, index, tool, xs, ys, h, top, drop, levels, solid, stock_top, safe_z, obstacle, beyond)
 
 
 def _dilated(mask, radius) -> np.ndarray:
@@ -176,12 +182,24 @@ def _dilated(mask, radius) -> np.ndarray:
 
 
 def _max_near(top, radius) -> np.ndarray:
-    """The highest of ``top`` within ``radius`` nodes of each node."""
-    from scipy.ndimage import maximum_filter
+    """The highest of ``top`` within ``radius`` nodes of each node: the disk as rows, each row a
+    running maximum along Y, shifted along X (work in rows times the radius, not its square)."""
+    from scipy.ndimage import maximum_filter1d
 
-    k = int(math.ceil(radius))
-    ii, jj = np.mgrid[-k:k + 1, -k:k + 1]
-    return maximum_filter(top, footprint=ii ** 2 + jj ** 2 <= radius ** 2, mode="nearest")
+    k = int(math.floor(radius))
+    out = np.full_like(top, -np.inf)
+    rows = {}
+    nx = top.shape[0]
+    for di in range(-k, k + 1):
+        w = int(math.floor(math.sqrt(max(0.0, radius * radius - di * di))))
+        if w not in rows:
+            rows[w] = maximum_filter1d(top, 2 * w + 1, axis=1, mode="nearest")
+        src = rows[w]
+        if di >= 0:
+            np.maximum(out[:nx - di], src[di:], out=out[:nx - di])
+        else:
+            np.maximum(out[-di:], src[:nx + di], out=out[-di:])
+    return out
 
 
 class PathBuilder:
@@ -276,14 +294,16 @@ def _crossing(setup: RoughSetup, high, a, b) -> float:
 
 
 def _body_free(setup: RoughSetup, top, z) -> np.ndarray:
-    """``(nx, ny) bool``: where the tool at ``z`` keeps its shank above the stock ``top`` (what
-    stands within its radius rises at most to the flutes' end) and its holder the clearance over
-    it (a square around the holder: the filter is fast). The tool may stand a node from a free
+    """``(nx, ny) bool``: where the tool at ``z`` keeps its shank above the stock ``top`` where
+    it rises beyond the part and its allowance (what stands within its radius rises at most to the
+    flutes' end; the part itself is the drop heights') and its holder the clearance over it (a
+    square around the holder: the filter is fast). The tool may stand a node from a free
     node, and a node's height stands for the stock within 0.71 nodes of it: the radii grow by 2
     nodes."""
     from scipy.ndimage import maximum_filter
 
     t, h = setup.tool, setup.h
+    top = np.where(np.isfinite(setup.beyond), top, -np.inf)
     ok = _max_near(top, max(t.radius, 0.5 * t.shank_diameter) / h + 2.0) <= z + t.flute_length + 1e-9
     if t.holder_diameter > 0:
         k = int(math.ceil(0.5 * t.holder_diameter / h)) + 2
@@ -374,7 +394,9 @@ def _rough(mesh, tools, params: RoughParams, progress=None):
     per_level, removed, pos, step = [], [], None, 2.0
     t_levels = time.perf_counter()
     for z, kind in setup.levels:
+        t_level = time.perf_counter()
         level, high, step = rough_level(setup, z, top, pos)
+        t_level = time.perf_counter() - t_level
         for (entry, link, pts), got in zip(level.events, level.removed):
             start = build.xy(pts[0])
             cross = _crossing(setup, high, pos, pts[0]) if pos is not None else setup.safe_z
@@ -397,7 +419,8 @@ def _rough(mesh, tools, params: RoughParams, progress=None):
                           "helices": sum(e[0][0] == "helix" for e in level.events),
                           "material_mm2": round(level.material * setup.h ** 2, 3),
                           "left_mm2": round(level.left * setup.h ** 2, 3),
-                          "unreachable_mm2": round(level.unreachable * setup.h ** 2, 3)})
+                          "unreachable_mm2": round(level.unreachable * setup.h ** 2, 3),
+                          "seconds": round(t_level, 4)})
         if level.helix_failed and level.left:
             per_level[-1]["no_entry_mm2"] = per_level[-1]["left_mm2"]  # left where no helix fits
         meter.done()

@@ -219,13 +219,15 @@ class LevelClearing:
         out = np.empty((min(int(rem.sum()) + 2, 2_000_000), 2))
         removed = np.empty(len(out), np.int64)
         pad = int(math.ceil(r + START_BAND)) + 2
+        dist = None  # the distances to the material, while no walk has removed any
         while True:
-            ii, jj = np.nonzero(rem)
-            if not len(ii):
-                break
-            lo = np.maximum([ii.min() - pad, jj.min() - pad], 0)
-            hi = np.minimum([ii.max() + pad + 1, jj.max() + pad + 1], [nx, ny])
-            dist, nearest = _distance_to(rem, lo, hi)
+            if dist is None:
+                ii, jj = np.nonzero(rem)
+                if not len(ii):
+                    break
+                lo = np.maximum([ii.min() - pad, jj.min() - pad], 0)
+                hi = np.minimum([ii.max() + pad + 1, jj.max() + pad + 1], [nx, ny])
+                dist, nearest = _distance_to(rem, lo, hi)
             cand = feas[lo[0]:hi[0], lo[1]:hi[1]] & (dist > r + 0.5) & (dist <= r + START_BAND) & \
                 ~tried[lo[0]:hi[0], lo[1]:hi[1]]
             ci, cj = np.nonzero(cand)
@@ -259,6 +261,7 @@ class LevelClearing:
                 centre = np.array([fi[k], fj[k]], float)
                 rh = float(min(helix[0], room[fi[k], fj[k]] - 1.0))
                 sweep(rem, self.swept, centre[0], centre[1], centre[0], centre[1], r + rh)
+                dist = None
                 start = centre + [rh, 0.0]
                 theta = side * 0.5 * math.pi
                 entry, link = ("helix", (centre, rh)), "lift"
@@ -266,6 +269,7 @@ class LevelClearing:
             if n == 1 and entry[0] == "side":
                 tried[int(start[0]), int(start[1])] = True
                 continue
+            dist = None
             self.events.append((entry, link, out[:n].copy()))
             self.removed.append(removed[1:n].copy())
             pos = out[n - 1].copy()
