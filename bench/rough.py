@@ -167,11 +167,11 @@ def peer(part, stock, tools, res, area):
     helix = 0.75 * tool.diameter
     prev_top = s["stock_top"]
     grow = tool.diameter + 2.0  # the tool may go round the stock: the region reaches past it
-    region = [[(lo[0] - grow, lo[1] - grow), (hi[0] + grow, lo[1] - grow), (hi[0] + grow, hi[1] + grow),
+    boundary = [[(lo[0] - grow, lo[1] - grow), (hi[0] + grow, lo[1] - grow), (hi[0] + grow, hi[1] + grow),
                (lo[0] - grow, hi[1] + grow)]]
     for lv in s["levels"]:
         z = lv["z"]
-        paths = region + shadow_polygons(part, z, xs, ys)  # the shadow: holes in the region
+        paths = boundary + shadow_polygons(part, z, xs, ys)  # the shadow: holes in the region
         a2d = area.Adaptive2d()
         a2d.toolDiameter = tool.diameter
         a2d.stepOverFactor = AE / tool.diameter

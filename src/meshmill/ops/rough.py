@@ -59,7 +59,9 @@ class RoughSetup:
     (nx,)``, ``ys (ny,)`` (``h`` mm apart), the stock ``top`` and the tool ``drop`` heights ``(nx,
     ny)``, the ``levels`` (top down, step-up levels after the one below them), the stock's solid
     (what rapids keep clear of), its top ``stock_top``, the plane of the rapids ``safe_z`` and the
-    fixtures' heights ``obstacle``, the stock's heights ``beyond`` the part and its allowance."""
+    fixtures' heights ``obstacle``, the stock's heights ``beyond`` the part and its allowance, and
+    ``part_clear``, the heights above which the tool keeps the clearance from the part (its
+    allowance included) and the fixtures."""
 
     params: RoughParams
     index: int
@@ -75,6 +77,7 @@ class RoughSetup:
     safe_z: float
     obstacle: np.ndarray  # (nx, ny) the fixtures' heights over the nodes (-inf where none)
     beyond: np.ndarray  # (nx, ny) the stock's heights where it rises above the part and its allowance (else -inf)
+    part_clear: np.ndarray  # (nx, ny) above which the tool keeps the clearance from the part and its allowance
 
 
 def flat_heights(mesh) -> np.ndarray:
@@ -171,7 +174,11 @@ def rough_setup(mesh, tools, params: RoughParams, device: str) -> RoughSetup:
     # the stock that is not the part and its allowance: what the shank and holder must keep above
     design = kern.drop_cutter(xy, 0.5 * h, 0.0, floor)[0].reshape(nx, ny)
     beyond = np.where(top > design + min(a_r, a_a) + 1e-6, top, -np.inf)
-    return RoughSetup(params, index, tool, xs, ys, h, top, drop, levels, solid, stock_top, safe_z, obstacle, beyond)
+    part_clear = ToolDrop(tool, kern, floor, grow=max(a_r, a_a) + params.clearance, widen=h)(xy).reshape(nx, ny)
+    if params.fixtures:
+        part_clear = np.maximum(part_clear, ToolDrop(tool, fix, floor, grow=params.clearance, widen=h)(xy).reshape(nx, ny))
+    return RoughSetup(params, index, tool, xs, ys, h, top, drop, levels, solid, stock_top, safe_z, obstacle, beyond,
+                      part_clear)
 
 
 def _dilated(mask, radius) -> np.ndarray:
@@ -259,8 +266,8 @@ class PathBuilder:
         tips = np.array(self.tips)
         kind = np.array([MOVE_KINDS.index(k) for k in self.kind], np.int8)
         tool = s.tool
-        low = heightmap_pass(np.maximum(s.top, s.obstacle), s.xs[0], s.ys[0], s.h, tips, tool.radius, tool.corner_radius,
-                             s.params.clearance, kind != 0)
+        low = heightmap_pass(np.maximum(s.beyond, s.obstacle), s.part_clear, s.xs[0], s.ys[0], s.h, tips, tool.radius,
+                             tool.corner_radius, s.params.clearance, kind != 0)
         out_t, out_k = [tips[0]], [kind[0]]
         for i in range(1, len(tips)):
             a, b, k = tips[i - 1], tips[i], kind[i]
@@ -327,7 +334,7 @@ def rough_level(setup: RoughSetup, z: float, top: np.ndarray, pos):
     side = 1 if p.direction == "climb" else -1
     helix = (0.5 * p.helix_diameter / setup.h if p.helix_diameter is not None else 0.375 * t.diameter / setup.h,
              HELIX_SMALLEST * t.radius / setup.h)
-    level = LevelClearing(rem, feas, r, s, target, side, helix, pos)
+    level = LevelClearing(rem, feas, r, s, target, side, helix, pos, p.clearance / setup.h + 1.5)
     level.material = int(material.sum())
     level.unreachable = int((material & ~_dilated(feas, r)).sum())
     top[level.swept] = np.minimum(top[level.swept], z)
@@ -399,22 +406,39 @@ def _rough(mesh, tools, params: RoughParams, progress=None):
         t_level = time.perf_counter() - t_level
         for (entry, link, pts), got in zip(level.events, level.removed):
             start = build.xy(pts[0])
-            cross = _crossing(setup, high, pos, pts[0]) if pos is not None else setup.safe_z
-            if entry[0] == "helix":
-                (ci, cj), rh = entry[1][0], entry[1][1]
-                centre = build.xy(entry[1][0])
-                z_from = min(float(high[int(ci), int(cj)]) + p.clearance, setup.safe_z)
-                build.over([centre[0] + rh * setup.h, centre[1]], cross, z_from)
-                build.helix(centre, rh * setup.h, z_from, z, side)
-            elif not isinstance(link, str) and build.at is not None and abs(build.at[2] - z) < 1e-9:
-                for q in build.xy(link[1:]):
+            how, way = link if link is not None else ("lift", None)
+            at_level = build.at is not None and abs(build.at[2] - z) < 1e-9
+            if how == "hop" and at_level:  # away from the material, up the clearance, round, down
+                corners = build.xy(way)
+                build.add([corners[1][0], corners[1][1], z], "link")
+                for q in corners[1:]:
+                    build.add([q[0], q[1], z + p.clearance], "link")
+                build.add([start[0], start[1], z], "entry")
+            elif how == "level" and at_level:
+                for q in build.xy(way[1:]):
                     build.add([q[0], q[1], z], "link")
             else:
-                build.over(start, cross, z)
+                if way is not None and at_level:
+                    away = build.xy(way[1])
+                    build.add([away[0], away[1], z], "link")
+                    pos = way[1]
+                cross = _crossing(setup, high, pos, pts[0]) if pos is not None else setup.safe_z
+                if entry[0] == "helix":
+                    (ci, cj), rh = entry[1][0], entry[1][1]
+                    centre = build.xy(entry[1][0])
+                    z_from = min(float(high[int(ci), int(cj)]) + p.clearance, setup.safe_z)
+                    build.over([centre[0] + rh * setup.h, centre[1]], cross, z_from)
+                    build.helix(centre, rh * setup.h, z_from, z, side)
+                else:
+                    build.over(start, cross, z)
             for q in build.xy(pts[1:]):
                 build.add([q[0], q[1], z], "cut")
             removed.append(got)
             pos = pts[-1]
+        if level.exit is not None and build.at is not None and abs(build.at[2] - z) < 1e-9:
+            away = build.xy(level.exit[1])
+            build.add([away[0], away[1], z], "link")
+            pos = level.exit[1]
         per_level.append({"z": z, "kind": kind, "walks": len(level.events),
                           "helices": sum(e[0][0] == "helix" for e in level.events),
                           "material_mm2": round(level.material * setup.h ** 2, 3),

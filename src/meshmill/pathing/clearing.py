@@ -201,21 +201,23 @@ def _distance_to(rem, lo, hi):
 
 class LevelClearing:
     """The walks that clear one level: ``events``, each ``(entry, link, points (k, 2))`` in grid
-    units: ``entry`` ``("side", None)`` or ``("helix", (centre (2,), radius))``, ``link`` the corners
-    ``(m, 2)`` of a way at the level from the previous walk's end that keeps clear of the material
-    and in the free region (:func:`way_down`), or "lift"; ``removed`` the nodes each walk's steps cleared; ``swept (nx, ny)`` the
+    units: ``entry`` ``("side", None)`` or ``("helix", (centre (2,), radius))``, ``link`` None (the
+    level's first walk) or how the tool comes from the previous walk's end (:meth:`_link`:
+    ``("hop" | "level" | "lift", points)``); ``removed`` the nodes each walk's steps cleared; ``swept (nx, ny)`` the
     nodes the tool passed over; ``left`` the nodes of the material still there (no entry fits)."""
 
-    def __init__(self, rem, feas, r, s, target, side, helix, pos=None):
+    def __init__(self, rem, feas, r, s, target, side, helix, pos=None, berth=0.0):
         """Clear ``rem`` (changed in place) with a tool of radius ``r`` in steps of ``s``, at most
         ``target`` nodes a step, material on the right (``side`` 1) or left (-1); ``helix``:
-        ``(largest, smallest)`` helix radius; ``pos``: where the tool comes from (grid units)."""
+        ``(largest, smallest)`` helix radius; ``pos``: where the tool comes from (grid units);
+        ``berth``: nodes a link or an entry keeps from the material where it can (beyond the
+        tool's radius: the clearance, so that it may be a rapid)."""
         nx, ny = rem.shape
         self.events, self.removed = [], []
         self.swept = np.zeros_like(rem)
+        self.feas_, self.r, self.room = feas, r, None
         self.helix_failed = 0
         tried = np.zeros_like(rem)
-        room = None  # each free node's distance to the nearest node that is not free
         out = np.empty((min(int(rem.sum()) + 2, 2_000_000), 2))
         removed = np.empty(len(out), np.int64)
         pad = int(math.ceil(r + START_BAND)) + 2
@@ -228,9 +230,10 @@ class LevelClearing:
                 lo = np.maximum([ii.min() - pad, jj.min() - pad], 0)
                 hi = np.minimum([ii.max() + pad + 1, jj.max() + pad + 1], [nx, ny])
                 dist, nearest = _distance_to(rem, lo, hi)
-            cand = feas[lo[0]:hi[0], lo[1]:hi[1]] & (dist > r + 0.5) & (dist <= r + START_BAND) & \
-                ~tried[lo[0]:hi[0], lo[1]:hi[1]]
-            ci, cj = np.nonzero(cand)
+            free = feas[lo[0]:hi[0], lo[1]:hi[1]] & ~tried[lo[0]:hi[0], lo[1]:hi[1]]
+            ci, cj = np.nonzero(free & (dist > r + berth) & (dist <= r + berth + START_BAND))  # room to come down
+            if not len(ci):
+                ci, cj = np.nonzero(free & (dist > r + 0.5) & (dist <= r + START_BAND))
             if len(ci):
                 k = 0 if pos is None else int(np.argmin((ci + lo[0] - pos[0]) ** 2 + (cj + lo[1] - pos[1]) ** 2))
                 start = np.array([ci[k] + lo[0], cj[k] + lo[1]], float)
@@ -240,13 +243,13 @@ class LevelClearing:
                 g = nearest[:, ci[k], cj[k]] - start
                 theta = math.atan2(g[1], g[0]) + side * 0.5 * math.pi
                 entry = ("side", None)
-                way = None if pos is None else way_down(feas, dist, lo, pos, start, r)
-                link = "lift" if way is None else way
+                link = None if pos is None else self._link(feas, dist, nearest, lo, pos, start, r, berth)
             else:
-                if room is None:
+                if self.room is None:
                     from scipy.ndimage import distance_transform_edt
 
-                    room = distance_transform_edt(feas)
+                    self.room = distance_transform_edt(feas)
+                room = self.room
                 fits = rem & (room >= helix[1] + 1.0)
                 fi, fj = np.nonzero(fits)
                 if not len(fi):
@@ -264,7 +267,8 @@ class LevelClearing:
                 dist = None
                 start = centre + [rh, 0.0]
                 theta = side * 0.5 * math.pi
-                entry, link = ("helix", (centre, rh)), "lift"
+                entry = ("helix", (centre, rh))
+                link = None if pos is None else ("lift", self._away(feas, dist, lo, pos, berth))
             n = walk(rem, feas, self.swept, start[0], start[1], theta, r, s, target, side, out, removed)
             if n == 1 and entry[0] == "side":
                 tried[int(start[0]), int(start[1])] = True
@@ -274,10 +278,55 @@ class LevelClearing:
             self.removed.append(removed[1:n].copy())
             pos = out[n - 1].copy()
         if rem.any():
-            pos = self._walls(rem, feas, r, s, target, side, pos)
+            pos = self._walls(rem, feas, r, s, target, side, pos, berth)
         self.left = int(rem.sum())
+        # where the tool leaves the level: away from the walls, so that it may lift at once
+        self.exit = None if pos is None else self._away(feas, None, None, pos, berth)
 
-    def _walls(self, rem, feas, r, s, target, side, pos):
+    def _away(self, feas, dist, lo, a, want) -> np.ndarray:
+        """``(2, 2)``: ``a`` and the nearest point (16 headings, up to ``want`` + 2 nodes away,
+        straight through the free region) that lies ``want`` nodes beyond the tool's radius from
+        the material (``dist`` over the nodes from ``lo``; None: not looked at) and ``want`` from
+        what is not free, where the tool goes before it lifts (``a`` itself where none is)."""
+        from scipy.ndimage import distance_transform_edt
+
+        if self.room is None:
+            self.room = distance_transform_edt(self.feas_)
+        a = np.asarray(a, float)
+
+        def ok(p):
+            i, j = np.floor(p + 0.5).astype(int)
+            if not (0 <= i < feas.shape[0] and 0 <= j < feas.shape[1]) or self.room[i, j] < want:
+                return False
+            if dist is None:
+                return True
+            i, j = i - lo[0], j - lo[1]
+            return not (0 <= i < dist.shape[0] and 0 <= j < dist.shape[1]) or dist[i, j] >= self.r + want
+
+        if ok(a):
+            return np.array([a, a])
+        for t in np.arange(1.0, want + 2.5, 1.0):
+            for k in range(16):
+                p = a + t * np.array([math.cos(k * math.pi / 8), math.sin(k * math.pi / 8)])
+                if ok(p) and free_along(feas, a[0], a[1], p[0], p[1]):
+                    return np.array([a, p])
+        return np.array([a, a])
+
+    def _link(self, feas, dist, nearest, lo, a, b, r, berth):
+        """How the tool goes from ``a`` (a walk's end) to ``b`` (the next one's start), grid
+        units: ``("hop", corners)`` a way the clearance over the level (away from the material,
+        then round it with ``berth`` to spare), ``("level", corners)`` a way at the level round it,
+        or ``("lift", (a, away))`` up over what lies between."""
+        away = self._away(feas, dist, lo, a, berth)
+        if berth > 0:
+            hop = way_down(feas, dist, lo, away[1], b, r + berth - CLEAR_SLACK)
+            if hop is not None:
+                return "hop", np.vstack([away[:1], hop])
+        level = way_down(feas, dist, lo, a, b, r)
+        if level is not None:
+            return "level", level
+        return "lift", away
+    def _walls(self, rem, feas, r, s, target, side, pos, berth):
         """Walk the border of the free region (``WALL_IN`` nodes inside it) where material is left
         along it, each step removing at most ``target`` per ``s``: the slivers the walks leave
         against the walls. Returns the tool's last position."""
@@ -314,20 +363,22 @@ class LevelClearing:
                     run.append(b)
                     gap = 0.0 if got[-1] else gap + step
                     continue
-                pos = self._wall_run(run, got, pos)
+                pos = self._wall_run(run, got, pos, feas, berth)
                 run, got, gap = [b], [0], 0.0
-            pos = self._wall_run(run, got, pos)
+            pos = self._wall_run(run, got, pos, feas, berth)
         return pos
 
-    def _wall_run(self, run, got, pos):
-        """Keep a run of a wall walk from its first to its last step that removed anything."""
+    def _wall_run(self, run, got, pos, feas, berth):
+        """Keep a run of a wall walk from its first to its last step that removed anything (the
+        tool comes to it from ``pos`` away from the wall first)."""
         got = np.asarray(got)
         cut = np.nonzero(got > 0)[0]
         if not len(cut):
             return pos
         a, b = max(0, cut[0] - 1), cut[-1] + 1
         pts = np.array(run[a:b])
-        self.events.append((("side", None), "lift", pts))
+        link = None if pos is None else ("lift", self._away(feas, None, None, pos, berth))
+        self.events.append((("side", None), link, pts))
         self.removed.append(got[a + 1:b])
         return pts[-1]
 
@@ -428,13 +479,15 @@ def _tool_height(rho, radius, corner):
 
 
 @numba.njit(cache=True)
-def heightmap_pass(top, x0, y0, h, tips, radius, corner, clearance, cuts):
+def heightmap_pass(top, part, x0, y0, h, tips, radius, corner, clearance, cuts):
     """Run a 3-axis path (vertical tool) over the stock heights ``top (nx, ny)`` (nodes ``h`` mm
     apart from ``(x0, y0)``; changed in place: lowered where a move with ``cuts[i]`` set passes).
     Returns ``(k,)``: for each move (tip i-1 to tip i) the lowest tip height at which it keeps
     ``clearance`` from the stock as the moves before it left it (the highest node within the
-    tool's radius plus the clearance and a node of any point of it, plus the clearance). A move
-    cuts as its tool at its lower end if vertical, else at its higher end (never more than it does)."""
+    tool's radius plus the clearance and a node of any point of it, plus the clearance) and from
+    the part (``part (nx, ny)``: the heights above which the whole tool keeps that from it within
+    a node of each node, at the nodes nearest its points every half node). A move cuts as its tool
+    at its lower end if vertical, else at its higher end (never more than it does)."""
     nx, ny = top.shape
     k = len(tips)
     low = np.full(k, -np.inf)
@@ -464,5 +517,14 @@ def heightmap_pass(top, x0, y0, h, tips, radius, corner, clearance, cuts):
                     z = zc + _tool_height(rho, radius, corner)
                     if z < top[ii, jj]:
                         top[ii, jj] = z
+        d = math.hypot(bx - ax, by - ay)
+        n = max(1, int(math.ceil(2.0 * d / h)))
+        for t in range(n + 1):
+            ci = int(math.floor((ax + (bx - ax) * t / n - x0) / h + 0.5))
+            cj = int(math.floor((ay + (by - ay) * t / n - y0) / h + 0.5))
+            if ci < 0 or cj < 0 or ci >= nx or cj >= ny:
+                high = np.inf
+            elif part[ci, cj] - clearance > high:
+                high = part[ci, cj] - clearance
         low[i] = high + clearance
     return low
