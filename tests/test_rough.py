@@ -130,6 +130,12 @@ def test_rest_roughing_from_the_stock_a_larger_tool_left(tools):
     assert second.summary["length_mm"]["cut"] < 0.5 * first.summary["length_mm"]["cut"]
     w = measured_widths(part, second, stock)
     assert w.max() <= 1.1 * 1.0 + 0.1  # the in-process stock's surface is known to half a dexel
+    # the same from that stock as a closed mesh (its surface, as a user would save it)
+    mesh_stock = meshmill.Stock.mesh(stock.surface_mesh())
+    third = meshmill.rough(part, tools, tool="F3", engagement=1.0, step_down=8.0, allowance=0.3, stock=mesh_stock)
+    assert third.ok and third.summary["length_mm"]["cut"] < 0.5 * first.summary["length_mm"]["cut"]
+    after, figures = stock.cut(third.toolpath, tools)
+    assert figures["rapid_moves_cutting"] == 0 and figures["colliding_moves"] == 0
 
 
 def test_levels_and_flats():
@@ -141,7 +147,9 @@ def test_levels_and_flats():
 
 
 @pytest.mark.parametrize("kw, word", [(dict(engagement=7.0), "engagement"), (dict(step_down=13.0), "step_down"),
-                                      (dict(stock=meshmill.Stock.offset(1.0)), "stock")])
+                                      (dict(stock=meshmill.Stock.offset(1.0)), "stock"), (dict(axis="0,0,0"), "axis"),
+                                      (dict(axis="up"), "axis"), (dict(engagement=-1.0), "engagement"),
+                                      (dict(direction="sideways"), "direction")])
 def test_bad_settings_are_refused(tools, kw, word):
     with pytest.raises(meshmill.InputError, match=word):
         meshmill.rough(pocket_part(), tools, tool="F6", **kw)
@@ -160,3 +168,11 @@ def test_cli_rough_and_a_clear_error(tmp_path, tools):
     assert (tmp_path / "out" / "moves.npz").exists()
     bad = subprocess.run(run + ["--engagement", "9"], capture_output=True, text=True)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "engagement" in bad.stderr
+
+
+def test_a_closed_pocket_no_helix_fits_is_a_clear_error(tools):
+    # a closed pocket 6.4 mm wide for a 6 mm tool: its centre has 0.2 mm each way, no helix fits
+    part = boxes((0, 0, 0, 20, 30, 2), (0, 0, 2, 20, 5, 8), (0, 25, 2, 20, 30, 8), (0, 5, 2, 6.8, 25, 8),
+                 (13.2, 5, 2, 20, 25, 8))
+    with pytest.raises(meshmill.InputError, match="no entry fits"):
+        meshmill.rough(part, tools, tool="F6", allowance=0.0, stock="box")

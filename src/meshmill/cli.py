@@ -162,6 +162,8 @@ def cmd_rough(args):
     res.save(args.out)
     summary = res.summary
     v, w, length = summary["verify"], summary["planned_width_mm"], summary["length_mm"]
+    for warning in summary["warnings"]:
+        _say(args, f"warning: {warning}")
     _say(args, f"{len(summary['levels'])} levels, {sum(lv['walks'] for lv in summary['levels'])} walks; "
                f"cut {length['cut'] / 1000:.2f} m, links {length['link'] / 1000:.2f} m at feed; radial width "
                f"max {w['max']:.3f} mean {w['mean']:.3f} (set {w['set']:g}) mm; left {summary['left_mm2']:.1f} mm^2")

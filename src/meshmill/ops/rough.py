@@ -50,6 +50,7 @@ FLAT_AREA = 1.0  # mm²: the least area of flat facets at one height that makes 
 HELIX_SMALLEST = 0.1  # of the tool diameter: the smallest helix tried where the room is short
 HELIX_POINTS = 72  # points per turn of a helix (chords within 0.005 mm of it up to 6 mm radius: posted as arcs)
 MOVE_KINDS = ("rapid", "cut", "entry", "link")
+MANY_NODES = 100  # material left for want of an entry is warned about from this many nodes on
 NODE_SLACK = 1.5  # nodes: the width of cut a step is planned at stays this far under the engagement
 
 
@@ -449,6 +450,12 @@ def _rough(mesh, tools, params: RoughParams, progress=None):
             per_level[-1]["no_entry_mm2"] = per_level[-1]["left_mm2"]  # left where no helix fits
         meter.done()
     t_levels = time.perf_counter() - t_levels
+    no_entry = [lv for lv in per_level if lv.get("no_entry_mm2")]
+    helix = p.helix_diameter if p.helix_diameter is not None else 0.75 * setup.tool.diameter
+    if build.at is None and no_entry:
+        raise InputError(f"no entry fits: the material at {len(no_entry)} level(s) is closed and has no room for a "
+                         f"helix of {HELIX_SMALLEST * setup.tool.diameter:g} to {helix:g} mm (a smaller tool, or a "
+                         "stock open at the side)", ("helix_diameter", "tool"))
     if build.at is None:
         raise NothingToCut("nothing to cut: the stock holds no material the tool can reach at any level", "stock")
     build.over(build.at[:2], setup.safe_z, setup.safe_z)
@@ -462,6 +469,8 @@ def _rough(mesh, tools, params: RoughParams, progress=None):
     report.pop("problem_moves")
     t_verify = time.perf_counter() - t_verify
     summary = rough_summary(setup, tp, kind, per_level, removed, step, report)
+    summary["warnings"] = [f"level {lv['z']:g}: {lv['no_entry_mm2']:g} mm^2 of closed material left, no helix fits "
+                           f"(at most {helix:g} mm)" for lv in no_entry if lv["no_entry_mm2"] > MANY_NODES * setup.h ** 2]
     summary["seconds"] = {"levels": round(t_levels, 4), "verify": round(t_verify, 4),
                           "total": round(time.perf_counter() - t0, 4)}
     return tp, summary, kind

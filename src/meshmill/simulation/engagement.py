@@ -1,7 +1,7 @@
 """The material each move of a path removes, measured on the in-process dexel stock.
 
-The path is cut in order; before and after each move of interest the volume held by the stock's
-Z dexels is summed (``step²`` times the lengths of their intervals), so the difference is what
+The path is cut in order (the Z dexels alone: the others are not summed); before and after each
+move of interest the volume held by the stock's Z dexels is summed (``step²`` times the lengths of their intervals), so the difference is what
 that move removed, at the resolution of the dexels and independent of how the path was planned.
 For a 3-axis move at one height, its volume over its length and the axial depth of its layer is
 the mean radial width of cut (ae) of the move.
@@ -35,6 +35,19 @@ def _subset(moves, sel):
     return Moves(**{f: getattr(moves, f)[sel] for f in MOVE_FIELDS})
 
 
+def _cut_z(st, moves, kern) -> None:
+    """Cut the Z lines of the cutting stock ``st`` by the cutter moves of ``moves`` (the only lines
+    whose volume is summed here)."""
+    from . import cut as cutting
+
+    keep = ~moves.body
+    if not keep.any():
+        return
+    moves = _subset(moves, keep)
+    hit = np.zeros(len(moves), np.uint8)
+    cutting._cut_direction(st, 2, moves, cutting._boxes(moves), kern, hit)
+
+
 def removed_per_move(stock, toolpath, tools, which, bands=None, device: str = "cpu") -> np.ndarray:
     """mm³ ``(len(which),)`` removed by each move ``which`` (indices of tool-path points: the move
     ends there) of ``toolpath`` from ``stock`` (an in-process :class:`~meshmill.simulation.stock.
@@ -43,20 +56,23 @@ def removed_per_move(stock, toolpath, tools, which, bands=None, device: str = "c
     from . import cut as cutting
     from .stock import copy_cutting
 
+    from ..kernels.backend import DexelKernels
+
     st = copy_cutting(stock.state.cutting)
     moves = cutting.toolpath_moves(toolpath, tools)
+    kern = DexelKernels(device)
     which = np.asarray(which, np.int64)
     out = np.zeros(len(which))
     done = -1  # moves up to this point index are cut
     for n, j in enumerate(which):
         before = (moves.source > done) & (moves.source < j)
         if before.any():
-            cutting.cut(st, _subset(moves, before), device=device)
+            _cut_z(st, _subset(moves, before), kern)
         band = (-np.inf, np.inf) if bands is None else np.asarray(bands[n], float)
         v0 = z_volume(st, band)
         this = moves.source == j
         if this.any():
-            cutting.cut(st, _subset(moves, this), device=device)
+            _cut_z(st, _subset(moves, this), kern)
         out[n] = v0 - z_volume(st, band)
         done = j
     return out
