@@ -44,7 +44,7 @@ from ..progress import Meter
 from ..tolerances import GOUGE_TOL
 from ..toolpath.model import Toolpath
 
-NODE_BYTES = 48  # per grid node: heights, masks and the distance fields of a level
+NODE_BYTES = 200  # per grid node: its heights, and a level's masks, distances and nearest nodes
 FLAT_NORMAL = 1.0 - 1e-6  # a facet this close to facing +Z is flat
 FLAT_AREA = 1.0  # mm²: the least area of flat facets at one height that makes a level
 HELIX_SMALLEST = 0.1  # of the tool diameter: the smallest helix tried where the room is short
@@ -116,7 +116,8 @@ def rough_levels(top: float, bottom: float, step: float, flats, stair) -> list:
 
 def rough_setup(mesh, tools, params: RoughParams, device: str) -> RoughSetup:
     """The :class:`RoughSetup` of ``mesh``: InputError for a tool not in the table, an engagement
-    wider than the tool, a stock that is the part offset, a grid larger than the memory."""
+    wider than the tool, a step-down deeper than its flutes, a stock that is the part offset, a
+    grid larger than the memory."""
     from ..simulation.stock import Stock
 
     index, tool = pick_tool(tools, params.tool)
@@ -125,7 +126,6 @@ def rough_setup(mesh, tools, params: RoughParams, device: str) -> RoughSetup:
         raise InputError("stock: roughing starts from a stock that holds material around the part: box, cylinder, "
                          "a mesh, or an in-process stock (not the part offset)", "stock")
     solid, _, margin = stock.material(mesh)
-    surface = stock.rest_surface(mesh)
     ae = params.engagement if params.engagement is not None else 0.25 * tool.diameter
     if ae > tool.diameter:
         raise InputError(f"engagement {ae:g} mm is wider than the tool ({tool.diameter:g} mm)", "engagement")
@@ -134,52 +134,67 @@ def rough_setup(mesh, tools, params: RoughParams, device: str) -> RoughSetup:
         raise InputError(f"step_down {step_down:g} mm is deeper than {tool.name}'s flutes "
                          f"({tool.flute_length:g} mm): the shank would cut", "step_down")
     h = params.sample if params.sample is not None else min(ae / 10.0, tool.radius / 16.0)
-    params = replace(params, engagement=ae, step_down=step_down, sample=h, clearance=params.clearance + margin)
-    reach = max(tool.radius, 0.5 * tool.shank_diameter, 0.5 * tool.holder_diameter)
+    a_r = params.allowance
+    a_a = params.axial_allowance if params.axial_allowance is not None else a_r
+    params = replace(params, engagement=ae, step_down=step_down, sample=h, axial_allowance=a_a,
+                     clearance=params.clearance + margin)
     lo = np.minimum(solid.bounds[0], mesh.bounds[0])
     hi = np.maximum(solid.bounds[1], mesh.bounds[1])
-    pad = tool.radius + params.clearance + 4 * h
+    pad = tool.radius + params.clearance + 4 * h  # room to go round the stock
     nx = int(math.ceil((hi[0] - lo[0] + 2 * pad) / h)) + 1
     ny = int(math.ceil((hi[1] - lo[1] + 2 * pad) / h)) + 1
     memory.check(NODE_BYTES * float(nx) * ny, f"{nx:,} x {ny:,} grid nodes", "use a larger sample", ("sample",))
     xs = lo[0] - pad + h * np.arange(nx)
     ys = lo[1] - pad + h * np.arange(ny)
-    gx, gy = np.meshgrid(xs, ys, indexing="ij")
-    xy = np.column_stack([gx.ravel(), gy.ravel()])
-    floor = float(min(lo[2], mesh.bounds[0, 2])) - 1.0
-    top = solid_kernels(surface, device).drop_cutter(xy, 0.5 * h, 0.0, floor)[0].reshape(nx, ny)
-    kern = solid_kernels(mesh, device)
-    a_r = params.allowance
-    drop = ToolDrop(tool, kern, floor, grow=a_r, widen=h)(xy).reshape(nx, ny)
-    drop += (params.axial_allowance if params.axial_allowance is not None else a_r) - a_r
-    obstacle = np.full((nx, ny), -np.inf)
-    if params.fixtures:
-        from .fixtures import union
-
-        fixed = union([f if hasattr(f, "vertices") else f.solid(mesh) for f in params.fixtures])
-        fix = solid_kernels(fixed, device)
-        # the tool keeps the clearance from them at every level; links and rapids pass over them
-        drop = np.maximum(drop, ToolDrop(tool, fix, floor, grow=params.clearance, widen=h)(xy).reshape(nx, ny))
-        obstacle = fix.drop_cutter(xy, 0.5 * h, 0.0, floor)[0].reshape(nx, ny)
-        obstacle[obstacle <= floor + 1e-9] = -np.inf
-    del reach
+    heights = grid_heights(mesh, stock.rest_surface(mesh), tool, params, xs, ys, device)
+    top, obstacle = heights["top"], heights["obstacle"]
     stock_top = float(top.max())
-    bottom = float(mesh.bounds[0, 2]) + (params.axial_allowance if params.axial_allowance is not None else a_r)
+    bottom = float(mesh.bounds[0, 2]) + a_a
     if stock_top <= bottom + 1e-6:
         raise NothingToCut("nothing to cut: the stock does not rise above the part's bottom", "stock")
-    a_a = params.axial_allowance if params.axial_allowance is not None else a_r
     # the flats, and the part's top: the stock over it is faced, not left as a cap
     flats = np.r_[flat_heights(mesh), mesh.bounds[1, 2]] + a_a
     levels = rough_levels(stock_top, bottom, step_down, flats, params.stair)
     safe_z = float(max(stock_top, mesh.bounds[1, 2], obstacle.max()) + params.clearance + 1.0)
-    # the stock that is not the part and its allowance: what the shank and holder must keep above
-    design = kern.drop_cutter(xy, 0.5 * h, 0.0, floor)[0].reshape(nx, ny)
-    beyond = np.where(top > design + min(a_r, a_a) + 1e-6, top, -np.inf)
-    part_clear = ToolDrop(tool, kern, floor, grow=max(a_r, a_a) + params.clearance, widen=h)(xy).reshape(nx, ny)
+    return RoughSetup(params, index, tool, xs, ys, h, top, heights["drop"], levels, solid, stock_top, safe_z, obstacle,
+                      heights["beyond"], heights["part_clear"])
+
+
+def grid_heights(mesh, surface, tool, params: RoughParams, xs, ys, device: str) -> dict:
+    """The heights ``(nx, ny)`` over the nodes ``xs x ys`` (see :class:`RoughSetup`): ``top``
+    (the stock's ``surface`` dropped on with a flat disk of half a node), ``drop`` (the whole tool
+    grown by the radial allowance and widened by a node, the axial allowance's difference added;
+    the fixtures kept the clearance from), ``obstacle`` (the fixtures' heights), ``beyond`` (the
+    stock where it rises over the part and its allowance) and ``part_clear`` (above which the tool
+    keeps the clearance from the part, its allowance and the fixtures)."""
+    h = xs[1] - xs[0]
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    xy = np.column_stack([gx.ravel(), gy.ravel()])
+    shape = (len(xs), len(ys))
+    floor = float(min(surface.bounds[0, 2], mesh.bounds[0, 2])) - 1.0
+    a_r, a_a, c = params.allowance, params.axial_allowance, params.clearance
+    kern = solid_kernels(mesh, device)
+
+    def tool_drop(k, grow):
+        return ToolDrop(tool, k, floor, grow=grow, widen=h)(xy).reshape(shape)
+
+    def disk_drop(k):
+        return k.drop_cutter(xy, 0.5 * h, 0.0, floor)[0].reshape(shape)
+
+    top = disk_drop(solid_kernels(surface, device))
+    drop = tool_drop(kern, a_r) + (a_a - a_r)
+    part_clear = tool_drop(kern, max(a_r, a_a) + c)
+    obstacle = np.full(shape, -np.inf)
     if params.fixtures:
-        part_clear = np.maximum(part_clear, ToolDrop(tool, fix, floor, grow=params.clearance, widen=h)(xy).reshape(nx, ny))
-    return RoughSetup(params, index, tool, xs, ys, h, top, drop, levels, solid, stock_top, safe_z, obstacle, beyond,
-                      part_clear)
+        from .fixtures import union
+
+        fix = solid_kernels(union([f if hasattr(f, "vertices") else f.solid(mesh) for f in params.fixtures]), device)
+        clear = tool_drop(fix, c)  # the tool keeps the clearance from them; links and rapids pass over them
+        drop, part_clear = np.maximum(drop, clear), np.maximum(part_clear, clear)
+        obstacle = disk_drop(fix)
+        obstacle[obstacle <= floor + 1e-9] = -np.inf
+    beyond = np.where(top > disk_drop(kern) + min(a_r, a_a) + 1e-6, top, -np.inf)
+    return {"top": top, "drop": drop, "obstacle": obstacle, "beyond": beyond, "part_clear": part_clear}
 
 
 def _dilated(mask, radius) -> np.ndarray:
