@@ -28,10 +28,11 @@ import math
 import numba
 import numpy as np
 
-SCAN = 25  # headings tried before each step
+SCAN = 17  # headings tried before each step
 TURN = math.radians(150.0)  # how far the heading may turn each way in one step
-BISECT = 8  # halvings of the bracket between the last heading within the target and the first beyond it
+BISECT = 6  # halvings of the bracket between the last heading within the target and the first beyond it
 CLEAR_SLACK = 0.75  # nodes: a node this much farther than the radius from the material holds a clear tool near it
+CELL = 0.71  # nodes: how far from a node the stock it stands for reaches (half a cell's diagonal)
 START_BAND = 3.0  # nodes: a walk starts at most this far outside the reach of the material
 WALL_IN = 0.75  # nodes: the wall walk follows the free region's border this far inside it
 WALL_GAP = 4.0  # tool radii: the longest stretch of a wall walk that removes nothing before it lifts
@@ -230,17 +231,24 @@ class LevelClearing:
                 lo = np.maximum([ii.min() - pad, jj.min() - pad], 0)
                 hi = np.minimum([ii.max() + pad + 1, jj.max() + pad + 1], [nx, ny])
                 dist, nearest = _distance_to(rem, lo, hi)
-            free = feas[lo[0]:hi[0], lo[1]:hi[1]] & ~tried[lo[0]:hi[0], lo[1]:hi[1]]
-            ci, cj = np.nonzero(free & (dist > r + berth) & (dist <= r + berth + START_BAND))  # room to come down
-            if not len(ci):
-                ci, cj = np.nonzero(free & (dist > r + 0.5) & (dist <= r + START_BAND))
-            if len(ci):
-                k = 0 if pos is None else int(np.argmin((ci + lo[0] - pos[0]) ** 2 + (cj + lo[1] - pos[1]) ** 2))
-                start = np.array([ci[k] + lo[0], cj[k] + lo[1]], float)
+                free = feas[lo[0]:hi[0], lo[1]:hi[1]]
+                starts = []  # room to come down clear of the material first, then any
+                for band in ((r + berth, r + berth + START_BAND), (r + 0.5, r + START_BAND)):
+                    ci, cj = np.nonzero(free & (dist > band[0]) & (dist <= band[1]))
+                    if pos is not None:
+                        order = np.argsort((ci + lo[0] - pos[0]) ** 2 + (cj + lo[1] - pos[1]) ** 2, kind="stable")
+                        ci, cj = ci[order], cj[order]
+                    starts += list(zip(ci.tolist(), cj.tolist()))
+                at = 0
+            while at < len(starts) and tried[starts[at][0] + lo[0], starts[at][1] + lo[1]]:
+                at += 1
+            if at < len(starts):
+                ci, cj = starts[at]
+                start = np.array([ci + lo[0], cj + lo[1]], float)
                 if disk_count(rem, start[0], start[1], r + START_BAND + s) < SLIVER * target:
                     tried[int(start[0]), int(start[1])] = True  # a sliver: left to the walk along the walls
                     continue
-                g = nearest[:, ci[k], cj[k]] - start
+                g = nearest[:, ci, cj] - start
                 theta = math.atan2(g[1], g[0]) + side * 0.5 * math.pi
                 entry = ("side", None)
                 link = None if pos is None else self._link(feas, dist, nearest, lo, pos, start, r, berth)
@@ -263,12 +271,12 @@ class LevelClearing:
                     k = int(np.argmax(room[fi, fj]))
                 centre = np.array([fi[k], fj[k]], float)
                 rh = float(min(helix[0], room[fi[k], fj[k]] - 1.0))
+                link = None if pos is None else ("lift", self._away(feas, dist, lo, pos, berth))
                 sweep(rem, self.swept, centre[0], centre[1], centre[0], centre[1], r + rh)
                 dist = None
                 start = centre + [rh, 0.0]
                 theta = side * 0.5 * math.pi
                 entry = ("helix", (centre, rh))
-                link = None if pos is None else ("lift", self._away(feas, dist, lo, pos, berth))
             n = walk(rem, feas, self.swept, start[0], start[1], theta, r, s, target, side, out, removed)
             if n == 1 and entry[0] == "side":
                 tried[int(start[0]), int(start[1])] = True
@@ -487,7 +495,8 @@ def heightmap_pass(top, part, x0, y0, h, tips, radius, corner, clearance, cuts):
     tool's radius plus the clearance and a node of any point of it, plus the clearance) and from
     the part (``part (nx, ny)``: the heights above which the whole tool keeps that from it within
     a node of each node, at the nodes nearest its points every half node). A move cuts as its tool
-    at its lower end if vertical, else at its higher end (never more than it does)."""
+    at its lower end if vertical, else at its higher end, and a node only where the tool covers
+    the whole cell about it (never more than it does: a node stands for the stock near it)."""
     nx, ny = top.shape
     k = len(tips)
     low = np.full(k, -np.inf)
@@ -513,8 +522,8 @@ def heightmap_pass(top, part, x0, y0, h, tips, radius, corner, clearance, cuts):
                 rho = math.sqrt(ex * ex + ey * ey)
                 if rho <= reach and top[ii, jj] > high:
                     high = top[ii, jj]
-                if cuts[i] and rho <= radius:
-                    z = zc + _tool_height(rho, radius, corner)
+                if cuts[i] and rho + CELL * h <= radius:  # the node's whole cell under the tool
+                    z = zc + _tool_height(rho + CELL * h, radius, corner)
                     if z < top[ii, jj]:
                         top[ii, jj] = z
         d = math.hypot(bx - ax, by - ay)
