@@ -175,6 +175,16 @@ def test_waterline_levels_on_a_cluster_are_the_same_path(client):
     assert one.summary["passes"] == many.summary["passes"]
 
 
+def test_rough_heights_on_a_cluster_are_the_same_path(client):
+    """The grid's drop heights in pieces of rows; the levels after them as in one process."""
+    part = shapes.post_with_fillet(segments=48)
+    kw = dict(tool="F4", engagement=1.0, step_down=5.0, allowance=0.2, stock=api.Stock.box(2.0), device="cpu")
+    one = api.rough(part, TOOLS, **kw)
+    many = api.rough(part, TOOLS, cluster=client, **kw)
+    assert np.array_equal(one.toolpath.tip, many.toolpath.tip)
+    assert np.array_equal(one.toolpath.rapid, many.toolpath.rapid)
+
+
 def test_a_job_on_a_cluster_is_the_same_job(client, tmp_path):
     from meshmill.job import Job
     from test_job import job_toml

@@ -449,8 +449,12 @@ def rough(p) -> PathResult:
 
     from .ops.rough import MOVE_KINDS, rough as run
 
+    from .cluster import connect
+
     device = resolve_device(p.device)
-    tp, summary, kind = run(p.part, p.tools, p.replace(device=device), progress=p.progress)
+    with connect(p.cluster) as client:
+        tp, summary, kind = run(p.part, p.tools, p.replace(device=device, cluster=None), progress=p.progress,
+                                cluster=client)
     return _path_result("rough", tp, summary, p.part, p.tools, device,
                         dict(move_kind=kind, kinds=np.array(MOVE_KINDS)))
 

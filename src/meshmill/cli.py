@@ -566,7 +566,7 @@ def build_parser():
     command("waterline", "3-axis Z-level loops (flat, ball or bull-nose)", _three_axis, "out", folder, cluster=True)
     command("plunge", "3- or 5-axis plunge roughing (tréflage)", _three_axis, "out", folder)
     command("rough", "adaptive clearing from the stock: Z levels with a bounded radial engagement", cmd_rough, "out",
-            folder)
+            folder, cluster=True)
     command("verify", "check an APT CL file or G-code for gouges and collisions", cmd_verify, None,
             "write the report as JSON to this file", cluster=True, json=False)
     command("dexel", "triple-dexel model of a closed part", cmd_dexel, None,

@@ -536,7 +536,7 @@ class Job:
                 tools = [t for t in self.tools if t.name in op.tools]
         if op.kind in ("raster", "waterline") and stock is not None and op.rest is not None:
             params["rest"] = op.rest
-        if client is not None and op.kind in ("raster", "waterline", "finish"):
+        if client is not None and op.kind in ("raster", "waterline", "finish", "rough"):
             params["cluster"] = client
         if stock is not None and op.kind != "choose":  # choose links its zones over the part alone
             params["stock"] = stock

@@ -277,6 +277,7 @@ class RoughParams(Params):
     fixtures: object = option("object", "solids the tool keeps the clearance from (in Python Fixtures or closed "
                                         "Meshes; a job gives its own)", None, role="fixtures", cli=False)
     device: str = _device()
+    cluster: object = _cluster()
     progress: object = _progress()
 
 

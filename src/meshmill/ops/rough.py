@@ -114,10 +114,11 @@ def rough_levels(top: float, bottom: float, step: float, flats, stair) -> list:
     return out
 
 
-def rough_setup(mesh, tools, params: RoughParams, device: str) -> RoughSetup:
+def rough_setup(mesh, tools, params: RoughParams, device: str, cluster=None) -> RoughSetup:
     """The :class:`RoughSetup` of ``mesh``: InputError for a tool not in the table, an engagement
     wider than the tool, a step-down deeper than its flutes, a stock that is the part offset, a
-    grid larger than the memory."""
+    grid larger than the memory. ``cluster``: a ``distributed.Client`` whose workers compute the
+    grid's heights in pieces of rows (the same heights)."""
     from ..simulation.stock import Stock
 
     index, tool = pick_tool(tools, params.tool)
@@ -146,7 +147,20 @@ def rough_setup(mesh, tools, params: RoughParams, device: str) -> RoughSetup:
     memory.check(NODE_BYTES * float(nx) * ny, f"{nx:,} x {ny:,} grid nodes", "use a larger sample", ("sample",))
     xs = lo[0] - pad + h * np.arange(nx)
     ys = lo[1] - pad + h * np.arange(ny)
-    heights = grid_heights(mesh, stock.rest_surface(mesh), tool, params, xs, ys, device)
+    surface = stock.rest_surface(mesh)
+    if cluster is None:
+        heights = grid_heights(mesh, surface, tool, params, xs, ys, device)
+    else:
+        from ..cluster import PIECES_PER_WORKER, run_pieces, workers
+        from ..progress import ranges
+
+        fixtures = [f if hasattr(f, "vertices") else f.solid(mesh) for f in params.fixtures or ()]
+        shared = dict(part=mesh, surface=surface, tool=tool, xs=xs, ys=ys, device=device,
+                      params=replace(params, part=None, tools=None, stock=None, progress=None,
+                                     fixtures=fixtures or None))
+        parts = run_pieces(cluster, heights_piece, shared, ranges(nx, PIECES_PER_WORKER * workers(cluster)),
+                           params.progress, "grid heights")
+        heights = {k: np.concatenate([q[k] for q in parts]) for k in parts[0]}
     top, obstacle = heights["top"], heights["obstacle"]
     stock_top = float(top.max())
     bottom = float(mesh.bounds[0, 2]) + a_a
@@ -160,6 +174,14 @@ def rough_setup(mesh, tools, params: RoughParams, device: str) -> RoughSetup:
                       heights["beyond"], heights["part_clear"])
 
 
+def heights_piece(shared: dict, rows) -> dict:
+    """:func:`grid_heights` of the rows ``rows = (a, b)`` of the grid, on a worker of a cluster
+    (:func:`meshmill.cluster.run_pieces`)."""
+    a, b = rows
+    return grid_heights(shared["part"], shared["surface"], shared["tool"], shared["params"], shared["xs"][a:b],
+                        shared["ys"], shared["device"])
+
+
 def grid_heights(mesh, surface, tool, params: RoughParams, xs, ys, device: str) -> dict:
     """The heights ``(nx, ny)`` over the nodes ``xs x ys`` (see :class:`RoughSetup`): ``top``
     (the stock's ``surface`` dropped on with a flat disk of half a node), ``drop`` (the whole tool
@@ -167,7 +189,7 @@ def grid_heights(mesh, surface, tool, params: RoughParams, xs, ys, device: str) 
     the fixtures kept the clearance from), ``obstacle`` (the fixtures' heights), ``beyond`` (the
     stock where it rises over the part and its allowance) and ``part_clear`` (above which the tool
     keeps the clearance from the part, its allowance and the fixtures)."""
-    h = xs[1] - xs[0]
+    h = params.sample
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
     xy = np.column_stack([gx.ravel(), gy.ravel()])
     shape = (len(xs), len(ys))
@@ -375,14 +397,14 @@ def tool_axis(text: str) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def rough(mesh, tools, params: RoughParams, progress=None):
+def rough(mesh, tools, params: RoughParams, progress=None, cluster=None):
     """Adaptive clearing of ``mesh`` from ``params.stock`` (default its box) with the tool
     ``params.tool``, along ``params.axis`` (indexed: the part and the stock turned so that it is
     +Z, the path turned back). Returns ``(toolpath, summary, move_kind (k,) int8)`` (indices into
     :data:`MOVE_KINDS`)."""
     u = tool_axis(params.axis)
     if u[2] > 1 - 1e-12:
-        return _rough(mesh, tools, params, progress)
+        return _rough(mesh, tools, params, progress, cluster)
     from ..simulation.stock import Stock
     from .plunge import tool_frame
 
@@ -396,18 +418,19 @@ def rough(mesh, tools, params: RoughParams, progress=None):
     fixtures = [(f if hasattr(f, "vertices") else f.solid(mesh)).transformed(frame) for f in params.fixtures or ()]
     tp, summary, kind = _rough(mesh.transformed(frame), tools, replace(params, stock=turned, axis="+Z",
                                                                         clearance=params.clearance + margin,
-                                                                        fixtures=fixtures or None), progress)
+                                                                        fixtures=fixtures or None), progress,
+                                  cluster)
     tp = Toolpath(tp.tip @ frame, np.tile(u, (len(tp), 1)), tp.rapid, tp.tool)
     summary.update(axes="3+2", axis=u.round(9).tolist(), frame=frame.round(9).tolist())
     return tp, summary, kind
 
 
-def _rough(mesh, tools, params: RoughParams, progress=None):
+def _rough(mesh, tools, params: RoughParams, progress=None, cluster=None):
     """:func:`rough` along +Z."""
     say = progress or (lambda stage: None)
     t0 = time.perf_counter()
     device = resolve(params.device)
-    setup = rough_setup(mesh, tools, replace(params, device=device), device)
+    setup = rough_setup(mesh, tools, replace(params, device=device), device, cluster)
     p = setup.params
     say(f"{len(setup.levels)} levels on {len(setup.xs):,} x {len(setup.ys):,} nodes")
     top = setup.top.copy()
