@@ -31,6 +31,7 @@ import numpy as np
 SCAN = 17  # headings tried before each step
 TURN = math.radians(150.0)  # how far the heading may turn each way in one step
 BISECT = 6  # halvings of the bracket between the last heading within the target and the first beyond it
+WINDOW = 3.0  # tool radii each way about the tool where the next start is looked for first
 CLEAR_SLACK = 0.75  # nodes: a node this much farther than the radius from the material holds a clear tool near it
 CELL = 0.71  # nodes: how far from a node the stock it stands for reaches (half a cell's diagonal)
 START_BAND = 3.0  # nodes: a walk starts at most this far outside the reach of the material
@@ -100,14 +101,51 @@ def sweep(rem, swept, ai, aj, bi, bj, r, clear=True):
 
 
 @numba.njit(cache=True)
-def _removal(rem, feas, qi, qj, theta, s, r):
-    """Nodes a step of ``s`` along ``theta`` from ``(qi, qj)`` would remove (its swept disk);
-    -1 where its end or its middle leaves the free region."""
+def _step_removal(rem, feas, ai, aj, bi, bj, r):
+    """Nodes of ``rem`` the step a-b would remove; -1 where its end or its middle is not free."""
+    if not _free(feas, bi, bj) or not _free(feas, 0.5 * (ai + bi), 0.5 * (aj + bj)):
+        return -1
+    return sweep(rem, rem, ai, aj, bi, bj, r, False)
+
+
+@numba.njit(cache=True)
+def _near(rem, qi, qj, reach, ni, nj):
+    """Gather into ``ni, nj`` the nodes of ``rem`` within ``reach`` of ``(qi, qj)``; returns how many."""
+    nx, ny = rem.shape
+    k = 0
+    i0, i1 = max(0, int(math.ceil(qi - reach))), min(nx - 1, int(math.floor(qi + reach)))
+    for i in range(i0, i1 + 1):
+        w2 = reach * reach - (i - qi) * (i - qi)
+        if w2 < 0.0:
+            continue
+        w = math.sqrt(w2)
+        j0, j1 = max(0, int(math.ceil(qj - w))), min(ny - 1, int(math.floor(qj + w)))
+        for j in range(j0, j1 + 1):
+            if rem[i, j]:
+                ni[k], nj[k] = i, j
+                k += 1
+    return k
+
+
+@numba.njit(cache=True)
+def _removal(feas, ni, nj, count, qi, qj, theta, s, r):
+    """Nodes of the material near the tool (``ni, nj``, ``count`` of them) a step of ``s`` along
+    ``theta`` from ``(qi, qj)`` would remove (within ``r`` of the step); -1 where its end or its
+    middle leaves the free region."""
     ci, cj = math.cos(theta), math.sin(theta)
     pi, pj = qi + s * ci, qj + s * cj
     if not _free(feas, pi, pj) or not _free(feas, qi + 0.5 * s * ci, qj + 0.5 * s * cj):
         return -1
-    return sweep(rem, rem, qi, qj, pi, pj, r, False)
+    di, dj = pi - qi, pj - qj
+    ll = di * di + dj * dj
+    r2 = r * r
+    n = 0
+    for k in range(count):
+        t = min(1.0, max(0.0, ((ni[k] - qi) * di + (nj[k] - qj) * dj) / ll))
+        ei, ej = ni[k] - qi - t * di, nj[k] - qj - t * dj
+        if ei * ei + ej * ej <= r2:
+            n += 1
+    return n
 
 
 @numba.njit(cache=True)
@@ -119,9 +157,12 @@ def walk(rem, feas, swept, qi, qj, theta, r, s, target, side, out, removed):
     out[0, 0], out[0, 1] = qi, qj
     removed[0] = 0
     es = np.empty(SCAN)
+    size = (2 * int(r + s) + 5) ** 2
+    ni, nj = np.empty(size, np.int64), np.empty(size, np.int64)
     while n < out.shape[0]:
+        near = _near(rem, qi, qj, r + s + 1.0, ni, nj)  # all a step may remove lies this near
         for k in range(SCAN):
-            es[k] = _removal(rem, feas, qi, qj, theta + side * (TURN - 2.0 * TURN * k / (SCAN - 1)), s, r)
+            es[k] = _removal(feas, ni, nj, near, qi, qj, theta + side * (TURN - 2.0 * TURN * k / (SCAN - 1)), s, r)
         # the first pair (within the target, beyond it or not free) from the cleared side
         found = False
         pick = 0.0
@@ -132,7 +173,7 @@ def walk(rem, feas, swept, qi, qj, theta, r, s, target, side, out, removed):
                 ea = es[k]
                 for _ in range(BISECT):
                     m = 0.5 * (a + b)
-                    e = _removal(rem, feas, qi, qj, theta + side * m, s, r)
+                    e = _removal(feas, ni, nj, near, qi, qj, theta + side * m, s, r)
                     if 0 <= e <= target:
                         a, ea = m, e
                     else:
@@ -188,6 +229,32 @@ def clear_along(dist, ai, aj, bi, bj, r):
     return True
 
 
+def _distances(rem, pos, pad, half):
+    """``(lo, hi, dist, nearest)`` over the nodes ``lo .. hi - 1``: each one's distance to the
+    material ``rem`` and its nearest node there (:func:`_distance_to`), exact where it is at most
+    ``pad``: over the material's box grown by ``pad``, or (``pos`` given) a window of ``half``
+    nodes each way about ``pos`` within it, the nodes whose distance could be wrong (within
+    ``pad`` of the window's border, inside) set to 0 (never a start, never clear)."""
+    nx, ny = rem.shape
+    ii, jj = np.nonzero(rem)
+    lo = np.maximum([ii.min() - pad, jj.min() - pad], 0)
+    hi = np.minimum([ii.max() + pad + 1, jj.max() + pad + 1], [nx, ny])
+    if pos is None:
+        return (lo, hi, *_distance_to(rem, lo, hi))
+    c = np.floor(np.asarray(pos) + 0.5).astype(int)
+    wlo = np.maximum(lo, c - int(half) - pad)
+    whi = np.minimum(hi, c + int(half) + pad + 1)
+    if np.any(whi <= wlo):
+        return (lo, hi, *_distance_to(rem, lo, hi))
+    dist, nearest = _distance_to(rem, wlo, whi)
+    for a in range(2):  # a border of the window that is not the box's: its distances may be too long
+        if wlo[a] > lo[a]:
+            dist[(slice(None),) * a + (slice(0, pad),)] = 0.0
+        if whi[a] < hi[a]:
+            dist[(slice(None),) * a + (slice(dist.shape[a] - pad, None),)] = 0.0
+    return wlo, whi, dist, nearest
+
+
 def _distance_to(rem, lo, hi):
     """``(dist, nearest)``: over the nodes ``lo .. hi - 1`` of the grid, each one's distance to the
     nearest node of ``rem`` and that node's indices ``(2, ...)`` (full-grid indices)."""
@@ -221,16 +288,15 @@ class LevelClearing:
         tried = np.zeros_like(rem)
         out = np.empty((min(int(rem.sum()) + 2, 2_000_000), 2))
         removed = np.empty(len(out), np.int64)
-        pad = int(math.ceil(r + START_BAND)) + 2
+        pad = int(math.ceil(r + berth + START_BAND)) + 2
         dist = None  # the distances to the material, while no walk has removed any
+        window = True
         while True:
             if dist is None:
-                ii, jj = np.nonzero(rem)
-                if not len(ii):
+                if not rem.any():
                     break
-                lo = np.maximum([ii.min() - pad, jj.min() - pad], 0)
-                hi = np.minimum([ii.max() + pad + 1, jj.max() + pad + 1], [nx, ny])
-                dist, nearest = _distance_to(rem, lo, hi)
+                # first round the tool only (distances exact within the window), then everywhere
+                lo, hi, dist, nearest = _distances(rem, pos if window else None, pad, WINDOW * r)
                 free = feas[lo[0]:hi[0], lo[1]:hi[1]]
                 starts = []  # room to come down clear of the material first, then any
                 for band in ((r + berth, r + berth + START_BAND), (r + 0.5, r + START_BAND)):
@@ -242,6 +308,10 @@ class LevelClearing:
                 at = 0
             while at < len(starts) and tried[starts[at][0] + lo[0], starts[at][1] + lo[1]]:
                 at += 1
+            if at == len(starts) and window and pos is not None:
+                window, dist = False, None  # nothing near: look everywhere
+                continue
+            window = True
             if at < len(starts):
                 ci, cj = starts[at]
                 start = np.array([ci + lo[0], cj + lo[1]], float)
@@ -365,7 +435,7 @@ class LevelClearing:
             run, got, gap = [pts[0]], [0], 0.0
             for a, b in zip(pts[:-1], pts[1:]):
                 step = float(np.hypot(*(b - a)))
-                e = _removal(rem, feas, a[0], a[1], math.atan2(b[1] - a[1], b[0] - a[0]), step, r)
+                e = _step_removal(rem, feas, a[0], a[1], b[0], b[1], r)
                 if 0 <= e <= target * fine / s and gap <= WALL_GAP * r:
                     got.append(sweep(rem, swept, a[0], a[1], b[0], b[1], r))
                     run.append(b)
