@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DATA   := src/meshmill/data
 
-.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge bench-gpu bench-choice bench-post bench-safety bench-startup clean
+.PHONY: venv demo test bench bench-3axis bench-dexel bench-plunge bench-rough bench-gpu bench-choice bench-post bench-safety bench-startup clean
 
 venv: $(STAMP)
 
@@ -19,6 +19,7 @@ demo: venv
 	$(BIN)/meshmill verify $(DATA)/vase.stl demo-out/job/program.nc --machine table-table-ac --tools $(DATA)/tools.toml --tolerance 0.015 --out demo-out/job/verify-program.json --quiet
 	$(BIN)/meshmill finish $(DATA)/vase.stl --tools $(DATA)/tools.toml --step-down 1 --out demo-out
 	$(BIN)/meshmill verify $(DATA)/vase.stl demo-out/toolpath.cl --tools $(DATA)/tools.toml --out demo-out/verify.json
+	$(BIN)/meshmill rough $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool F10L --engagement 2.5 --step-down 10 --stock box --out demo-out/rough --quiet
 	$(BIN)/meshmill waterline $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool B4 --step-down 2 --out demo-out/waterline
 	$(BIN)/meshmill raster $(DATA)/vase.stl --tools $(DATA)/tools.toml --tool R6 --scallop 0.01 --angle 45 --out demo-out/raster
 	$(BIN)/meshmill simulate --design $(DATA)/vase.stl --allowance 0.5 --toolpath demo-out/toolpath.cl --tools $(DATA)/tools.toml --step 0.2 --out demo-out/simulate
@@ -26,8 +27,8 @@ demo: venv
 	$(BIN)/meshmill verify $(DATA)/vase.stl demo-out/program-ac.nc --machine table-table-ac --tools $(DATA)/tools.toml --tolerance 0.015 --out demo-out/verify-program.json
 	$(BIN)/meshmill choose rubio --tool-pair 10,2 --scallop 0.01 --zones 3 --axes 3+2 --machine seed-002 --out demo-out/choose
 	$(BIN)/meshmill time demo-out/choose/toolpath.cl --machine seed-002 --tools demo-out/choose/tools.toml
-	$(BIN)/meshmill report demo-out demo-out/waterline demo-out/raster demo-out/simulate demo-out/choose --out demo-out/report.html
-	@echo "demo results in demo-out/: job/ (the vase from a box stock: plunge roughing, a waterline semi-finish and a raster with rest machining, the 5-axis finish; per operation its path and the stock after it, program.nc with every tool change, read back and verified as verify-program.json, job.json, report.html), 5-axis finishing (toolpath.cl, summary.json, verify.json), 3-axis waterline/ and raster/, simulate/ (what the 5-axis path cuts: deviation.json, machined.stl), choose/ (seed 002's Rubio surface: cutter, zones and 3+2 axes by machining time), program-ac.nc (the 5-axis path posted for an A/C trunnion, read back and verified within the path's 0.01 mm plus the post's 0.005 mm)"
+	$(BIN)/meshmill report demo-out demo-out/rough demo-out/waterline demo-out/raster demo-out/simulate demo-out/choose --out demo-out/report.html
+	@echo "demo results in demo-out/: job/ (the vase from a box stock: adaptive roughing from the top and then the four sides (3+2), a waterline semi-finish and a raster with rest machining, the 5-axis finish; per operation its path and the stock after it, program.nc with every tool change, read back and verified as verify-program.json, job.json, report.html), 5-axis finishing (toolpath.cl, summary.json, verify.json), rough/ (adaptive clearing from the box), 3-axis waterline/ and raster/, simulate/ (what the 5-axis path cuts: deviation.json, machined.stl), choose/ (seed 002's Rubio surface: cutter, zones and 3+2 axes by machining time), program-ac.nc (the 5-axis path posted for an A/C trunnion, read back and verified within the path's 0.01 mm plus the post's 0.005 mm)"
 	@echo "report: $(CURDIR)/demo-out/report.html (open it in any browser)"
 
 test: venv
@@ -44,6 +45,9 @@ bench-dexel: venv
 
 bench-plunge: venv
 	$(BIN)/python bench/plunge_roughing.py
+
+bench-rough: venv  # FreeCAD's Adaptive2d as the peer: FC=folder holding its area.so (see bench/rough.py)
+	$(BIN)/python bench/rough.py $(if $(FC),--fc $(FC))
 
 bench-gpu: venv
 	$(BIN)/python bench/gpu.py
