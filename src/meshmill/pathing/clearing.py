@@ -54,24 +54,6 @@ def _free(feas, qi, qj):
 
 
 @numba.njit(cache=True)
-def disk_count(rem, qi, qj, r):
-    """Nodes of ``rem`` within ``r`` of ``(qi, qj)``."""
-    nx, ny = rem.shape
-    count = 0
-    i0, i1 = max(0, int(math.ceil(qi - r))), min(nx - 1, int(math.floor(qi + r)))
-    for i in range(i0, i1 + 1):
-        w2 = r * r - (i - qi) * (i - qi)
-        if w2 < 0.0:
-            continue
-        w = math.sqrt(w2)
-        j0, j1 = max(0, int(math.ceil(qj - w))), min(ny - 1, int(math.floor(qj + w)))
-        for j in range(j0, j1 + 1):
-            if rem[i, j]:
-                count += 1
-    return count
-
-
-@numba.njit(cache=True)
 def sweep(rem, swept, ai, aj, bi, bj, r, clear=True):
     """Clear the nodes within ``r`` of the segment a-b: ``rem`` False, ``swept`` True; returns how
     many nodes of ``rem`` it cleared (with ``clear`` False: would clear, changing nothing)."""
@@ -287,6 +269,8 @@ class LevelClearing:
         self.helix_failed = 0
         tried = np.zeros_like(rem)
         out = np.empty((min(int(rem.sum()) + 2, 2_000_000), 2))
+        near_i = np.empty((2 * int(r + START_BAND + s) + 5) ** 2, np.int64)
+        near_j = np.empty_like(near_i)
         removed = np.empty(len(out), np.int64)
         pad = int(math.ceil(r + berth + START_BAND)) + 2
         dist = None  # the distances to the material, while no walk has removed any
@@ -315,7 +299,7 @@ class LevelClearing:
             if at < len(starts):
                 ci, cj = starts[at]
                 start = np.array([ci + lo[0], cj + lo[1]], float)
-                if disk_count(rem, start[0], start[1], r + START_BAND + s) < SLIVER * target:
+                if _near(rem, start[0], start[1], r + START_BAND + s, near_i, near_j) < SLIVER * target:
                     tried[int(start[0]), int(start[1])] = True  # a sliver: left to the walk along the walls
                     continue
                 g = nearest[:, ci, cj] - start
