@@ -143,7 +143,8 @@ def test_levels_and_flats():
                                                           (0.0, "level")]
     lv = rough_levels(10.0, 0.0, 4.0, [], 1.5)
     assert lv[:3] == [(6.0, "level"), (7.5, "stair"), (9.0, "stair")]
-    assert np.allclose(flat_heights(pocket_part()), [4.0, 12.0])
+    assert np.allclose(flat_heights(pocket_part(), 1.0), [4.0, 12.0])
+    assert np.allclose(flat_heights(pocket_part(), 1000.0), [4.0])  # the tops at 12 add up to less
 
 
 @pytest.mark.parametrize("kw, word", [(dict(engagement=7.0), "engagement"), (dict(step_down=13.0), "step_down"),

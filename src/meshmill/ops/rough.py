@@ -1,8 +1,8 @@
 """Adaptive clearing (3-axis roughing from the stock) with a bounded radial engagement.
 
 Levels: from the stock's top down, ``step_down`` apart (default the flute length), the part's
-bottom, and the height of every flat upward facet of the part (plus the axial allowance: a floor
-is cut at its height, not left as a step); with ``stair``, step-up levels between two levels
+bottom, its top, and every height where its flat upward facets add up to the area of the tool's
+end (plus the axial allowance: a floor is cut at its height, not left as a step); with ``stair``, step-up levels between two levels
 where the one below left a stair higher than that, cut after it, bottom up.
 
 Everything lives on one grid of nodes ``sample`` mm apart over the stock and the part, widened so
@@ -46,7 +46,6 @@ from ..toolpath.model import Toolpath
 
 NODE_BYTES = 200  # per grid node: its heights, and a level's masks, distances and nearest nodes
 FLAT_NORMAL = 1.0 - 1e-6  # a facet this close to facing +Z is flat
-FLAT_AREA = 1.0  # mm²: the least area of flat facets at one height that makes a level
 HELIX_SMALLEST = 0.1  # of the tool diameter: the smallest helix tried where the room is short
 HELIX_POINTS = 72  # points per turn of a helix (chords within 0.005 mm of it up to 6 mm radius: posted as arcs)
 MOVE_KINDS = ("rapid", "cut", "entry", "link")
@@ -81,8 +80,8 @@ class RoughSetup:
     part_clear: np.ndarray  # (nx, ny) above which the tool keeps the clearance from the part and its allowance
 
 
-def flat_heights(mesh) -> np.ndarray:
-    """Heights ``(k,)`` of the part's flat upward facets, at least ``FLAT_AREA`` mm² at each."""
+def flat_heights(mesh, least: float) -> np.ndarray:
+    """Heights ``(k,)`` of the part's flat upward facets, at least ``least`` mm² of them at each."""
     tri = mesh.vertices[mesh.faces]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     area2 = np.linalg.norm(cross, axis=1)
@@ -92,7 +91,7 @@ def flat_heights(mesh) -> np.ndarray:
     z = np.round(tri[up][:, :, 2].mean(axis=1), 6)
     heights, inv = np.unique(z, return_inverse=True)
     area = np.bincount(inv, weights=0.5 * area2[up])
-    return heights[area >= FLAT_AREA]
+    return heights[area >= least]
 
 
 def rough_levels(top: float, bottom: float, step: float, flats, stair) -> list:
@@ -167,7 +166,8 @@ def rough_setup(mesh, tools, params: RoughParams, device: str, cluster=None) -> 
     if stock_top <= bottom + 1e-6:
         raise NothingToCut("nothing to cut: the stock does not rise above the part's bottom", "stock")
     # the flats, and the part's top: the stock over it is faced, not left as a cap
-    flats = np.r_[flat_heights(mesh), mesh.bounds[1, 2]] + a_a
+    # (a floor smaller than the tool's end is no floor it could be cut at)
+    flats = np.r_[flat_heights(mesh, math.pi * tool.radius ** 2), mesh.bounds[1, 2]] + a_a
     levels = rough_levels(stock_top, bottom, step_down, flats, params.stair)
     safe_z = float(max(stock_top, mesh.bounds[1, 2], obstacle.max()) + params.clearance + 1.0)
     return RoughSetup(params, index, tool, xs, ys, h, top, heights["drop"], levels, solid, stock_top, safe_z, obstacle,
