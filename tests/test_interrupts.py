@@ -85,7 +85,7 @@ def test_ctrl_c_stops_a_job_and_leaves_none_of_its_files(tmp_path):
     for name in ("job.json", "program.nc"):
         (out / name).write_text("{}")
     (out / "01-rough" / "summary.json").write_text("{}")
-    for when in ("the in-process stock", "operation 1 (rough): verify", "operation 2 (semi-finish): waterline"):
+    for when in ("the in-process stock", "operation 1 (rough): verify", "operation 6 (semi-finish): waterline"):
         rc, lines, sent = interrupted(argv, when)
         assert sent and ends_interrupted(rc, lines, sent)
         assert sorted(os.listdir(out)) == [], when  # the earlier job's went at the start; nothing of this one
