@@ -26,7 +26,8 @@ says the way is not clear). Both paths are then measured the same way, by our de
   is cut in order; at most 3000 of them (every k-th, ``k`` in the JSON) are measured one by one
   (the tests measure every move);
 - ``air``: the share of the feed length that removes nothing from the stock as it stands;
-- ``m``: feed length; ``time``: machining time on generic-3axis;
+- ``m``: feed length; ``time``: machining time on generic-3axis; ``gouge``: the deepest gouge
+  of the design found by ``verify`` (certified, tolerance 0.01 mm; 0 where none);
 - ``left``: the stock left over the design where a flat tool reaches (the mean and largest height
   of the stock's top above the design's over the Z lines where the tool's own drop height lies
   within the allowance plus a level of the design's top).
@@ -96,13 +97,15 @@ def measure(part, stock, tools, tp, kind, summary, step):
     w = level_widths(st, tp, tools, cut, layer_tops(summary, tp, cut)) if len(cut) else np.zeros(1)
     t_w = time.perf_counter() - t
     after, fig = st.cut(tp, tools)
+    check = api.verify(part, tp, tools).report  # gouges against the design, certified
     timed = api.machining_time(tp, MACHINE, tools).summary
     left = stock_left(part, after, tools)
     return {"ae_max": float(w.max()), "ae_mean": float(w[w > 0.05 * AE].mean()) if (w > 0.05 * AE).any() else 0.0,
             "ae_over_10pct": float(np.mean(w > 1.1 * AE)), "air_share": fig["cutting_mm"]["air_share"],
             "feed_m": tp.cutting_length() / 1000.0, "machining_s": timed["total"]["total_s"],
             "removed_mm3": st.volume - after.volume, "rapid_cuts": fig["rapid_moves_cutting"],
-            "collisions": fig["colliding_moves"], **left, "measured_every": every, "measure_s": round(t_w, 1)}
+            "collisions": fig["colliding_moves"], "gouging_moves": check["gouging_moves"],
+            "max_gouge_mm": check["max_gouge"], **left, "measured_every": every, "measure_s": round(t_w, 1)}
 
 
 def stock_left(part, after, tools):
@@ -261,12 +264,13 @@ def main():
             print(rows[-1], flush=True)
     print(note)
     head = (f"{'part':8} {'who':10} {'levels':>6} {'s':>7} {'setup':>6} {'ae max':>7} {'ae mean':>7} {'over':>5} "
-            f"{'air':>5} {'m':>6} {'time':>7} {'left':>11}")
+            f"{'air':>5} {'m':>6} {'time':>7} {'left':>11} {'gouge':>6}")
     print(head)
     for r in rows:
         print(f"{r['part']:8} {r['who']:10} {r['levels']:6d} {r['levels_s']:7.2f} {r.get('setup_s', 0):6.1f} "
               f"{r['ae_max']:7.3f} {r['ae_mean']:7.3f} {r['ae_over_10pct']:5.1%} {r['air_share']:5.1%} "
-              f"{r['feed_m']:6.2f} {r['machining_s'] / 60:6.1f}' {r['left_mean_mm']:5.2f}/{r['left_max_mm']:5.2f}")
+              f"{r['feed_m']:6.2f} {r['machining_s'] / 60:6.1f}' {r['left_mean_mm']:5.2f}/{r['left_max_mm']:5.2f} "
+              f"{r['max_gouge_mm']:6.3f}")
     os.makedirs(os.path.join(HERE, "out"), exist_ok=True)
     with open(os.path.join(HERE, "out", "rough.json"), "w") as fh:
         json.dump({"note": note, "tool": TOOL, "ae": AE, "step_down": STEP_DOWN, "allowance": ALLOWANCE,
