@@ -3,7 +3,8 @@
 A run of points ``P[i] .. P[j]`` (the blocks i+1 .. j) is one arc when the circle through its
 first, middle and last points holds every point within ``tol`` mm, the points turn about its
 centre one way only, by less than a whole turn, each chord between them strays from the arc by at
-most ``tol`` (its sagitta), and Z is constant or linear in the angle (a helix) within ``tol``.
+most ``tol`` (its sagitta), and Z is constant or linear in the angle (a helix) within ``tol``; a
+run that bulges from the line through its ends by no more than ``tol`` is left as lines.
 Runs are grown greedily from the first block on: an arc is as long as it can be, and at least
 ``MIN_BLOCKS`` blocks.
 """
@@ -65,6 +66,8 @@ def _fits(p, i, j, tol):
         prev = a
     if theta > MAX_SWEEP:
         return False, 0.0, 0.0, False
+    if theta < math.pi and r * (1.0 - math.cos(0.5 * theta)) <= tol:
+        return False, 0.0, 0.0, False  # as straight as a line within the tolerance: not an arc
     dz = p[j, 2] - p[i, 2]
     for k in range(i, j + 1):  # Z constant, or linear in the angle
         if abs(p[k, 2] - (p[i, 2] + dz * thetas[k - i] / theta)) > tol:
