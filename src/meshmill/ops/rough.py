@@ -1,12 +1,13 @@
-"""Adaptive clearing (3-axis roughing from the stock) with a bounded radial engagement.
+"""Adaptive clearing (3-axis and indexed roughing from the stock) with a bounded radial engagement.
 
 Levels: from the stock's top down, ``step_down`` apart (default the flute length), the part's
 bottom, its top, and every height where its flat upward facets add up to the area of the tool's
-end (plus the axial allowance: a floor is cut at its height, not left as a step); with ``stair``, step-up levels between two levels
-where the one below left a stair higher than that, cut after it, bottom up.
+end (plus the axial allowance: a floor is cut at its height, not left as a step); with
+``stair``, step-up levels between two levels where the one below left a stair higher than that,
+cut after it, bottom up.
 
 Everything lives on one grid of nodes ``sample`` mm apart over the stock and the part, widened so
-the tool can go round the stock:
+the tool can go round the stock (:func:`grid_heights`):
 
 - ``top (nx, ny)``: the stock's height at each node (its surface mesh dropped on with a flat disk
   of half a node: a mesh or in-process stock with overhangs counts as full below its top, which
@@ -14,16 +15,19 @@ the tool can go round the stock:
 - ``drop (nx, ny)``: the drop-cutter height of the whole tool (cutter, shank, holder) grown by the
   radial allowance and widened sideways by one node, so that the tool centre anywhere within a
   node of a free node keeps the allowance from the part: the free region of a level at z is
-  ``drop + (axial - radial allowance) <= z``.
+  ``drop + (axial - radial allowance) <= z``, less where the stock standing beyond the part would
+  meet the shank above the flutes or the holder (:func:`_body_free`).
 
 The material of a level is the nodes whose stock top is above it within the tool's reach from
 the free region; :class:`~meshmill.pathing.clearing.LevelClearing` clears it in walks whose every
 step removes at most ``engagement · step`` mm² (the radial width of cut), entered from the side
 where the stock is open or cleared, else by a helix at ``ramp_angle``. Walks are joined at the
-level where the way is clear of the material and in the free region, else over what lies between
-(the highest stock top within the tool's reach along the way, plus the clearance), by rapids
-where that is above the stock's own top. The path is verified like every path: gouges against
-the design, shank and holder against the part, rapids against the stock.
+level, or a clearance over it, round the material where a way keeps clear of it, else over what
+lies between (the highest stock top within the tool's reach along the way, plus the clearance);
+every link and entry is a rapid where the stock as the path leaves it, the part and the
+fixtures keep the clearance from the tool (:class:`PathBuilder`). Indexed: the part, the stock
+and the fixtures turned so that ``axis`` is +Z (:func:`rough`). The path is verified like every
+path: gouges against the design, shank and holder against the part, rapids against the part.
 """
 from __future__ import annotations
 
