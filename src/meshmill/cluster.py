@@ -49,6 +49,7 @@ def connect(cluster):
         import logging
 
         logging.getLogger("distributed").setLevel(logging.ERROR)  # the nannies' notes of workers stopped
+        _quiet_resource_tracker()
         with _sigint_blocked():  # the worker processes start with it blocked: Ctrl-C is the command's alone
             lc = LocalCluster(n_workers=cluster, threads_per_worker=1, processes=True, dashboard_address=None,
                               env=worker_env(cluster), preload=[__name__])
@@ -61,6 +62,19 @@ def connect(cluster):
         raise InputError(f"cluster {cluster}: cannot reach the scheduler ({exc})", "cluster") from None
     with client:
         yield client
+
+
+def _quiet_resource_tracker() -> None:
+    """Keep multiprocessing's resource tracker (a process of its own, started with this
+    environment) from warning of "leaked semaphore objects" when a run with local workers is
+    interrupted and exits at once: the warning says nothing a user can act on and comes after the
+    command's last line. The processes started from here ignore UserWarnings (a rule naming the
+    message or the module would need ``re`` before an interpreter can import it); ours are said
+    in the results, not warned."""
+    rule = "ignore::UserWarning"
+    have = os.environ.get("PYTHONWARNINGS", "")
+    if rule not in have.split(","):
+        os.environ["PYTHONWARNINGS"] = f"{have},{rule}" if have else rule
 
 
 @contextlib.contextmanager
