@@ -72,21 +72,13 @@ def load(spec):
     return part, stock
 
 
-def layer_tops(summary, tp, which):
-    """The top of each move's layer: the level above it (the stock's top above the first)."""
-    main = [lv["z"] for lv in summary["levels"]]
-    tops = [summary["stock_top"]] + main
-    z = tp.tip[which, 2]
-    k = np.array([int(np.argmin(np.abs(np.array(main) - zz))) for zz in z])
-    return np.array(tops)[k]
-
-
 MEASURED = 3000  # cutting moves measured one by one at most (every k-th; all are cut in order)
 
 
 def measure(part, stock, tools, tp, kind, summary, step):
     """The dexel measures of a 3-axis roughing path (see the module docstring)."""
     from meshmill import api
+    from meshmill.ops.rough import layer_tops
     from meshmill.simulation.engagement import level_widths
 
     st = stock.dexels(part, step)
@@ -94,7 +86,7 @@ def measure(part, stock, tools, tp, kind, summary, step):
     every = max(1, -(-len(cut) // MEASURED))
     cut = cut[::every]
     t = time.perf_counter()
-    w = level_widths(st, tp, tools, cut, layer_tops(summary, tp, cut)) if len(cut) else np.zeros(1)
+    w = level_widths(st, tp, tools, cut, layer_tops(summary, tp.tip[cut])) if len(cut) else np.zeros(1)
     t_w = time.perf_counter() - t
     after, fig = st.cut(tp, tools)
     check = api.verify(part, tp, tools).report  # gouges against the design, certified

@@ -9,7 +9,7 @@ import pytest
 
 import meshmill
 from meshmill.geometry.mesh import closed_mesh
-from meshmill.ops.rough import MOVE_KINDS, flat_heights, rough_levels
+from meshmill.ops.rough import MOVE_KINDS, flat_heights, layer_tops, rough_levels
 from meshmill.simulation.engagement import level_widths
 from meshmill.tools.table import load_tools
 
@@ -64,19 +64,11 @@ def pocket_part():
                  (17, 14, 4, 23, 20, 12))                   # the island
 
 
-def layer_tops(summary, tp, which):
-    """The top of each move's layer: the level above it (the stock's top above the first)."""
-    main = [lv["z"] for lv in summary["levels"] if lv["kind"] == "level"]
-    tops = [summary["stock_top"]] + main
-    z = tp.tip[which, 2]
-    return np.array([tops[int(np.argmin([abs(q - zz) for q in main]))] for zz in z])
-
-
 def measured_widths(part, res, stock, step=0.15):
     kind = res.arrays["move_kind"]
     cut = np.nonzero(kind == MOVE_KINDS.index("cut"))[0]
     st = meshmill.Stock.of(stock).dexels(part, step)
-    return level_widths(st, res.toolpath, res.tools, cut, layer_tops(res.summary, res.toolpath, cut))
+    return level_widths(st, res.toolpath, res.tools, cut, layer_tops(res.summary, res.toolpath.tip[cut]))
 
 
 def test_closed_pocket_with_an_island_is_cleared_by_helices_within_the_engagement(tools):

@@ -117,18 +117,33 @@ def rough_levels(top: float, bottom: float, step: float, flats, stair) -> list:
     return out
 
 
+def rough_stock(value):
+    """``value`` as the :class:`~meshmill.simulation.stock.Stock` a roughing starts from
+    (default the part's box); the part offset is refused."""
+    from ..simulation.stock import Stock
+
+    stock = Stock.of(value, "box")
+    if stock.kind == "offset":
+        raise InputError("stock: roughing starts from a stock that holds material around the part: box, cylinder, "
+                         "a mesh, or an in-process stock (not the part offset)", "stock")
+    return stock
+
+
+def layer_tops(summary: dict, tips) -> np.ndarray:
+    """The top ``(k,)`` of the layer each of ``tips (k, 3)`` cuts, from a roughing's ``summary``:
+    the main level above the nearest one (the stock's top above the first)."""
+    main = [lv["z"] for lv in summary["levels"] if lv["kind"] == "level"]
+    tops = [summary["stock_top"]] + main
+    return np.array([tops[int(np.argmin([abs(q - z) for q in main]))] for z in np.asarray(tips)[:, 2]])
+
+
 def rough_setup(mesh, tools, params: RoughParams, device: str, cluster=None) -> RoughSetup:
     """The :class:`RoughSetup` of ``mesh``: InputError for a tool not in the table, an engagement
     wider than the tool, a step-down deeper than its flutes, a stock that is the part offset, a
     grid larger than the memory. ``cluster``: a ``distributed.Client`` whose workers compute the
     grid's heights in pieces of rows (the same heights)."""
-    from ..simulation.stock import Stock
-
     index, tool = pick_tool(tools, params.tool)
-    stock = Stock.of(params.stock, "box")
-    if stock.kind == "offset":
-        raise InputError("stock: roughing starts from a stock that holds material around the part: box, cylinder, "
-                         "a mesh, or an in-process stock (not the part offset)", "stock")
+    stock = rough_stock(params.stock)
     solid, _, margin = stock.material(mesh)
     ae = params.engagement if params.engagement is not None else 0.25 * tool.diameter
     if ae > tool.diameter:
@@ -369,7 +384,8 @@ def rough_level(setup: RoughSetup, z: float, top: np.ndarray, pos):
     feas = (setup.drop <= z + 1e-9) & _body_free(setup, top, z)
     feas[0, :] = feas[-1, :] = feas[:, 0] = feas[:, -1] = False
     material = top > z + 1e-6
-    rem = material & _dilated(feas, r)
+    reach = _dilated(feas, r)
+    rem = material & reach
     high = _max_near(np.maximum(top, setup.obstacle), r + 1.5)
     s = max(2.0, 0.25 * r)  # the step, nodes
     target = (p.engagement / setup.h - NODE_SLACK) * s  # the cleared border is known to a node
@@ -378,7 +394,7 @@ def rough_level(setup: RoughSetup, z: float, top: np.ndarray, pos):
              HELIX_SMALLEST * t.radius / setup.h)
     level = LevelClearing(rem, feas, r, s, target, side, helix, pos, p.clearance / setup.h + 1.5)
     level.material = int(material.sum())
-    level.unreachable = int((material & ~_dilated(feas, r)).sum())
+    level.unreachable = int((material & ~reach).sum())
     top[level.swept] = np.minimum(top[level.swept], z)
     return level, high, s
 
@@ -413,9 +429,7 @@ def rough(mesh, tools, params: RoughParams, progress=None, cluster=None):
     from .plunge import tool_frame
 
     frame = np.stack([*tool_frame(u), u])  # rows: the tool frame's axes in the work frame
-    stock = Stock.of(params.stock, "box")
-    if stock.kind == "offset":
-        _rough(mesh, tools, params, progress)  # refused there
+    stock = rough_stock(params.stock)
     surface = stock.rest_surface(mesh)
     margin = stock.material(mesh)[2]
     turned = Stock.mesh(surface.transformed(frame))
