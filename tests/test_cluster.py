@@ -124,7 +124,7 @@ def test_simulate_on_a_cluster_without_outputs_gathers_no_model(client, tmp_path
     assert bare.machined is None and bare.samples is None and bare.summary["machined_mesh"] is None
     assert bare.deviation == one.deviation and bare.summary["lattice"] == one.summary["lattice"]
     written = bare.save(str(tmp_path / "sim"))
-    assert sorted(os.path.basename(p) for p in written) == ["deviation.json", "summary.json"]
+    assert sorted(os.path.basename(p) for p in written) == ["deviation.json", "load.npz", "summary.json"]
 
 
 def test_a_worker_that_dies_mid_simulation_loses_nothing(client, monkeypatch):

@@ -307,7 +307,7 @@ def test_scallop_is_met_on_the_surface_the_balls_reach_by_simulation(tools):
     tp, s, d = finish(m, tools, FinishParams(step_down=2.0, scallop=h, sample=1.0))
     radii = np.array([b.radius for b in d["balls"]])
     assert s["verify"]["ok"]
-    dev, summary, _, _, ends = simulate(m, tp, tools, 0.25, stock=Stock.offset(0.5))
+    dev, summary, _, _, ends, _ = simulate(m, tp, tools, 0.25, stock=Stock.offset(0.5))
     p, w, face = sample_surface(m, 0.25)
     e = ends["e"][cKDTree(ends["points"]).query(p)[1]]
     # reached: not the underside, and the nearest CC point or raster contact fits a ball (the

@@ -183,7 +183,7 @@ def test_parallel_passes_leave_the_scallop_height(tmp_path):
     rapid = np.zeros(len(pts), bool)
     rapid[[1, -1]] = True
     tp = Toolpath(pts, np.tile([0, 0, 1.0], (len(pts), 1)), rapid, np.zeros(len(pts), int))
-    dev, summary, machined, (v, f), _ = simulate(design, tp, [BALL], step, stock=stock, tolerance=0.01)
+    dev, summary, machined, (v, f), _, _ = simulate(design, tp, [BALL], step, stock=stock, tolerance=0.01)
     h = R - math.sqrt(R * R - s * s / 4)
     assert dev["Sp"] == pytest.approx(h, rel=0.05)
     assert dev["gouge_max"] < 1e-6 and summary["rapid_moves_cutting"] == 0

@@ -31,15 +31,15 @@ from .errors import InputError, NothingToCut
 from .options import Params
 from .params import (OUTPUTS, AnalyzeParams, ChooseParams, ClearFixturesParams, DexelParams, FinishParams,
                      LoadPartParams, LoadToolpathParams, PlungeParams, PostParams, RasterParams, ReportParams,
-                     RoughParams, SimulateParams, TimeParams, VerifyParams, WaterlineParams)
+                     RoughParams, SimulateParams, TimeParams, VerifyParams, WaterlineParams, FeedsParams)
 from .results import (AnalysisResult, ChooseResult, DexelResult, FixturesResult, PathResult, PostResult,
-                      SimulateResult, TimeResult, VerifyResult)
+                      SimulateResult, TimeResult, VerifyResult, FeedsResult)
 
 __all__ = ["load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline", "plunge",
            "rough", "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
-           "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
+           "optimise_feeds", "optimised_feeds", "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
            "VerifyResult", "DexelResult", "SimulateResult", "AnalysisResult", "ChooseResult", "PostResult",
-           "TimeResult", "FixturesResult", "InputError", "NothingToCut"]
+           "TimeResult", "FixturesResult", "FeedsResult", "InputError", "NothingToCut"]
 TYPES = {"Stock": "simulation.stock", "Fixture": "ops.fixtures", "Toolpath": "toolpath.model"}
 
 
@@ -102,6 +102,11 @@ def convert(p: Params) -> Params:
             if o.role == role:
                 values[n] = CONVERT[role](o, values[n], values)
     values.pop("machine reads", None)
+    if values.get("tools") is not None and "material" in values:  # the tools' speeds in that material
+        from .tools.cutting import in_material
+
+        machine = values.get("machine")
+        values["tools"] = in_material(values["tools"], values["material"], getattr(machine, "spindle", None))
     return p.replace(**values)
 
 
@@ -314,10 +319,21 @@ def tools_file(tools) -> str:
 
 
 
-def _path_result(operation, tp, summary, mesh, tools, device, arrays=None):
+def _path_result(operation, tp, summary, mesh, tools, device, arrays=None, material=None, entries=None):
+    """The :class:`PathResult` of an operation's verified path ``tp``, each move fed as its tool's
+    cutting data in ``material`` says (:func:`~meshmill.toolpath.feeds.table_feeds`; ``entries
+    (k,) bool``: its ramp and helix moves)."""
+    import numpy as np
+
+    from .toolpath.feeds import table_feeds
+    from .tools.cutting import conditions
+
     if not len(tp) or tp.rapid.all():
         raise NothingToCut(f"nothing to cut: the {operation} path has no feed move (verified: every move that would "
                            "cut was left out)")
+    feeds = table_feeds(tp, conditions(tools, material), entries)
+    unset = ~np.isfinite(tp.feed)
+    tp.feed = np.where(unset, feeds, tp.feed)
     summary["device"] = device
     summary["tools_file"] = tools_file(tools)
     summary["part"] = part_entry(mesh)
@@ -341,14 +357,17 @@ def load_part(p):
     return load_mesh(p.path, flip=p.flip, setup=setup)
 
 
-def load_tools(path):
-    """The tool table of TOML file ``path``: a list of :class:`~meshmill.tools.table.Tool`
-    (numbered from 1) with the file's ``path``."""
+def load_tools(path, units="mm"):
+    """The tool table of ``path``: a list of :class:`~meshmill.tools.table.Tool` (numbered from
+    1) with the file's ``path`` and ``warnings``. TOML, a FreeCAD tool bit (.fctb) or library
+    (.fctl), or a LinuxCNC tool table (.tbl, in ``units``: mm or inch)."""
     from .tools.table import load_tools as read
 
     if not _is_file(path):
-        raise InputError(f"tools must be a tool table's TOML file, got {path!r}", "tools")
-    return read(path)
+        raise InputError(f"tools must be a tool table's file (TOML, .fctb, .fctl, .tbl), got {path!r}", "tools")
+    if units not in ("mm", "inch"):
+        raise InputError(f"units must be mm or inch, got {units!r}", "units")
+    return read(path, units)
 
 
 def load_machine(machine):
@@ -390,7 +409,7 @@ def finish(p) -> PathResult:
                   machinable=detail["contour_tool"] >= 0, surface_points=detail["surface_points"],
                   surface_status=detail["surface_status"], status_names=np.array(AREA_STATUS),
                   raster_from=detail["raster_from"], raster_reach=detail["raster_reach"])
-    return _path_result("finish", tp, summary, p.part, p.tools, device, arrays)
+    return _path_result("finish", tp, summary, p.part, p.tools, device, arrays, material=p.material)
 
 
 @operation(RasterParams, "part", "tools")
@@ -403,7 +422,7 @@ def raster(p) -> PathResult:
     device = resolve_device(p.device)
     with connect(p.cluster) as client:
         tp, summary = run(p.part, p.tools, p.tool, p, progress=p.progress, device=device, cluster=client)
-    return _path_result("raster", tp, summary, p.part, p.tools, device)
+    return _path_result("raster", tp, summary, p.part, p.tools, device, material=p.material)
 
 
 @operation(WaterlineParams, "part", "tools")
@@ -416,7 +435,7 @@ def waterline(p) -> PathResult:
     device = resolve_device(p.device)
     with connect(p.cluster) as client:
         tp, summary, _ = run(p.part, p.tools, p.tool, p, progress=p.progress, device=device, cluster=client)
-    return _path_result("waterline", tp, summary, p.part, p.tools, device)
+    return _path_result("waterline", tp, summary, p.part, p.tools, device, material=p.material)
 
 
 @operation(PlungeParams, "part", "tools")
@@ -436,7 +455,7 @@ def plunge(p) -> PathResult:
         summary["simulation"] = {"step": p.simulate, "stock_volume": v["stock"], "removed_volume": v["removed"],
                                  "remaining_volume": v["remaining"], "gouged_volume": v["gouged"],
                                  "gouge_max": dev["gouge_max"], "seconds": sim["seconds"]["total"]}
-    return _path_result("plunge", tp, summary, p.part, p.tools, device)
+    return _path_result("plunge", tp, summary, p.part, p.tools, device, material=p.material)
 
 
 @operation(RoughParams, "part", "tools")
@@ -456,7 +475,7 @@ def rough(p) -> PathResult:
         tp, summary, kind = run(p.part, p.tools, p.replace(device=device, cluster=None), progress=p.progress,
                                 cluster=client)
     return _path_result("rough", tp, summary, p.part, p.tools, device,
-                        dict(move_kind=kind, kinds=np.array(MOVE_KINDS)))
+                        dict(move_kind=kind, kinds=np.array(MOVE_KINDS)), p.material, kind == MOVE_KINDS.index("entry"))
 
 
 @operation(VerifyParams, "part", "toolpath", "tools")
@@ -504,18 +523,18 @@ def simulate(p) -> SimulateResult:
     stock = Stock.of(p.stock, "box")
     with connect(p.cluster) as client:
         if client is None or stock.cut_already:  # an in-process stock is cut here (its pieces on the cluster)
-            deviation, summary, after, machined, samples = one_process(
+            deviation, summary, after, machined, samples, load = one_process(
                 p.design, p.toolpath, p.tools, p.step, stock, p.tolerance, p.mode, p.progress, device, p.outputs,
-                client)
+                client, p.material, p.machine)
         else:
-            deviation, summary, after, machined, samples = simulate_on(
+            deviation, summary, after, machined, samples, load = simulate_on(
                 client, p.design, p.toolpath, p.tools, p.step, stock, p.tolerance, p.mode, p.progress, device,
-                p.outputs)
+                p.outputs, p.material, p.machine)
     summary["device"] = device
     summary["tools_file"] = tools_file(p.tools)
     summary["design"] = part_entry(p.design)
     summary["toolpath"] = {"file": p.toolpath.source, "warnings": list(p.toolpath.warnings)}
-    return SimulateResult(deviation, summary, machined, samples, after)
+    return SimulateResult(deviation, summary, machined, samples, after, load)
 
 
 @operation(AnalyzeParams, "part")
@@ -601,6 +620,60 @@ def machining_time(p) -> TimeResult:
     summary = {"operation": "time", "toolpath": p.toolpath.source, "moves": len(p.toolpath),
                "machine": p.machine.summary(), "tools_file": tools_file(p.tools), "notes": notes, **summary}
     return TimeResult(summary, list(p.toolpath.warnings))
+
+
+def optimised_feeds(toolpath, load, tools, material=None, machine=None):
+    """mm/min ``(k,)``: the feeds of ``toolpath`` optimised on its measured ``load`` (a
+    :class:`~meshmill.simulation.load.MoveLoad`, :attr:`SimulateResult.load`) for ``tools`` in
+    ``material`` on ``machine`` (its spindle and largest feed; None: generic-3axis)
+    (:func:`~meshmill.toolpath.feeds.optimise_feeds`)."""
+    from .toolpath.feeds import optimise_feeds as optimise
+    from .tools.cutting import conditions
+
+    machine = load_machine(machine or "generic-3axis") if not hasattr(machine, "spindle") else machine
+    return optimise(toolpath, load, conditions(tools, material, machine.spindle), machine.spindle,
+                    machine.spindle.max_feed)
+
+
+@operation(FeedsParams, "design", "toolpath", "tools")
+def optimise_feeds(p) -> FeedsResult:
+    """Each move of ``toolpath`` fed so that its chip stays at its tool's feed per tooth and the
+    spindle's power and torque are not exceeded, in light cuts and in air faster, within the
+    machine's largest feed: the load measured by cutting the path from ``stock``
+    (:func:`simulate`), the feeds optimised (:func:`optimised_feeds`), the machining time with
+    the feeds as programmed (else the table's, else the machine's) and optimised, and the
+    program posted for ``machine``."""
+    from .toolpath.model import Toolpath
+    from .toolpath.feeds import table_feeds
+    from .tools.cutting import conditions
+
+    import numpy as np
+
+    sim = simulate(p.design, p.toolpath, p.tools, step=p.step, stock=p.stock, tolerance=p.tolerance, device=p.device,
+                   progress=p.progress, material=p.material, machine=p.machine, outputs=())
+    tp = p.toolpath
+    before = tp.feed.copy()
+    unset = ~np.isfinite(before)
+    before[unset] = table_feeds(tp, conditions(p.tools, p.material, p.machine.spindle))[unset]
+    given = Toolpath(tp.tip, tp.axis, tp.rapid, tp.tool, tp.line, before, tp.source)
+    new = optimised_feeds(tp, sim.load, p.tools, p.material, p.machine)
+    out = Toolpath(tp.tip, tp.axis, tp.rapid, tp.tool, tp.line, new, tp.source)
+    t0 = machining_time(given, p.machine, p.tools).summary
+    t1 = machining_time(out, p.machine, p.tools).summary
+    posted = post(out, p.machine, p.tools)
+    load = sim.summary.get("load") or {}
+    moved = ~tp.rapid & np.isfinite(new)
+    summary = {"operation": "feeds", "toolpath": tp.source, "moves": len(tp), "material": p.material,
+               "machine": p.machine.summary(), "tools_file": tools_file(p.tools),
+               "time_s": {"before": t0["total"]["total_s"], "optimised": t1["total"]["total_s"]},
+               "time": {"before": t0, "optimised": t1},
+               "feed_mm_min": {"lowest": float(np.nanmin(new[moved])) if moved.any() else None,
+                               "highest": float(np.nanmax(new[moved])) if moved.any() else None,
+                               "changes": int((np.diff(new[moved]) != 0).sum()) if moved.any() else 0},
+               "load_before": load, "errors": load.get("errors", []),
+               "warnings": sim.summary["warnings"] + posted.report["warnings"],
+               "seconds": sim.summary["seconds"]}
+    return FeedsResult(out, summary, sim.load, posted, p.tools)
 
 
 @operation(ReportParams, "folders", "out")

@@ -112,7 +112,7 @@ def _results(paths) -> RunFiles:
 
 def _default_out(command):
     return {"finish": "out", "raster": "out", "waterline": "out", "plunge": "out", "rough": "out", "simulate": "sim",
-            "analyze": "analysis", "choose": "choose"}[command]
+            "analyze": "analysis", "choose": "choose", "feeds": "feeds"}[command]
 
 
 def _clear_after_usage_error(argv):
@@ -286,9 +286,49 @@ def cmd_simulate(args):
     c = summary["cutting_mm"]
     _say(args, f"feed moves: {c['in_material']:.1f} mm in material, {c['in_air']:.1f} mm in air "
                f"({100 * c['air_share']:.1f} %)")
+    for line in load_lines(summary.get("load")):
+        _say(args, line)
     _say(args, f"wrote {written} in {args.out} ({summary['seconds']['total']:.1f} s, device {summary['device']})")
     _finish_json(args, summary)
     return 0 if res.ok else 1
+
+
+def cmd_feeds(args):
+    from . import api
+
+    o = args.options
+    design = _load_part(args, o.pop("design"))
+    res = api.optimise_feeds(design, progress=_progress(args), **o)
+    written = ", ".join(os.path.basename(p) for p in res.save(args.out))
+    s = res.summary
+    for w in s["warnings"]:
+        _say(args, f"warning: {w}")
+    _end_status()
+    for e in s["errors"][:10]:
+        print(f"error: {e}", file=sys.stderr)
+    for line in load_lines(s["load_before"]):
+        _say(args, line)
+    f = s["feed_mm_min"]
+    _say(args, f"feeds {f['lowest']:.0f} to {f['highest']:.0f} mm/min ({f['changes']} changes); machining time "
+               f"{_clock(s['time_s']['before'])} as programmed, {_clock(s['time_s']['optimised'])} optimised")
+    _say(args, f"wrote {written} in {args.out}")
+    _finish_json(args, s)
+    return 0 if res.ok else 1
+
+
+def load_lines(load) -> list:
+    """One line per tool of a summary's ``load``: the largest depth, width, chip and power."""
+    if not load:
+        return []
+
+    def top(entry, key, fmt):
+        v = entry.get(key)
+        return "-" if v is None else format(v["max"], fmt)
+
+    return [f"load {t['tool']}: {t['moves_in_material']} moves in material, ap up to {top(t, 'ap_mm', '.2f')} mm, "
+            f"ae {top(t, 'ae_mm', '.2f')} mm, engagement {top(t, 'engagement_deg', '.0f')} deg, chip "
+            f"{top(t, 'chip_max_mm', '.4f')} mm, {top(t, 'rate_mm3_min', '.0f')} mm^3/min, "
+            f"{top(t, 'power_kw', '.2f')} kW" for t in load["tools"]]
 
 
 def cmd_analyze(args):
@@ -466,7 +506,8 @@ def _spec(command):
 
     return {"finish": api.finish, "raster": api.raster, "waterline": api.waterline, "plunge": api.plunge,
             "rough": api.rough, "verify": api.verify, "dexel": api.dexel, "simulate": api.simulate, "analyze": api.analyze,
-            "choose": api.choose, "post": api.post, "time": api.machining_time, "report": api.report}[command].spec
+            "choose": api.choose, "post": api.post, "time": api.machining_time, "report": api.report,
+            "feeds": api.optimise_feeds}[command].spec
 
 
 def _add_options(parser, spec, skip=()):
@@ -573,6 +614,8 @@ def build_parser():
             "model file: .npz (compact binary) or .td (seed's ASCII) (PART.dexel.npz)", cluster=True)
     command("simulate", "cut a tool path from a stock and measure it against the design", cmd_simulate, "sim",
             "output folder (sim)", cluster=True)
+    command("feeds", "each move's feed optimised on the load measured by cutting the path from its stock", cmd_feeds,
+            "feeds", "output folder (feeds)")
     command("analyze", "triangle and vertex parameters, visibility and accessibility", cmd_analyze, "analysis",
             "output folder (analysis)", json=False)
     command("choose", "tool choice, zones and directions by machining time (3-axis or 3+2)", cmd_choose, "choose",

@@ -215,6 +215,8 @@ def run_figures(run: Run) -> list:
                                                    base + _deviation_traces(go, run, notes))))
         if run.samples is not None and len(run.samples["e"]):
             figs.append(("simulate: histogram", _histogram(go, run)))
+    if run.load is not None and run.toolpath is not None and len(run.load["volume"]) == len(run.toolpath):
+        figs += _load_figures(go, run, base)
     if run.kind == "dexel" and run.part is not None:
         figs.append(("dexel: part", _scene("part", go, base)))
     seconds = run.summary.get("seconds") or {k[:-8]: v for k, v in (run.summary.get("index") or {}).items()
@@ -232,6 +234,38 @@ def run_figures(run: Run) -> list:
                                sort=False, marker=dict(colors=[PATH_COLOURS[t % len(PATH_COLOURS)] for t in share])))
         pie.update_layout(title="tools: share of the cutting length (mm)", height=320, margin=dict(t=40, b=10))
         figs.append((f"{run.kind}: tools", pie))
+    return figs
+
+
+def _load_figures(go, run, base) -> list:
+    """The load along the path (the moves in material coloured by the spindle power, else the
+    removal rate) and, per tool, a histogram of the radial width and of the power."""
+    load, tp = run.load, run.toolpath
+    cut = np.asarray(load["in_material"], bool)
+    if not cut.any():
+        return []
+    key, unit = ("power", "kW") if np.isfinite(load["power"][cut]).any() else ("rate", "mm³/min")
+    value = load[key]
+    pts = tp.tip[cut]
+    marker = dict(size=2.5, color=value[cut], colorscale="Turbo", colorbar=dict(title=unit), showscale=True)
+    trace = go.Scatter3d(x=pts[:, 0], y=pts[:, 1], z=pts[:, 2], mode="markers", marker=marker,
+                         name=f"moves in material ({key})",
+                         text=[f"ap {a:.2f} ae {e:.2f} mm, {v:.3g} {unit}" for a, e, v in
+                               zip(load["ap"][cut], load["ae"][cut], value[cut])], hoverinfo="text")
+    figs = [(f"{run.kind}: load", _scene(f"load of every move in material ({key}, {unit})", go, base + [trace]))]
+    for t in np.unique(tp.tool[cut]):
+        mine = cut & (tp.tool == t)
+        fig = go.Figure()
+        for field, name in (("ae", "radial width (mm)"), ("ap", "axial depth (mm)"), (key, f"{key} ({unit})")):
+            v = load[field][mine]
+            v = v[np.isfinite(v)]
+            if len(v):
+                counts, edges = np.histogram(v, bins=40)
+                fig.add_trace(go.Bar(x=0.5 * (edges[1:] + edges[:-1]), y=counts, width=np.diff(edges), name=name,
+                                     opacity=0.7))
+        fig.update_layout(title=f"tool {_tool_name(run, t)}: {int(mine.sum()):,} moves in material", barmode="overlay",
+                          height=320, yaxis_title="moves", margin=dict(t=40, b=40))
+        figs.append((f"{run.kind}: load of {_tool_name(run, t)}", fig))
     return figs
 
 

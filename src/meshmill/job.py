@@ -33,12 +33,13 @@ from dataclasses import dataclass, field
 from . import api
 from .api import InputError, NothingToCut
 from .options import Params, option
+from .params import material_option
 from .tomlfile import read_toml
 
 OPERATIONS = {"rough": api.rough, "plunge": api.plunge, "raster": api.raster, "waterline": api.waterline, "finish": api.finish,
               "choose": api.choose}
 SET_BY_JOB = {"part", "tools", "stock", "fixtures", "device", "progress", "machine", "cluster", "simulate", "surface",
-              "tool_pair", "flip"}  # an operation's parameters the job gives it
+              "tool_pair", "flip", "material"}  # an operation's parameters the job gives it
 JOB_TABLES = ("part", "stock", "fixtures", "operations")
 REMOVES_NOTHING = 1e-6  # mm^3: an operation that removes less of the in-process stock cut nothing
 REST_DEPTH = 0.05  # mm: the depth of stock below which a job's raster and waterline pieces are left out
@@ -68,6 +69,10 @@ class JobParams(Params):
                                            "or refuse the job", "skip", choices=("skip", "refuse"))
     device: str = option("choice", "run the heavy kernels on the CPU or an NVIDIA GPU (auto: the GPU when a usable "
                                    "one is present)", "auto", choices=("cpu", "cuda", "auto"))
+    material: str | None = material_option()
+    feeds: str = option("choice", "each move's feed: from the tool table's cutting data (table), or optimised on the load "
+                                  "the in-process stock measures (optimised: meshmill feeds)", "table",
+                        choices=("table", "optimised"))
 
 
 SETUP = tuple(n for n in api.load_part.spec.options() if n != "path")  # [part]'s keys besides file
@@ -300,6 +305,8 @@ class Job:
     device: str = "auto"
     name: str = "job"
     nothing_to_cut: str = "skip"
+    material: str | None = None
+    feeds: str = "table"
 
     @classmethod
     def from_toml(cls, path) -> "Job":
@@ -370,6 +377,7 @@ class Job:
         return cls(part=part, tools=tools, operations=operations, stock=stock, fixtures=fixtures, machine=machine,
                    step=settings.step, tolerance=settings.tolerance, in_process=settings.in_process,
                    clearance=settings.clearance, device=settings.device, nothing_to_cut=settings.nothing_to_cut,
+                   material=settings.material, feeds=settings.feeds,
                    name=settings.name or os.path.splitext(os.path.basename(path))[0])
 
     # ------------------------------------------------------------ checks
@@ -379,7 +387,7 @@ class Job:
         part, no fixture overlaps it. Raises :class:`InputError` before anything is computed."""
         JobParams.checked(dict(name=self.name, tools="given", step=self.step, tolerance=self.tolerance,
                                in_process=self.in_process, clearance=self.clearance, device=self.device,
-                               nothing_to_cut=self.nothing_to_cut), "a job")
+                               nothing_to_cut=self.nothing_to_cut, material=self.material, feeds=self.feeds), "a job")
         if isinstance(self.part, (str, os.PathLike)):
             self.part = api.load_part(self.part)
         if not (hasattr(self.part, "vertices") and hasattr(self.part, "faces")):
@@ -412,6 +420,9 @@ class Job:
                 raise InputError(f"machine must be a shipped name, a machine file or a Machine, got {self.machine!r}",
                                  "machine")
             self.machine = api.load_machine(self.machine)
+        from .tools.cutting import in_material
+
+        self.tools = in_material(self.tools, self.material, self.machine.spindle)  # the speeds the program runs at
         if five and self.machine.chain.type == "3-axis":
             raise InputError(f"the finish operation is 5-axis: the machine {self.machine.name} is 3-axis", "machine")
         names = {t.name for t in self.tools}
@@ -483,7 +494,7 @@ class Job:
         stage("cut from the in-process stock")
         t_cut = time.perf_counter()
         cut = api.simulate(self.part, tp, self.tools, step=self.step, stock=stock, tolerance=self.tolerance,
-                           device=device, cluster=client)
+                           device=device, cluster=client, material=self.material, machine=self.machine)
         cut.stock = cut.stock.named(f"stock after {op.name}")
         cut_s = time.perf_counter() - t_cut
         removed = stock.volume - cut.stock.volume
@@ -491,6 +502,12 @@ class Job:
             return self._nothing(op, label, NothingToCut(f"nothing to cut: its path removes nothing of the stock "
                                                          f"({removed:.3g} mm^3)"))
         timed = api.machining_time(tp, self.machine, self.tools).summary
+        feeds = None
+        if self.feeds == "optimised" and cut.load is not None:
+            table_s = timed["total"]["total_s"]
+            tp.feed = api.optimised_feeds(tp, cut.load, self.tools, self.material, self.machine)
+            timed = api.machining_time(tp, self.machine, self.tools).summary
+            feeds = {"table_s": table_s, "optimised_s": timed["total"]["total_s"]}
         s = cut.summary
         errors = list(s["errors"])
         if not check["ok"]:
@@ -512,7 +529,8 @@ class Job:
             "fixtures": None if fixtures is None else {"trimmed_moves": fixtures.trimmed, "ok": fixtures.ok,
                                                        "max_depth": fixtures.report["max_gouge"],
                                                        "max_collision": fixtures.report["max_collision"]},
-            "machining_s": timed["total"]["total_s"], "time": timed,
+            "machining_s": timed["total"]["total_s"], "time": timed, "feeds": feeds,
+            "load": s.get("load"),
             "seconds": {"operation": round(op_s, 3), "cut_and_measure": round(cut_s, 3)},
         }
         return OperationResult(op, res, cut)
@@ -542,6 +560,8 @@ class Job:
             params["stock"] = stock
         if op.kind == "rough" and self.fixtures:  # its walks and links go round them
             params["fixtures"] = self.fixtures
+        if "material" in run.spec.options():
+            params["material"] = self.material
         try:
             if op.kind == "choose":
                 res = run(self.part, tools=tools, device=device, progress=stage, **params)
@@ -575,6 +595,7 @@ class Job:
             "machine": self.machine.summary(), "stock": {**self.stock.summary(), "volume_mm3": start.volume},
             "fixtures": [{"name": f.name, "box": f.solid(self.part).bounds.round(6).tolist()} for f in self.fixtures],
             "step": self.step, "tolerance": self.tolerance, "in_process": self.in_process, "safe_z": safe_z,
+            "material": self.material, "feeds": self.feeds,
             "device": device,
             "operations": [_entry(r) for r in results],
             "final": {"design_volume_mm3": final["volumes_mm3"]["design"],
@@ -597,7 +618,9 @@ def _entry(r: OperationResult) -> dict:
         return {"name": r.operation.name, "type": r.operation.kind, "ok": True, "skipped": r.skipped}
     j = r.path.summary["job"]
     return {"name": r.operation.name, "type": r.operation.kind, "folder": j["folder"],
-            **{k: j[k] for k in ("ok", "removed_mm3", "left_over_design_mm3", "cutting_mm", "machining_s", "errors")},
+            **{k: j[k] for k in ("ok", "removed_mm3", "left_over_design_mm3", "cutting_mm", "machining_s", "errors",
+                                 "feeds")},
+            "load_ok": (j["load"] or {}).get("ok", True),
             "verify_ok": r.path.summary["verify"]["ok"]}
 
 

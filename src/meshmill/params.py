@@ -74,6 +74,12 @@ def _rest(what="passes"):
                             f"this depth of it (1.5 samples kept on each side)", None, unit="mm", low=0.0)
 
 
+def material_option():
+    return option("text", "the workpiece material: the tools' [[tools.cutting]] of that name and its specific cutting "
+                          "force (aluminium-6061, aluminium-7075, steel-1045, steel-p20, stainless-304, titanium-6al4v, "
+                          "cast-iron, brass, plastic)", None)
+
+
 def _device():
     return option("choice", "run the heavy kernels on the CPU or an NVIDIA GPU (meshmill[cuda]); auto: the GPU when "
                             "a usable one is present", "auto", choices=DEVICES)
@@ -166,6 +172,7 @@ class FinishParams(Params):
     whole_contours: bool = option("flag", "seed 004's rule: one ball per contour, and a contour with a point that no "
                                           "ball fits is not cut", False)
     stock: object = _stock(_STOCK_HELP, _STOCK_ALLOWANCE)
+    material: str | None = material_option()
     device: str = _device()
     cluster: object = _cluster()
     progress: object = _progress()
@@ -189,6 +196,7 @@ class RasterParams(Params):
     stock: object = _stock(_STOCK_HELP, _STOCK_ALLOWANCE)
     allowance: float = _allowance()
     rest: float | None = _rest()
+    material: str | None = material_option()
     device: str = _device()
     cluster: object = _cluster()
     progress: object = _progress()
@@ -212,6 +220,7 @@ class WaterlineParams(Params):
     stock: object = _stock(_STOCK_HELP, _STOCK_ALLOWANCE)
     allowance: float = _allowance()
     rest: float | None = _rest("loops")
+    material: str | None = material_option()
     device: str = _device()
     cluster: object = _cluster()
     progress: object = _progress()
@@ -239,6 +248,7 @@ class PlungeParams(Params):
                            "a saved stock (stock.npz), 'box'; in Python a Stock (default: the part's box)")
     simulate: float | None = option("number", "also cut the path from the part's box with dexels of this step and "
                                               "report the volumes", None, unit="mm", above=0.0)
+    material: str | None = material_option()
     device: str = _device()
     progress: object = _progress()
 
@@ -276,6 +286,7 @@ class RoughParams(Params):
                            "a Stock (default: the part's box)")
     fixtures: object = option("object", "solids the tool keeps the clearance from (in Python Fixtures or closed "
                                         "Meshes; a job gives its own)", None, role="fixtures", cli=False)
+    material: str | None = material_option()
     device: str = _device()
     cluster: object = _cluster()
     progress: object = _progress()
@@ -346,7 +357,8 @@ class SimulateParams(Params):
                        choices=("sweep", "points"))
     tool: str | None = option("text", "tool name for G-code without T words", None)
     machine: object = _machine(help="G-code's machine (TOML file or shipped name): 5-axis words are read through its "
-                                    "kinematics")
+                                    "kinematics; its spindle's power and torque bound every move's load")
+    material: str | None = material_option()
     outputs: object = option("object", "what to keep beside the summary: deviation (every dexel end's deviation, "
                                        "deviation.npz), mesh (machined.stl); the command line's comma list may say "
                                        "summary (those alone) or all", OUTPUTS, role="outputs")
@@ -445,6 +457,26 @@ class TimeParams(Params):
     feed: float | None = option("number", "cutting feed for every feed move (default: as programmed, else the "
                                           "machine's)", None, unit="mm/min", above=0.0)
     tool: str | None = option("text", "tool name for G-code without T words", None)
+    progress: object = _progress()
+
+
+@dataclass(frozen=True, kw_only=True)
+class FeedsParams(Params):
+    """feeds: each move's feed optimised on the load measured by cutting the path from its stock."""
+
+    design: object = option("object", f"design part mesh ({MESH_FORMATS}), mm; closed", role="part")
+    toolpath: object = option("object", "APT CL file (.cl) or G-code (.nc, .ngc, .gcode, .tap); in Python also a "
+                                        "Toolpath", role="toolpath")
+    tools: object = _tools()
+    machine: object = _machine("generic-3axis", "the machine (TOML file or shipped name): its spindle's power, torque "
+                                                "and speeds, its largest feed, the program's dialect", "target_machine")
+    material: str | None = material_option()
+    step: float = option("number", "dexel grid step of the stock the load is measured on", 0.5, unit="mm", above=0.0)
+    stock: object = _stock("the stock the path cuts: 'box' (the design's box), a closed mesh file, a saved stock "
+                           "(stock.npz), 'offset:MM'; in Python a Stock (default: box)")
+    tool: str | None = option("text", "tool name for G-code without T words", None)
+    tolerance: float = _tolerance(help="the shank and holder's clearance in the cut")
+    device: str = _device()
     progress: object = _progress()
 
 

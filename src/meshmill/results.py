@@ -118,20 +118,25 @@ class SimulateResult(_Saved):
     machined: tuple
     samples: dict
     stock: object = None  # the stock after the path (a Stock; None when cut on a cluster's workers)
+    load: object = None  # the load of every move (a MoveLoad; None when not measured)
 
     @property
     def ok(self) -> bool:
-        """No rapid cut material and no shank or holder hit it."""
-        return not (self.summary["rapid_moves_cutting"] or self.summary["colliding_moves"])
+        """No rapid cut material, no shank or holder hit it, no move over its tool's or the
+        spindle's limits."""
+        return not (self.summary["rapid_moves_cutting"] or self.summary["colliding_moves"]
+                    or not self.summary.get("load", {}).get("ok", True))
 
     def save(self, folder) -> list:
-        """Write deviation.json, summary.json and, where the run kept them, deviation.npz and
-        machined.stl into ``folder`` (an earlier run's files there are removed)."""
+        """Write deviation.json, summary.json and, where the run kept them, deviation.npz,
+        load.npz (every move's load) and machined.stl into ``folder`` (an earlier run's files there are removed)."""
         import numpy as np
 
         def write(at):
             if self.samples is not None:
                 np.savez_compressed(at("deviation.npz"), points=self.samples["points"], e=self.samples["e"])
+            if self.load is not None:
+                np.savez_compressed(at("load.npz"), **self.load.arrays())
             if self.machined is not None and len(self.machined[1]):
                 import trimesh
 
@@ -207,6 +212,40 @@ class PostResult(_Saved):
             self.report["program"] = os.path.abspath(path)
 
         return self._save([path], write)
+
+
+@dataclass
+class FeedsResult(_Saved):
+    """``toolpath`` with its optimised feeds, ``summary`` (machining time before and after, the
+    load as measured, its errors), the ``load`` of every move (a MoveLoad, at the feeds before),
+    the ``program`` (a :class:`PostResult`) and the ``tools``."""
+
+    toolpath: object
+    summary: dict
+    load: object
+    program: object
+    tools: list
+
+    @property
+    def ok(self) -> bool:
+        """No move over its tool's or the spindle's limits as measured (a section over the tool's, which feeds cannot mend)."""
+        return not self.summary["errors"]
+
+    def save(self, folder) -> list:
+        """Write toolpath.cl (FEDRAT per move), program.nc, load.npz and summary.json."""
+        import numpy as np
+
+        from .toolpath.cldata import write_apt
+
+        def write(at):
+            write_apt(at("toolpath.cl"), self.toolpath, self.tools)
+            with open(at("program.nc"), "w") as fh:
+                fh.write("\n".join(self.program.lines) + "\n")
+            if self.load is not None:
+                np.savez_compressed(at("load.npz"), **self.load.arrays())
+            write_json(at("summary.json"), self.summary)
+
+        return self._save_folder(folder, "feeds", write)
 
 
 @dataclass

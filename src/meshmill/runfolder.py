@@ -23,7 +23,8 @@ FOLDER_OUTPUTS = {
     "waterline": ("toolpath.cl", "part.stl", "summary.json"),
     "plunge": ("toolpath.cl", "part.stl", "summary.json"),
     "rough": ("moves.npz", "toolpath.cl", "part.stl", "summary.json"),
-    "simulate": ("deviation.npz", "machined.stl", "deviation.json", "summary.json"),
+    "simulate": ("deviation.npz", "load.npz", "machined.stl", "deviation.json", "summary.json"),
+    "feeds": ("toolpath.cl", "program.nc", "load.npz", "summary.json"),
     "analyze": ("analysis.npz", "summary.json"),
     "choose": ("tools.toml", "toolpath.cl", "zones.npz", "summary.json"),
 }
@@ -62,6 +63,7 @@ class Run:
     samples: dict | None = None  # deviation points and values
     machined: tuple | None = None  # (vertices, faces)
     zones: dict | None = None  # choose: the sampling grid's cells and their zones
+    load: dict | None = None  # simulate, feeds: every move's load (load.npz)
     notes: list = field(default_factory=list)
 
 
@@ -121,6 +123,7 @@ def read_run(folder: str, meshes: dict | None = None) -> Run:
     if s.get("tools_file") and os.path.exists(s["tools_file"]):
         run.tools = load_tools(s["tools_file"])
     cl = os.path.join(folder, "toolpath.cl") if kind != "simulate" else (s.get("toolpath") or {}).get("file")
+    run.load = read_npz(os.path.join(folder, "load.npz"))
     if cl and os.path.exists(cl) and cl.lower().endswith((".cl", ".apt", ".cls")):
         if run.tools:
             run.toolpath, _ = read_apt(cl, run.tools)

@@ -182,11 +182,31 @@ class DexelKernels:
         return self.impl.move_constants(pa, pb, xa, xb, corner, flutes)
 
     def cut_tiles(self, lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb, radius,
-                  corner, flutes, strips, chord, plane, box, kind, hit_min, hit, overflow, row0=0):
+                  corner, flutes, strips, chord, plane, box, kind, hit_min, hit, overflow, row0=0, probe=None,
+                  load=None):
         """Cut the lines of ``tiles`` by their moves, ``iv, count, hit, overflow`` in place (see
-        :func:`meshmill.kernels.cpu_dexel.cut_tiles`)."""
+        :func:`meshmill.kernels.cpu_dexel.cut_tiles`); with ``probe (k, 6)`` each move's load
+        gathered in ``load`` (:meth:`new_load`)."""
+        if probe is None:
+            import numpy as np
+
+            probe, load = np.zeros((0, 6)), np.zeros((1, 0, 5))
         self.impl.cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb,
-                            radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, overflow, row0)
+                            radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, overflow, row0,
+                            probe, load)
+
+    def new_load(self, k: int) -> np.ndarray:
+        """``(T, k, 5)``: what :meth:`cut_tiles` gathers each move's load in (T threads that add
+        to it apart: the CPU's; one on a GPU, whose threads add atomically), empty: nothing
+        removed, no extent (see :func:`meshmill.simulation.load.reduce_load`)."""
+        import numba
+        import numpy as np
+
+        threads = numba.get_num_threads() if self.device == "cpu" else 1
+        load = np.zeros((threads, k, 5))
+        load[:, :, 1] = load[:, :, 3] = -np.inf
+        load[:, :, 2] = load[:, :, 4] = np.inf
+        return load
 
 
 def cutter_rise(rho, radius, corner_radius) -> float:

@@ -127,13 +127,42 @@ def build(jit, inline=None):
         plane[m, 0], plane[m, 1], plane[m, 2], plane[m, 3] = swp.flute_plane(pa[m], pb[m], xa[m], xb[m], cm,
                                                                              flutes[m])
 
+    @jit
+    def material_span(iv, base, n, lo, hi):
+        """``(first, last)``: where the material of the line's intervals ``iv[base:base+n]``
+        within ``[lo, hi]`` starts and ends (first > last: none)."""
+        first = hi
+        last = lo
+        for k in range(base, base + n):
+            s = max(iv[k, 0], lo)
+            e = min(iv[k, 1], hi)
+            if s < e:
+                first = min(first, s)
+                last = max(last, e)
+        return first, last
+
+    @jit
+    def load_extents(m, u0, v0, first, last, probe):
+        """``(axial_lo, axial_hi, lateral_lo, lateral_hi)``: the extent along move m's axis and
+        across its feed of the material removed from the line at (u0, v0) between ``first`` and
+        ``last`` (along the line); ``probe[m]``: the axis and the unit vector across the feed (in
+        the line frame)."""
+        base_a = probe[m, 0] * u0 + probe[m, 1] * v0
+        base_l = probe[m, 3] * u0 + probe[m, 4] * v0
+        a0 = base_a + probe[m, 2] * first
+        a1 = base_a + probe[m, 2] * last
+        l0 = base_l + probe[m, 5] * first
+        l1 = base_l + probe[m, 5] * last
+        return min(a0, a1), max(a0, a1), min(l0, l1), max(l0, l1)
+
     @(inline or jit)
     def cut_line(m, line, u0, v0, wlo, whi, iv, off, count, pa, pb, xa, xb, radius, corner, flutes, strips,
-                 chord, plane):
-        """Cut move m from line ``line`` at (u0, v0). Returns the length removed, -1 when the line
-        ran out of room (see :func:`subtract`)."""
+                 chord, plane, measure):
+        """Cut move m from line ``line`` at (u0, v0). Returns ``(removed, first, last)``: the length
+        removed, -1 when the line ran out of room (see :func:`subtract`), and, when ``measure``,
+        where the material removed starts and ends along the line (first > last: none)."""
         if not reaches(iv, off, count, line, wlo, whi):
-            return 0.0
+            return 0.0, 1.0, 0.0
         n = count[line]
         base = off[line]
         cm = corner[m]
@@ -153,11 +182,14 @@ def build(jit, inline=None):
                                         chord[m, 4] - chord[m, 1], chord[m, 5] - chord[m, 2], H * xa[m, 0],
                                         H * xa[m, 1], H * xa[m, 2], radius[m])
                 if lo >= hi or not material_outside(iv, base, n, max(lo, wlo), min(hi, whi), 1.0, 0.0):
-                    return 0.0
+                    return 0.0, 1.0, 0.0
             lo, hi = swp.tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
         if lo >= hi:
-            return 0.0
-        return subtract(iv, off, count, line, lo, hi)
+            return 0.0, 1.0, 0.0
+        first, last = 1.0, 0.0
+        if measure:
+            first, last = material_span(iv, base, n, lo, hi)
+        return subtract(iv, off, count, line, lo, hi), first, last
 
     @(inline or jit)
     def touch_line(m, line, u0, v0, wlo, whi, iv, off, count, pa, pb, xa, xb, radius, corner, flutes, strips):
@@ -191,4 +223,5 @@ def build(jit, inline=None):
         return best
 
     return namespace(subtract=subtract, material_outside=material_outside, move_lines=move_lines,
-                     move_constants=move_constants, cut_line=cut_line, touch_line=touch_line)
+                     move_constants=move_constants, cut_line=cut_line, touch_line=touch_line,
+                     load_extents=load_extents)

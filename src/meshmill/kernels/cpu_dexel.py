@@ -148,7 +148,7 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
 @numba.njit(parallel=True, cache=True)
 def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
               pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit,
-              overflow, row0=0):
+              overflow, row0, probe, load):
     """Cut the lines of the given ``tiles`` with their moves, in move order within each line.
 
     Moves as in :mod:`meshmill.kernels.carve`, ``box (k, 6)`` their bounds, ``kind (k,)`` bits
@@ -158,9 +158,16 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
     material, and ``overflow[t]`` when a line of tile t ran out of room: the tile stops there, so
     rerunning it after growing the line is exact (removal is idempotent, and moves before the stop
     saw the material in path order). ``iv, off, count`` may hold the lines from row ``row0`` on
-    only (a block of rows: the tiles given must lie in it)."""
+    only (a block of rows: the tiles given must lie in it). With ``probe (k, 6)`` (each move's
+    axis and unit vector across its feed in the line frame; ``(0, 6)``: not measured), ``load (T,
+    k, 5)`` gathers per thread and move the length removed from these lines, the highest point
+    along the axis, the extent across the feed and the lowest point along the axis of what it
+    removed (see :mod:`meshmill.
+    simulation.load`)."""
     tv = (nv + TILE - 1) // TILE
+    measure = probe.shape[0] > 0
     for q in prange(tiles.shape[0]):
+        me = numba.get_thread_id() if measure else 0
         t = tiles[q]
         ti = t // tv
         tj = t % tv
@@ -183,10 +190,19 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
                                                          strips) > hit_min:
                             hit[m] = 1
                         continue
-                    removed = crv.cut_line(m, line, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5], iv, off, count,
-                                           pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane)
+                    v0 = lv + (j + 0.5) * step
+                    removed, first, last = crv.cut_line(m, line, u0, v0, box[m, 4], box[m, 5], iv, off, count,
+                                                        pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane,
+                                                        measure)
                     if removed < 0.0:
                         overflow[t] = 1
                         break
                     elif removed > hit_min:
                         hit[m] = 1
+                        if measure:
+                            ax_lo, ax_hi, lat_lo, lat_hi = crv.load_extents(m, u0, v0, first, last, probe)
+                            load[me, m, 0] += removed
+                            load[me, m, 1] = max(load[me, m, 1], ax_hi)
+                            load[me, m, 2] = min(load[me, m, 2], lat_lo)
+                            load[me, m, 3] = max(load[me, m, 3], lat_hi)
+                            load[me, m, 4] = min(load[me, m, 4], ax_lo)

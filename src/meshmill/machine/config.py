@@ -10,6 +10,12 @@ jerk_mm_s3 = 40000
 corner_angle_deg = 5      # a sharper turn between consecutive moves stops the tool
 tool_change_s = 8
 reorient_s = 3            # re-orienting the rotary axes between 3+2 setups
+[spindle]                 # optional: what load checks and feed optimisation keep under
+power_kw = 11             # at the tool (0 or absent: not checked)
+torque_nm = 70
+min_rpm = 100
+max_rpm = 12000           # a tool's speed above this is run at it
+max_feed_mm_min = 15000   # the largest programmed feed (default: the rapid rate)
 ```
 
 Each section has a reader in :data:`SECTIONS` that checks its table and returns fields of
@@ -26,7 +32,7 @@ import string
 from ..errors import InputError
 from ..tomlfile import read_toml
 from ..tools.table import MAX_RPM
-from .model import CHAINS, DIALECTS, LINEAR, RAPIDS, ROTARY, Chain, GcodeFormat, Machine, MotionLimits
+from .model import CHAINS, DIALECTS, LINEAR, RAPIDS, ROTARY, Chain, GcodeFormat, Machine, MotionLimits, Spindle
 
 SHIPPED = os.path.join(os.path.dirname(os.path.dirname(__file__)), "data", "machines")
 
@@ -216,7 +222,24 @@ def _check_template(text, key, fields, where):
             raise InputError(f"{where} '{key}' = {text!r}: fills in to {len(filled)} characters (a format width?)")
 
 
-SECTIONS = {"motion": _motion, "axes": _axes, "kinematics": _kinematics, "gcode": _gcode}  # section -> reader
+SPINDLE_KEYS = ("power_kw", "torque_nm", "min_rpm", "max_rpm", "max_feed_mm_min")
+
+
+def _spindle(table, where) -> dict:
+    """``[spindle]``: power and torque at the tool, speed range and the largest feed (see
+    :class:`~meshmill.machine.model.Spindle`)."""
+    for key in table:
+        if key not in SPINDLE_KEYS:
+            raise InputError(f"{where} unknown key '{key}' (known: {', '.join(SPINDLE_KEYS)})")
+    v = {key: _number(table, key, where, True) for key in table}
+    low, high = v.get("min_rpm", 0.0), v.get("max_rpm", MAX_RPM - 1)
+    if low >= high or high >= MAX_RPM:
+        raise InputError(f"{where} 'min_rpm' must be below 'max_rpm' (below {MAX_RPM:g} rev/min)")
+    return {"spindle": Spindle(power_kw=v.get("power_kw", 0.0), torque_nm=v.get("torque_nm", 0.0), min_rpm=low,
+                               max_rpm=high, max_feed=v.get("max_feed_mm_min", 0.0))}
+
+
+SECTIONS = {"motion": _motion, "axes": _axes, "kinematics": _kinematics, "gcode": _gcode, "spindle": _spindle}  # section -> reader
 REQUIRED = ("motion",)
 
 
@@ -252,4 +275,9 @@ def load_machine(path) -> Machine:
     for axis in fields.get("limits", {}):
         if axis in ROTARY and axis not in chain.rotary:
             raise InputError(f"{path}: [axes] '{axis}' is not a rotary axis of this machine ([kinematics] rotary)")
+    spindle = fields.get("spindle")
+    if spindle is not None and not spindle.max_feed:  # the drives' largest feed: the rapid rate unless given
+        from dataclasses import replace
+
+        fields["spindle"] = replace(spindle, max_feed=fields["motion"].rapid * 60.0)
     return Machine(name=name.strip(), path=path, **fields)

@@ -102,6 +102,11 @@ class Machine:
     gcode: GcodeFormat = GcodeFormat()
     rotary_rapid: float = 60.0
     path: str = ""
+    spindle: "Spindle" = None
+
+    def __post_init__(self):
+        if self.spindle is None:
+            object.__setattr__(self, "spindle", Spindle(max_feed=self.motion.rapid * 60.0))
 
     @property
     def axes(self) -> tuple:
@@ -117,7 +122,24 @@ class Machine:
                 "tool_change_s": self.tool_change, "reorient_s": self.reorient,
                 "rotary_rapid_deg_min": self.rotary_rapid * 60.0, "kinematics": self.chain.type,
                 "rotary": list(self.chain.rotary), "limits": {a: list(v) for a, v in self.limits.items()},
-                "dialect": self.gcode.dialect}
+                "dialect": self.gcode.dialect, "spindle": self.spindle.summary()}
+
+
+@dataclass(frozen=True)
+class Spindle:
+    """What the spindle and the feed drives allow: ``power_kw`` and ``torque_nm`` at the tool (0:
+    not given, not checked), speeds ``min_rpm``..``max_rpm`` rev/min, and the largest programmed
+    feed ``max_feed`` mm/min (default: the rapid rate)."""
+
+    power_kw: float = 0.0
+    torque_nm: float = 0.0
+    min_rpm: float = 0.0
+    max_rpm: float = 1e6
+    max_feed: float = 0.0
+
+    def summary(self) -> dict:
+        return {"power_kw": self.power_kw, "torque_nm": self.torque_nm, "min_rpm": self.min_rpm,
+                "max_rpm": self.max_rpm, "max_feed_mm_min": self.max_feed}
 
 
 @dataclass(frozen=True)

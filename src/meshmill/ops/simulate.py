@@ -44,7 +44,7 @@ def _stock_bounds(design, stock) -> np.ndarray:
 
 
 def simulate(design, toolpath, tools, step, stock=None, tolerance=0.01, mode="sweep", progress=None, device="cpu",
-             outputs=OUTPUTS, cluster=None):
+             outputs=OUTPUTS, cluster=None, material=None, machine=None):
     """Cut ``toolpath`` from ``stock`` (a :class:`~meshmill.simulation.stock.Stock`: described, or
     in-process on a lattice of ``step`` mm) and measure the result against ``design``.
 
@@ -52,20 +52,28 @@ def simulate(design, toolpath, tools, step, stock=None, tolerance=0.01, mode="sw
     mesh, {"points": (k, 3), "e": (k,)} the dexel ends and their signed deviations, mm)``; the
     mesh and the ends only when ``outputs`` names ``"mesh"`` and ``"deviation"`` (else None).
     ``device``: ``"cpu"`` or ``"cuda"`` for dexel casting, cutting and distances; ``cluster``: a
-    Client the cutting is split on (the whole on a cluster: :func:`meshmill.ops.simulate_blocks.simulate_on`)."""
+    Client the cutting is split on (the whole on a cluster: :func:`meshmill.ops.simulate_blocks.simulate_on`).
+    The load of every move is measured as it is cut (mode sweep): the summary's ``load``
+    (:func:`~meshmill.simulation.load.load_summary`, in the workpiece ``material`` with the tools'
+    cutting data, the spindle of ``machine`` and its nominal feed where none is given) and its
+    overloads among the ``errors``; the :class:`~meshmill.simulation.load.MoveLoad` is the sixth
+    result (None in mode points)."""
     from ..simulation.stock import Stock
+    from ..tools.cutting import workpiece
 
     say = progress or (lambda _: None)
     t0 = time.perf_counter()
     stock = Stock.of(stock, "box")
     bounds, warnings = prepare(design, toolpath, tools, step, stock, tolerance, outputs)
+    workpiece(material, tools)  # a material no table knows is refused before the work
     if stock.kind != "dexels":
         stock = stock.dexels(design, step, bounds, device)
         design_model = stock.state.design
         warnings += uneven_lines_warning(design_model.info.get("uneven_lines"), design)
         say(f"design: {sum(design_model.dexel_count(a) for a in range(3)):,} dexels")
     build_s = time.perf_counter() - t0
-    after, cuts = stock.cut(toolpath, tools, tolerance, mode, device, cluster, say)
+    after, cuts = stock.cut(toolpath, tools, tolerance, mode, device, cluster, say, load=True)
+    load, load_summary = measure_load(toolpath, tools, cuts.pop("removed", None), material, machine, step)
     machined = after.model
     t2 = time.perf_counter()
     mesh = after.surface() if "mesh" in outputs else None
@@ -77,8 +85,39 @@ def simulate(design, toolpath, tools, step, stock=None, tolerance=0.01, mode="sw
                                warnings + more, {"models": round(build_s, 4), "cut": cuts["seconds"],
                                                  "deviation": round(deviation_s, 4), "mesh": round(mesh_s, 4),
                                                  "total": round(time.perf_counter() - t0, 4)})
+    add_load(summary, load_summary)
     return (deviation, summary, after, mesh[:2] if mesh else None,
-            {"points": pts, "e": e} if "deviation" in outputs else None)
+            {"points": pts, "e": e} if "deviation" in outputs else None, load)
+
+
+def add_load(summary: dict, load_summary: dict | None) -> None:
+    """Put a :func:`measure_load` summary in a simulation's ``summary``: its ``load``, its
+    overloads among the ``errors``, its warnings among the ``warnings``."""
+    if load_summary is not None:
+        summary["load"] = load_summary
+        summary["errors"] = summary["errors"] + load_summary["errors"]
+        summary["warnings"] = summary["warnings"] + load_summary.pop("warnings")
+
+
+def measure_load(toolpath, tools, removed, material=None, machine=None, step=0.5):
+    """``(MoveLoad, summary)`` of a path from what each move removed (``removed``, a
+    :class:`~meshmill.simulation.load.RemovedByMove`; None: not measured, ``(None, None)``), in
+    the workpiece ``material`` (a name) on ``machine`` (its spindle and nominal feed; None: no
+    spindle limits, the generic 3-axis machine's feed where neither path nor tool gives one)."""
+    from ..machine.config import load_machine
+    from ..simulation.load import load_summary, move_loads
+    from ..tools.cutting import conditions, workpiece
+
+    if removed is None:
+        return None, None
+    kind, warnings = workpiece(material, tools)
+    spindle = machine.spindle if machine is not None else None
+    nominal = (machine or load_machine("generic-3axis")).motion.feed * 60.0
+    cond = conditions(tools, material, spindle)
+    load = move_loads(toolpath, removed, tools, cond, kind, nominal, step)
+    summary = load_summary(toolpath, tools, cond, spindle, kind, load)
+    summary["warnings"] = warnings
+    return load, summary
 
 
 def prepare(design, toolpath, tools, step, stock, tolerance, outputs) -> tuple[np.ndarray, list]:

@@ -32,7 +32,9 @@ from ..simulation.dexel import LINE_BYTES, TRIANGLE_BYTES, cast_rows, lattice, l
     uneven_lines_warning
 from ..simulation.surface import empty_field, field_rows, field_surface, mesh_grid, outward, snap_lines
 from ..simulation.stock import cut_figures, path_moves
-from .simulate import prepare, simulate_summary
+from ..simulation.load import RemovedByMove, merge_loads, move_probe
+from ..kernels.backend import DexelKernels
+from .simulate import add_load, measure_load, prepare, simulate_summary
 
 HELD_LINE_BYTES = 200  # a line kept on a worker: its design, stock and cut dexels (CSR, about two each)
 SAMPLE_BYTES = 64  # a machined dexel gathered for deviation.npz: its two ends (points and deviations)
@@ -76,14 +78,20 @@ def block_info(block: Block) -> tuple:
 
 
 def cut_block(shared: dict, block: Block) -> tuple:
-    """``(start, iv, hit indices)``: the block's stock cut by the moves (:func:`~meshmill.simulation.cut.cut_lines`)."""
-    start, iv, hit = cutting.cut_lines(shared, block.a, block.rows, *block.stock)
-    return start, iv, np.nonzero(hit)[0]
+    """``(start, iv, hit indices, load)``: the block's stock cut by the moves
+    (:func:`~meshmill.simulation.cut.cut_lines`) and, where ``shared`` has a ``probe``, the load
+    of the moves that removed some of it (their indices and rows of
+    :func:`~meshmill.simulation.load.reduce_load`; None otherwise)."""
+    start, iv, hit, load = cutting.cut_lines(shared, block.a, block.rows, *block.stock)
+    if load is not None:
+        some = np.nonzero(load[:, 0] > 0)[0]
+        load = (some, load[some])
+    return start, iv, np.nonzero(hit)[0], load
 
 
 def cut_info(cut: tuple) -> tuple:
-    """``(machined dexels, indices of the moves that hit)`` of a cut block."""
-    return len(cut[1]), cut[2]
+    """``(machined dexels, indices of the moves that hit, load)`` of a cut block."""
+    return len(cut[1]), cut[2], cut[3]
 
 
 def _kernels(shared):
@@ -114,12 +122,13 @@ def snap_block(shared: dict, block: Block, cut: tuple, verts) -> tuple:
 
 
 def simulate_on(client, design, toolpath, tools, step, stock, tolerance=0.01, mode="sweep", progress=None,
-                device="cpu", outputs=OUTPUTS):
+                device="cpu", outputs=OUTPUTS, material=None, machine=None):
     """:func:`meshmill.ops.simulate.simulate` by blocks of lines on the workers of ``client`` (a
     ``distributed.Client``) from a described ``stock``: the same arguments and results, but the
     stock after it is None (this process never holds it)."""
     say = progress or (lambda _: None)
     t0 = time.perf_counter()
+    workpiece_material = material  # (material below: the design's mesh for casting)
     bounds, warnings = prepare(design, toolpath, tools, step, stock, tolerance, outputs)
     floor = float(bounds[0, 2])
     lo, n = lattice(bounds, step)
@@ -156,20 +165,28 @@ def simulate_on(client, design, toolpath, tools, step, stock, tolerance=0.01, mo
     t1 = time.perf_counter()
     say(f"cutting {len(moves):,} moves ({len(toolpath):,} points, mode {mode})")
     near, boxes = cutting.near_moves(moves, mlo, mhi)
-    moved = share(client, dict(moves=near, boxes=boxes, lo=lo, n=n, step=float(step), device=device))
+    probe = move_probe(near) if mode == "sweep" else None
+    moved = share(client, dict(moves=near, boxes=boxes, lo=lo, n=n, step=float(step), device=device, probe=probe))
     cuts = [submit(client, cut_block, moved, b) for b in blocks]
     wait(cuts, say, "cutting")
     done = client.gather([submit(client, cut_info, c) for c in cuts])
     hit = np.zeros(len(near), np.uint8)
-    for _, idx in done:
+    for _, idx, _ in done:
         hit[idx] = 1
     cut_s = round(time.perf_counter() - t1, 4)
     figures = cut_figures(toolpath, len(moves), {**cutting.hits(near, hit), "seconds": cut_s})
+    load = load_summary = None
+    if probe is not None:
+        per_direction = [DexelKernels().new_load(len(near))[0] for _ in range(3)]
+        for p, (_, _, (some, rows)) in zip(pieces, done):
+            per_direction[p[0]][some] = merge_loads([per_direction[p[0]][some], rows])
+        removed = RemovedByMove.of(near, per_direction, float(step), len(toolpath))
+        load, load_summary = measure_load(toolpath, tools, removed, workpiece_material, machine, float(step))
 
     t2 = time.perf_counter()
     samples = "deviation" in outputs
     if samples:
-        memory.check(SAMPLE_BYTES * sum(d for d, _ in done), "gathering the deviation of every machined dexel end",
+        memory.check(SAMPLE_BYTES * sum(d for d, _, _ in done), "gathering the deviation of every machined dexel end",
                      "leave deviation out of outputs (say outputs summary,mesh)", ("outputs",))
     parts = [submit(client, measure_block, handle, b, c, tolerance, samples) for b, c in zip(blocks, cuts)]
     wait(parts, say, "measuring")
@@ -208,4 +225,5 @@ def simulate_on(client, design, toolpath, tools, step, stock, tolerance=0.01, mo
     sampled = None
     if samples:
         sampled = {"points": np.concatenate([p["points"] for p in parts]), "e": np.concatenate([p["e"] for p in parts])}
-    return deviation, summary, None, mesh[:2] if mesh else None, sampled
+    add_load(summary, load_summary)
+    return deviation, summary, None, mesh[:2] if mesh else None, sampled, load

@@ -331,11 +331,13 @@ def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern) -> tuple:
 
 
 def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=None, prepared=None,
-                   alone: bool = True) -> None:
+                   alone: bool = True, probe=None, load=None) -> None:
     """Cut the lines along ``a`` (those of the tile rows ``rows = (first, stop)`` along the axis
     after ``a``, which ``stock`` then holds ``alone`` for that direction, else among all its lines;
     default all) by the moves, in place; ``hit (k,)`` marks the moves that hit; ``prepared``: what
-    :func:`_direction_moves` gives (else made here)."""
+    :func:`_direction_moves` gives (else made here); with ``probe (k, 6)`` (world frame,
+    :func:`~meshmill.simulation.load.move_probe`) each move's load gathered in ``load``
+    (:meth:`~meshmill.kernels.backend.DexelKernels.new_load`)."""
     u, v = (a + 1) % 3, (a + 2) % 3
     nu, nv = int(stock.n[u]), int(stock.n[v])
     lu, lv = float(stock.lo[u]), float(stock.lo[v])
@@ -348,11 +350,13 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
         tiles = tiles[(tiles // tv >= rows[0]) & (tiles // tv < rows[1])]
         row0 = rows[0] * TILE if alone else 0
     np.random.default_rng(0).shuffle(tiles)  # spread the busy tiles over the threads
+    if probe is not None:
+        probe = np.ascontiguousarray(probe[:, [u, v, a, 3 + u, 3 + v, 3 + a]])  # in the line frame
     while len(tiles):
         overflow = np.zeros(len(tile_start) - 1, np.uint8)
         kern.cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, tile_start,
                        tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips, chord, plane,
-                       box, kind, RAPID_CUT, hit, overflow, row0)
+                       box, kind, RAPID_CUT, hit, overflow, row0, probe, load)
         tiles = np.nonzero(overflow)[0]
         if len(tiles):
             full = np.nonzero(stock.count[a] == np.diff(stock.off[a]))[0]
@@ -369,29 +373,42 @@ def hits(moves: Moves, hit) -> dict:
             "in_material": in_material}
 
 
-def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None) -> dict:
+def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None, load: int = 0) -> dict:
     """Remove every move's swept volume from ``stock`` (in place) on ``device`` (``"cpu"`` or
     ``"cuda"``); body moves (shank, holder) remove nothing. Returns ``{"rapid_cuts": sorted
     tool-path point indices whose rapid move cut material, "collisions": those whose shank or
     holder met material, "in_material": those whose feed move removed material (more than
     :data:`RAPID_CUT` of some dexel; the others cut air), "seconds": ...}``. ``cluster``: a
     ``distributed.Client`` whose workers cut blocks of tile rows of each direction (the same
-    result)."""
+    result). ``load``: the number of tool-path points whose moves' load is also gathered (what
+    each removed, how deep and how wide: ``"load"``, the :class:`~meshmill.simulation.load.
+    RemovedByMove` of those points; 0: not gathered)."""
+    from .load import RemovedByMove, move_probe, reduce_load
+
     t0 = time.perf_counter()
     moves, boxes = near_moves(moves, *material_bounds(stock))
     hit = np.zeros(len(moves), np.uint8)
+    probe = move_probe(moves) if load else None
+    gathered = []
     if cluster is not None:
-        _cut_on(cluster, stock, moves, boxes, hit, progress, device)
+        gathered = _cut_on(cluster, stock, moves, boxes, hit, progress, device, probe)
     else:
         kern = DexelKernels(device)
         for a in range(3):  # in blocks of tile rows (tiles are independent), the share done told
             prepared = _direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern)
             rows = -(-int(stock.n[(a + 1) % 3]) // TILE)
             pairs = np.diff(prepared[8]).reshape(rows, -1).sum(axis=1)  # moves over each tile row's tiles
-            in_pieces(lambda r0, r1: _cut_direction(stock, a, moves, boxes, kern, hit, (r0, r1), prepared, False),
+            per = kern.new_load(len(moves)) if load else None
+            in_pieces(lambda r0, r1: _cut_direction(stock, a, moves, boxes, kern, hit, (r0, r1), prepared, False,
+                                                    probe, per),
                       ranges(rows, CUT_PIECES), progress, f"cutting lines along {'XYZ'[a]}",
                       lambda r0, r1: 1 + int(pairs[r0:r1].sum()))
-    return {**hits(moves, hit), "seconds": round(time.perf_counter() - t0, 4)}
+            if load:
+                gathered.append(reduce_load(per))
+    out = {**hits(moves, hit), "seconds": round(time.perf_counter() - t0, 4)}
+    if load:
+        out["load"] = RemovedByMove.of(moves, gathered, stock.step, load)
+    return out
 
 
 def cut_rows(shared: dict, piece):
@@ -410,6 +427,8 @@ def cut_lines(shared: dict, a: int, rows, start, iv):
     made once, :func:`meshmill.cluster.worker_cached`), and ``hit (k,)`` the moves that hit."""
     from ..cluster import worker_cached
 
+    from .load import reduce_load
+
     moves, boxes = shared["moves"], shared["boxes"]
     n = shared["n"]
     stock = Stock(lo=shared["lo"], step=shared["step"], n=n, iv=[None] * 3, off=[None] * 3, count=[None] * 3)
@@ -418,9 +437,11 @@ def cut_lines(shared: dict, a: int, rows, start, iv):
     kern = DexelKernels(shared["device"])
     prepared = worker_cached(shared, f"moves {a}", lambda: _direction_moves(shared["lo"], n, shared["step"], a, moves,
                                                                           boxes, kern))
-    _cut_direction(stock, a, moves, boxes, kern, hit, rows, prepared)
+    probe = shared.get("probe")
+    load = kern.new_load(len(moves)) if probe is not None else None
+    _cut_direction(stock, a, moves, boxes, kern, hit, rows, prepared, probe=probe, load=load)
     s, out = compact_lines(stock.iv[a], stock.off[a], stock.count[a])
-    return s, out, hit
+    return s, out, hit, None if load is None else reduce_load(load)
 
 
 def _with_room(start, iv):
@@ -434,8 +455,11 @@ def _with_room(start, iv):
     return out, off, count
 
 
-def _cut_on(client, stock: Stock, moves: Moves, boxes, hit, progress, device) -> None:
-    """:func:`cut` of ``stock`` (replaced in place) by blocks of tile rows on ``client``'s workers."""
+def _cut_on(client, stock: Stock, moves: Moves, boxes, hit, progress, device, probe=None) -> list:
+    """:func:`cut` of ``stock`` (replaced in place) by blocks of tile rows on ``client``'s workers;
+    with ``probe``, each direction's load of the moves (:func:`~meshmill.simulation.load.reduce_load`)."""
+    from .load import merge_loads
+
     from ..cluster import PIECES_PER_WORKER, check_workers, run_pieces, workers
 
     pieces, peak = [], 0.0
@@ -454,10 +478,13 @@ def _cut_on(client, stock: Stock, moves: Moves, boxes, hit, progress, device) ->
     check_workers(client, peak + MOVE_BYTES * len(moves), f"cutting {len(moves):,} moves in blocks of dexel lines",
                   "use more workers, or a coarser step")
     pieces.sort(key=lambda p: -len(p[3]))  # the largest blocks first: the slow ones do not come last
-    shared = dict(moves=moves, boxes=boxes, lo=stock.lo, n=stock.n, step=stock.step, device=device)
+    shared = dict(moves=moves, boxes=boxes, lo=stock.lo, n=stock.n, step=stock.step, device=device, probe=probe)
     done = run_pieces(client, cut_rows, shared, pieces, progress, "cutting")
     for a in range(3):
-        blocks = sorted((rows, s, iv) for (d, rows, *_), (s, iv, _) in zip(pieces, done) if d == a)
+        blocks = sorted((rows, s, iv) for (d, rows, *_), (s, iv, _, _) in zip(pieces, done) if d == a)
         stock.iv[a], stock.off[a], stock.count[a] = _with_room(*join_lines([(s, iv) for _, s, iv in blocks]))
-    for *_, h in done:
+    for _, _, h, _ in done:
         hit |= h
+    if probe is None:
+        return []
+    return [merge_loads([ld for (d, *_), (*_, ld) in zip(pieces, done) if d == a]) for a in range(3)]

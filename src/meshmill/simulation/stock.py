@@ -194,10 +194,12 @@ class Stock:
                                                           np.asarray(bounds, float), description=self))
 
     def cut(self, toolpath, tools, tolerance: float = 0.01, mode: str = "sweep", device: str = "cpu", cluster=None,
-            progress=None, name: str = "machined") -> tuple["Stock", dict]:
+            progress=None, name: str = "machined", load: bool = False) -> tuple["Stock", dict]:
         """``(the stock after toolpath, what the cut found)``: its cutters remove material, its
         shanks and holders (grown by ``tolerance`` less) collide with what is left; the figures of
-        :func:`cut_figures` (rapids that cut, collisions, feed in material and in air)."""
+        :func:`cut_figures` (rapids that cut, collisions, feed in material and in air) and, with
+        ``load``, ``"removed"``: what each move removed, how deep and how wide
+        (:class:`~meshmill.simulation.load.RemovedByMove`)."""
         from . import cut as cutting
 
         if self.kind != "dexels":
@@ -207,8 +209,11 @@ class Stock:
         moves = path_moves(toolpath, tools, tolerance, mode)
         if progress:
             progress(f"cutting {len(moves):,} moves ({len(toolpath):,} points, mode {mode})")
-        result = cutting.cut(st, moves, progress=progress, device=device, cluster=cluster)
+        result = cutting.cut(st, moves, progress=progress, device=device, cluster=cluster,
+                             load=len(toolpath) if load and mode == "sweep" else 0)
         figures = cut_figures(toolpath, len(moves), result)
+        if "load" in result:
+            figures["removed"] = result["load"]
         after = _Dexels(s.part, st.to_model(name), st, s.start, s.design, s.solid, s.bounds, cut=True,
                         description=s.description)
         return replace(self, state=after), figures

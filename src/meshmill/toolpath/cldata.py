@@ -50,18 +50,27 @@ INCH = 25.4  # mm
 
 
 def write_apt(path, toolpath: Toolpath, tools, partno="meshmill") -> None:
-    """Write ``toolpath`` (tool indices into ``tools``) as an APT CL file."""
+    """Write ``toolpath`` (tool indices into ``tools``) as an APT CL file: ``SPINDL/rpm`` after a
+    tool's ``LOADTL`` where the table gives its speed, ``FEDRAT/f, MMPM`` where a feed move's
+    programmed feed (mm/min, :attr:`Toolpath.feed`) changes."""
     lines = [f"PARTNO/{partno}", "UNITS/MM", "MULTAX/ON"]
     current = -1
     goto = "GOTO/%.6f, %.6f, %.6f, %.9f, %.9f, %.9f"
     rows = np.hstack([toolpath.tip, toolpath.axis]).tolist()  # python floats: formatted fast
-    for t, rapid, row in zip(toolpath.tool.tolist(), toolpath.rapid.tolist(), rows):
+    fed = np.nan
+    for t, rapid, row, f in zip(toolpath.tool.tolist(), toolpath.rapid.tolist(), rows, toolpath.feed.tolist()):
         if t != current:
             lines.append(tools[t].apt_cutter())
             lines.append(f"LOADTL/{tools[t].number}")
+            if tools[t].rpm > 0:
+                lines.append(f"SPINDL/RPM, {tools[t].rpm:.0f}, CLW")
             current = t
+            fed = np.nan
         if rapid:
             lines.append("RAPID")
+        elif f == f and f != fed:  # (f == f: not NaN)
+            lines.append(f"FEDRAT/{f:.1f}, MMPM")
+            fed = f
         lines.append(goto % tuple(row))
     lines.append("FINI")
     with open(path, "w") as fh:

@@ -1,4 +1,5 @@
-"""Cutters with shank and holder, read from a TOML tool table.
+"""Cutters with shank and holder, and their cutting data, read from a TOML tool table (or a
+FreeCAD tool bit or library, or a LinuxCNC tool table: :mod:`meshmill.tools.foreign`).
 
 Every tool is modelled along its axis from the tip (t = 0), in mm:
 
@@ -16,10 +17,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..tomlfile import read_toml
+from .cutting import CUTTING_KEYS, Cutting, cutting_entries
 
 TYPES = ("ball", "flat", "bull")
 KEYS = ("name", "type", "diameter", "corner_radius", "flute_length", "gauge_length", "shank_diameter",
-        "holder_diameter", "holder_length", "rpm")
+        "holder_diameter", "holder_length", "rpm") + CUTTING_KEYS + ("flutes", "cutting")
 MAX_RPM = 1e6  # rev/min: spindle speeds are below this (tool tables and machines)
 RING_POINTS = 36  # spheres along the torus of a bull-nose cutter in verification
 
@@ -39,6 +41,13 @@ class Tool:
     holder_length: float = 0.0
     number: int = 1
     rpm: float = 0.0  # spindle speed, rev/min; 0: the machine's ([gcode] rpm)
+    flutes: int = 0  # teeth; 0: not given (no feed per tooth, no chip load)
+    data: tuple = ()  # the cutting data: CuttingData, the tool's own first (material ""), then per material
+
+    def cutting(self, material: str | None = None, max_rpm: float = math.inf) -> Cutting:
+        """The cutting conditions of this tool in ``material`` (the tool's own data where the
+        table gives none for it), at most ``max_rpm``: :class:`~meshmill.tools.cutting.Cutting`."""
+        return Cutting.of(self, material, max_rpm)
 
     @property
     def radius(self) -> float:
@@ -194,9 +203,13 @@ def tool_from_entry(entry: dict, number: int, where: str) -> Tool:
     if "rpm" in entry and (isinstance(rpm, bool) or not isinstance(rpm, (int, float)) or not 1 <= rpm < MAX_RPM):
         raise InputError(f"{where}: 'rpm' must be a spindle speed from 1 to {MAX_RPM - 1:g} rev/min "
                          f"(or left out for the machine's), got {rpm!r}")
+    flutes = entry.get("flutes", 0)
+    if "flutes" in entry and (isinstance(flutes, bool) or not isinstance(flutes, int) or not 1 <= flutes <= 100):
+        raise InputError(f"{where}: 'flutes' must be a whole number of teeth from 1 to 100, got {flutes!r}")
+    data = cutting_entries(entry, where)
     return Tool(name=name, type=kind, diameter=d, corner_radius=rc, flute_length=flute, gauge_length=gauge,
                 shank_diameter=shank, holder_diameter=holder_d, holder_length=holder_l if holder_d > 0 else 0.0,
-                number=number, rpm=float(rpm))
+                number=number, rpm=float(rpm), flutes=int(flutes), data=data)
 
 
 class ToolTable(list):
@@ -205,13 +218,35 @@ class ToolTable(list):
     def __init__(self, tools=(), path=""):
         super().__init__(tools)
         self.path = os.path.abspath(path) if path else ""
+        self.warnings = []  # what reading it assumed (a LinuxCNC table's flute lengths, ...)
 
 
-def load_tools(path) -> ToolTable:
-    """Read a TOML tool table (``[[tools]]`` entries) into tools numbered from 1."""
+def load_tools(path, units: str = "mm") -> ToolTable:
+    """Read a tool table into tools numbered from 1 in its order: TOML (``[[tools]]`` entries),
+    a FreeCAD tool bit (``.fctb``) or library (``.fctl``), or a LinuxCNC tool table (``.tbl``,
+    in ``units`` mm or inch; what it does not say is assumed and said in the table's
+    ``warnings``), see :mod:`meshmill.tools.foreign`."""
+    from . import foreign
+
     path = os.fspath(path)
     if not os.path.exists(path):
         raise InputError(f"{path}: no such tool table")
+    ext = os.path.splitext(path)[1].lower()
+    warnings = []
+    if ext in (".fctb", ".fctl", ".tbl"):
+        if ext == ".fctb":
+            entries, numbers = [foreign.read_fctb(path)], [1]
+        elif ext == ".fctl":
+            entries, numbers = foreign.read_fctl(path)
+        else:
+            entries, warnings, numbers = foreign.read_linuxcnc_tbl(path, units)
+        table = ToolTable([tool_from_entry(e, i + 1, path) for i, e in enumerate(entries)], path)
+        moved = [f"T{n} is tool {i + 1}" for i, n in enumerate(numbers) if n != i + 1]
+        if moved:
+            warnings.append(f"{os.path.basename(path)}: meshmill numbers tools by their order in the table, so "
+                            f"{', '.join(moved[:5])}{' ...' if len(moved) > 5 else ''}: programs call them so")
+        table.warnings = warnings
+        return table
     data = read_toml(path, "a valid TOML tool table", "tool table")
     entries = data.get("tools")
     if not isinstance(entries, list) or not entries:
@@ -238,5 +273,11 @@ def write_tools(path, tools) -> None:
             lines += [f"holder_diameter = {t.holder_diameter!r}", f"holder_length = {t.holder_length!r}"]
         if t.rpm > 0:
             lines.append(f"rpm = {t.rpm!r}")
+        if t.flutes:
+            lines.append(f"flutes = {t.flutes}")
+        lines += [f"{k} = {v!r}" for k, v in t.data[0].given().items()] if t.data else []
+        for d in t.data[1:]:
+            lines += ["", "[[tools.cutting]]", f'material = "{d.material}"'] + \
+                [f"{k} = {v!r}" for k, v in d.given().items()]
     with open(path, "w") as fh:
         fh.write("\n".join(lines) + "\n")
