@@ -76,22 +76,22 @@ def _constant(tp, load, cond, spindle):
 
 
 def _over(load, new, cond, spindle, tp):
-    """Moves over each limit with the feeds ``new`` (chip and power scaled from the measured)."""
-    from meshmill.simulation.load import LOAD_SLACK
+    """Moves over each limit with the feeds ``new`` (chip, power and torque scale with the feed),
+    the largest chip over fz and the largest power."""
+    from dataclasses import replace
+
+    from meshmill.simulation.load import limits_of, over_limits
 
     ratio = np.where(np.isfinite(load.feed) & (load.feed > 0), new / load.feed, 1.0)
-    fz = np.array([c.fz if c.known else np.inf for c in cond])[tp.tool]
-    section = np.array([c.ap * c.ae for c in cond])[tp.tool]
+    fed = replace(load, chip_max=load.chip_max * ratio, power=load.power * ratio, torque=load.torque * ratio,
+                  feed=new)
+    over = over_limits(fed, limits_of(tp, cond, spindle, fed))
+    fz = np.array([c.fz if c.known else np.nan for c in cond])[tp.tool]
     m = load.in_material
-    s = 1 + LOAD_SLACK
     with np.errstate(invalid="ignore"):
-        chip = load.chip_max * ratio
-        power = load.power * ratio
-        return {"section": int((m & ~load.plunge & (load.ap * load.ae > section * s)).sum()),
-                "chip": int((m & ~load.plunge & (chip > fz * s)).sum()),
-                "power": int((m & (power > (spindle.power_kw or np.inf) * s)).sum()),
-                "chip_max": float(np.nanmax(chip[m] / fz[m])) if m.any() else 0.0,
-                "power_max_kw": float(np.nanmax(power[m])) if m.any() and np.isfinite(power[m]).any() else 0.0}
+        return {**{k: int(v.sum()) for k, v in over.items()},
+                "chip_max": float(np.nanmax(fed.chip_max[m] / fz[m])) if m.any() else 0.0,
+                "power_max_kw": float(np.nanmax(fed.power[m])) if m.any() and np.isfinite(fed.power[m]).any() else 0.0}
 
 
 def run(name, material):
@@ -105,7 +105,8 @@ def run(name, material):
     wall = time.perf_counter() - t0
     machine = job.machine
     spindle = machine.spindle
-    rows = {k: {"s": 0.0, "section": 0, "chip": 0, "power": 0, "chip_max": 0.0, "power_max_kw": 0.0}
+    rows = {k: {"s": 0.0, "section": 0, "chip": 0, "plunge": 0, "power": 0, "torque": 0, "chip_max": 0.0,
+                "power_max_kw": 0.0}
             for k in ("table", "constant", "optimised")}
     for op in res.operations:
         if op.skipped or op.cut.load is None:
@@ -119,7 +120,7 @@ def run(name, material):
             path = Toolpath(tp.tip, tp.axis, tp.rapid, tp.tool, tp.line, f)
             rows[k]["s"] += meshmill.machining_time(path, machine, job.tools).summary["total"]["total_s"]
             over = _over(load, f, cond, spindle, tp)
-            for key in ("section", "chip", "power"):
+            for key in ("section", "chip", "plunge", "power", "torque"):
                 rows[k][key] += over[key]
             rows[k]["chip_max"] = max(rows[k]["chip_max"], over["chip_max"])
             rows[k]["power_max_kw"] = max(rows[k]["power_max_kw"], over["power_max_kw"])

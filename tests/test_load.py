@@ -14,7 +14,7 @@ from meshmill.errors import InputError
 from meshmill.geometry.mesh import closed_mesh
 from meshmill.machine.config import load_machine
 from meshmill.simulation.load import effective_diameter
-from meshmill.toolpath.feeds import MAX_THINNING, table_feeds
+from meshmill.ops.feeds import MAX_THINNING, table_feeds
 from meshmill.toolpath.model import Toolpath
 from meshmill.tools.cutting import MATERIALS, conditions
 from meshmill.tools.table import load_tools, tool_from_entry
@@ -66,7 +66,7 @@ def test_a_full_width_slot_removes_width_times_depth_times_feed():
     # 5 x 10 mm is more section than the tool's 8 x 5 mm (ap x 0.5 D): an overload, said with where
     assert not res.ok and any("cut section ap x ae of 40 mm²: up to 5 x 10 mm" in e for e in res.summary["errors"])
     over = res.summary["load"]["tools"][0]["over"]
-    assert over["section"] > 0 and over["ap"] == 0 and over["chip"] == 0
+    assert over["section"] > 0 and over["chip"] == 0
 
 
 def test_a_ten_percent_side_cut_engages_acos_one_minus_two_ae_over_d():
@@ -264,3 +264,15 @@ def test_freecad_and_linuxcnc_tables_load_as_tool_tables(tmp_path):
     assert any("T5 is tool 2" in w for w in tools.warnings)
     inch = meshmill.load_tools(str(tbl), units="inch")
     assert inch[1].diameter == pytest.approx(6.35)
+
+
+def test_a_job_whose_finishing_ball_runs_in_full_material_is_refused():
+    ball = dict(B10, ap_ratio=0.2, ae_ratio=0.5)  # rated for 2 x 5 mm
+    tools = [tool_from_entry(ball, 1, "t")]
+    job = meshmill.Job(part=block(30, 20, 10), tools=tools, stock=meshmill.Stock.box(3.0), machine="generic-3axis",
+                       operations=[{"type": "raster", "tool": "B10", "stepover": 2.0}], material="aluminium-6061",
+                       step=0.5)
+    res = job.run()
+    op = res.operations[0]
+    assert not res.ok and not op.ok and res.summary["operations"][0]["load_ok"] is False
+    assert any("cut section ap x ae of 10 mm²" in e for e in op.path.summary["job"]["errors"])

@@ -37,7 +37,7 @@ from .results import (AnalysisResult, ChooseResult, DexelResult, FixturesResult,
 
 __all__ = ["load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline", "plunge",
            "rough", "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
-           "optimise_feeds", "optimised_feeds", "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
+           "optimise_feeds", "optimised_feeds", "in_material", "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
            "VerifyResult", "DexelResult", "SimulateResult", "AnalysisResult", "ChooseResult", "PostResult",
            "TimeResult", "FixturesResult", "FeedsResult", "InputError", "NothingToCut"]
 TYPES = {"Stock": "simulation.stock", "Fixture": "ops.fixtures", "Toolpath": "toolpath.model"}
@@ -103,10 +103,7 @@ def convert(p: Params) -> Params:
                 values[n] = CONVERT[role](o, values[n], values)
     values.pop("machine reads", None)
     if values.get("tools") is not None and "material" in values:  # the tools' speeds in that material
-        from .tools.cutting import in_material
-
-        machine = values.get("machine")
-        values["tools"] = in_material(values["tools"], values["material"], getattr(machine, "spindle", None))
+        values["tools"] = in_material(values["tools"], values["material"], values.get("machine"))
     return p.replace(**values)
 
 
@@ -321,11 +318,11 @@ def tools_file(tools) -> str:
 
 def _path_result(operation, tp, summary, mesh, tools, device, arrays=None, material=None, entries=None):
     """The :class:`PathResult` of an operation's verified path ``tp``, each move fed as its tool's
-    cutting data in ``material`` says (:func:`~meshmill.toolpath.feeds.table_feeds`; ``entries
+    cutting data in ``material`` says (:func:`~meshmill.ops.feeds.table_feeds`; ``entries
     (k,) bool``: its ramp and helix moves)."""
     import numpy as np
 
-    from .toolpath.feeds import table_feeds
+    from .ops.feeds import table_feeds
     from .tools.cutting import conditions
 
     if not len(tp) or tp.rapid.all():
@@ -622,12 +619,20 @@ def machining_time(p) -> TimeResult:
     return TimeResult(summary, list(p.toolpath.warnings))
 
 
+def in_material(tools, material=None, machine=None):
+    """``tools`` with each one's spindle speed that of its cutting data in ``material``, within
+    ``machine``'s spindle (:func:`~meshmill.tools.cutting.in_material`)."""
+    from .tools.cutting import in_material as resolve
+
+    return resolve(tools, material, getattr(machine, "spindle", None))
+
+
 def optimised_feeds(toolpath, load, tools, material=None, machine=None):
     """mm/min ``(k,)``: the feeds of ``toolpath`` optimised on its measured ``load`` (a
     :class:`~meshmill.simulation.load.MoveLoad`, :attr:`SimulateResult.load`) for ``tools`` in
     ``material`` on ``machine`` (its spindle and largest feed; None: generic-3axis)
-    (:func:`~meshmill.toolpath.feeds.optimise_feeds`)."""
-    from .toolpath.feeds import optimise_feeds as optimise
+    (:func:`~meshmill.ops.feeds.optimise_feeds`)."""
+    from .ops.feeds import optimise_feeds as optimise
     from .tools.cutting import conditions
 
     machine = load_machine(machine or "generic-3axis") if not hasattr(machine, "spindle") else machine
@@ -644,7 +649,7 @@ def optimise_feeds(p) -> FeedsResult:
     the feeds as programmed (else the table's, else the machine's) and optimised, and the
     program posted for ``machine``."""
     from .toolpath.model import Toolpath
-    from .toolpath.feeds import table_feeds
+    from .ops.feeds import table_feeds
     from .tools.cutting import conditions
 
     import numpy as np

@@ -370,7 +370,8 @@ def cmd_job(args):
         _say(args, f"{op['folder']}: {'OK' if op['ok'] else 'PROBLEMS'}, removed {op['removed_mm3']:.0f} mm^3, "
                    f"{op['left_over_design_mm3']:.0f} mm^3 left over the part; cutting {c['in_material']:.0f} mm in "
                    f"material, {c['in_air']:.0f} mm in air ({100 * c['air_share']:.1f} %); "
-                   f"{_clock(op['machining_s'])} on the machine")
+                   f"{_clock(op['machining_s'])} on the machine"
+                   + (f" ({_clock(op['feeds']['table_s'])} at the table's feeds)" if op.get("feeds") else ""))
         for e in op["errors"][:5]:
             _say(args, f"  error: {e}")
     f = s["final"]

@@ -33,7 +33,6 @@ from dataclasses import dataclass, field
 from . import api
 from .api import InputError, NothingToCut
 from .options import Params, option
-from .params import material_option
 from .tomlfile import read_toml
 
 OPERATIONS = {"rough": api.rough, "plunge": api.plunge, "raster": api.raster, "waterline": api.waterline, "finish": api.finish,
@@ -69,7 +68,7 @@ class JobParams(Params):
                                            "or refuse the job", "skip", choices=("skip", "refuse"))
     device: str = option("choice", "run the heavy kernels on the CPU or an NVIDIA GPU (auto: the GPU when a usable "
                                    "one is present)", "auto", choices=("cpu", "cuda", "auto"))
-    material: str | None = material_option()
+    material: str | None = option("text", api.simulate.spec.options()["material"].help, None)
     feeds: str = option("choice", "each move's feed: from the tool table's cutting data (table), or optimised on the load "
                                   "the in-process stock measures (optimised: meshmill feeds)", "table",
                         choices=("table", "optimised"))
@@ -420,9 +419,7 @@ class Job:
                 raise InputError(f"machine must be a shipped name, a machine file or a Machine, got {self.machine!r}",
                                  "machine")
             self.machine = api.load_machine(self.machine)
-        from .tools.cutting import in_material
-
-        self.tools = in_material(self.tools, self.material, self.machine.spindle)  # the speeds the program runs at
+        self.tools = api.in_material(self.tools, self.material, self.machine)  # the speeds the program runs at
         if five and self.machine.chain.type == "3-axis":
             raise InputError(f"the finish operation is 5-axis: the machine {self.machine.name} is 3-axis", "machine")
         names = {t.name for t in self.tools}

@@ -74,7 +74,11 @@ def _rest(what="passes"):
                             f"this depth of it (1.5 samples kept on each side)", None, unit="mm", low=0.0)
 
 
-def material_option():
+def _design():
+    return option("object", f"design part mesh ({MESH_FORMATS}), mm; closed", role="part")
+
+
+def _material():
     return option("text", "the workpiece material: the tools' [[tools.cutting]] of that name and its specific cutting "
                           "force (aluminium-6061, aluminium-7075, steel-1045, steel-p20, stainless-304, titanium-6al4v, "
                           "cast-iron, brass, plastic)", None)
@@ -172,7 +176,7 @@ class FinishParams(Params):
     whole_contours: bool = option("flag", "seed 004's rule: one ball per contour, and a contour with a point that no "
                                           "ball fits is not cut", False)
     stock: object = _stock(_STOCK_HELP, _STOCK_ALLOWANCE)
-    material: str | None = material_option()
+    material: str | None = _material()
     device: str = _device()
     cluster: object = _cluster()
     progress: object = _progress()
@@ -196,7 +200,7 @@ class RasterParams(Params):
     stock: object = _stock(_STOCK_HELP, _STOCK_ALLOWANCE)
     allowance: float = _allowance()
     rest: float | None = _rest()
-    material: str | None = material_option()
+    material: str | None = _material()
     device: str = _device()
     cluster: object = _cluster()
     progress: object = _progress()
@@ -220,7 +224,7 @@ class WaterlineParams(Params):
     stock: object = _stock(_STOCK_HELP, _STOCK_ALLOWANCE)
     allowance: float = _allowance()
     rest: float | None = _rest("loops")
-    material: str | None = material_option()
+    material: str | None = _material()
     device: str = _device()
     cluster: object = _cluster()
     progress: object = _progress()
@@ -248,7 +252,7 @@ class PlungeParams(Params):
                            "a saved stock (stock.npz), 'box'; in Python a Stock (default: the part's box)")
     simulate: float | None = option("number", "also cut the path from the part's box with dexels of this step and "
                                               "report the volumes", None, unit="mm", above=0.0)
-    material: str | None = material_option()
+    material: str | None = _material()
     device: str = _device()
     progress: object = _progress()
 
@@ -286,7 +290,7 @@ class RoughParams(Params):
                            "a Stock (default: the part's box)")
     fixtures: object = option("object", "solids the tool keeps the clearance from (in Python Fixtures or closed "
                                         "Meshes; a job gives its own)", None, role="fixtures", cli=False)
-    material: str | None = material_option()
+    material: str | None = _material()
     device: str = _device()
     cluster: object = _cluster()
     progress: object = _progress()
@@ -343,7 +347,7 @@ class DexelParams(Params):
 class SimulateParams(Params):
     """simulate: cut a tool path from a stock and measure it against the design."""
 
-    design: object = option("object", f"design part mesh ({MESH_FORMATS}), mm; closed", role="part")
+    design: object = _design()
     toolpath: object = option("object", "APT CL file (.cl) or G-code (.nc, .ngc, .gcode, .tap; 5-axis with machine); "
                                         "in Python also a Toolpath", role="toolpath")
     tools: object = _tools()
@@ -358,7 +362,7 @@ class SimulateParams(Params):
     tool: str | None = option("text", "tool name for G-code without T words", None)
     machine: object = _machine(help="G-code's machine (TOML file or shipped name): 5-axis words are read through its "
                                     "kinematics; its spindle's power and torque bound every move's load")
-    material: str | None = material_option()
+    material: str | None = _material()
     outputs: object = option("object", "what to keep beside the summary: deviation (every dexel end's deviation, "
                                        "deviation.npz), mesh (machined.stl); the command line's comma list may say "
                                        "summary (those alone) or all", OUTPUTS, role="outputs")
@@ -464,13 +468,13 @@ class TimeParams(Params):
 class FeedsParams(Params):
     """feeds: each move's feed optimised on the load measured by cutting the path from its stock."""
 
-    design: object = option("object", f"design part mesh ({MESH_FORMATS}), mm; closed", role="part")
+    design: object = _design()
     toolpath: object = option("object", "APT CL file (.cl) or G-code (.nc, .ngc, .gcode, .tap); in Python also a "
                                         "Toolpath", role="toolpath")
     tools: object = _tools()
     machine: object = _machine("generic-3axis", "the machine (TOML file or shipped name): its spindle's power, torque "
                                                 "and speeds, its largest feed, the program's dialect", "target_machine")
-    material: str | None = material_option()
+    material: str | None = _material()
     step: float = option("number", "dexel grid step of the stock the load is measured on", 0.5, unit="mm", above=0.0)
     stock: object = _stock("the stock the path cuts: 'box' (the design's box), a closed mesh file, a saved stock "
                            "(stock.npz), 'offset:MM'; in Python a Stock (default: box)")

@@ -180,7 +180,7 @@ def simulate_on(client, design, toolpath, tools, step, stock, tolerance=0.01, mo
         per_direction = [DexelKernels().new_load(len(near))[0] for _ in range(3)]
         for p, (_, _, (some, rows)) in zip(pieces, done):
             per_direction[p[0]][some] = merge_loads([per_direction[p[0]][some], rows])
-        removed = RemovedByMove.of(near, per_direction, float(step), len(toolpath))
+        removed = RemovedByMove.of(near, per_direction, float(step), len(toolpath), probe)
         load, load_summary = measure_load(toolpath, tools, removed, workpiece_material, machine, float(step))
 
     t2 = time.perf_counter()

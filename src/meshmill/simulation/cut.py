@@ -407,7 +407,7 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None, l
                 gathered.append(reduce_load(per))
     out = {**hits(moves, hit), "seconds": round(time.perf_counter() - t0, 4)}
     if load:
-        out["load"] = RemovedByMove.of(moves, gathered, stock.step, load)
+        out["load"] = RemovedByMove.of(moves, gathered, stock.step, load, probe)
     return out
 
 

@@ -82,14 +82,14 @@ class RemovedByMove:
     across: np.ndarray
 
     @staticmethod
-    def of(moves, per_direction: list, step: float, points: int) -> "RemovedByMove":
-        """From the cutter moves ``moves`` (pieces of ``points`` tool-path points) and each
-        direction's ``(k, 5)`` gathered load (:func:`reduce_load`)."""
+    def of(moves, per_direction: list, step: float, points: int, probe) -> "RemovedByMove":
+        """From the cutter moves ``moves`` (pieces of ``points`` tool-path points), each
+        direction's ``(k, 5)`` gathered load (:func:`reduce_load`) and the moves' ``probe``
+        (:func:`move_probe`) it was gathered with."""
         g = np.stack(per_direction)  # (3, k, 5)
         volume = g[:, :, 0].mean(axis=0) * step * step
         top, bottom = g[:, :, 1].max(axis=0), g[:, :, 4].min(axis=0)
         lo, hi = g[:, :, 2].min(axis=0), g[:, :, 3].max(axis=0)
-        probe = move_probe(moves)
         x, n = probe[:, :3], probe[:, 3:]
         pa, pb = np.asarray(moves.pa, float), np.asarray(moves.pb, float)
         low = np.minimum(np.einsum("ij,ij->i", pa, x), np.einsum("ij,ij->i", pb, x))
@@ -99,11 +99,9 @@ class RemovedByMove:
         src = np.asarray(moves.source)
         out_v = np.zeros(points)
         np.add.at(out_v, src[cut], volume[cut])
-        height, high, deep = np.full(points, -np.inf), np.full(points, -np.inf), np.full(points, np.inf)
+        height, depth = np.full(points, -np.inf), np.full(points, -np.inf)
         np.maximum.at(height, src[cut], top[cut] - low[cut])
-        np.maximum.at(high, src[cut], top[cut])
-        np.minimum.at(deep, src[cut], bottom[cut])
-        depth = high - deep  # (a turning move's pieces: their axes differ by less than the sweep's tolerance)
+        np.maximum.at(depth, src[cut], top[cut] - bottom[cut])  # per piece: a turning move's axes differ
         w_lo, w_hi = np.full(points, np.inf), np.full(points, -np.inf)
         np.minimum.at(w_lo, src[side], lo[side] - centre[side])
         np.maximum.at(w_hi, src[side], hi[side] - centre[side])
@@ -249,22 +247,21 @@ def _move_loads(toolpath, removed, tools, conditions, material, nominal_feed, st
     return out
 
 
-LIMITS = (  # (figure, what it is, unit)
-    ("section", "cut section ap x ae", "mm²"), ("ap", "flute length", "mm"), ("chip", "chip load", "mm"),
+LIMITS = (  # (figure, what it is, unit); the flutes' length is the cut's own check (a shank meeting the stock)
+    ("section", "cut section ap x ae", "mm²"), ("chip", "chip load", "mm"),
     ("plunge", "plunge feed", "mm/min"), ("power", "spindle power", "kW"), ("torque", "spindle torque", "Nm"))
 
 
 def _values(load: MoveLoad) -> dict:
     """``{figure: (k,) value}`` of each move, as :data:`LIMITS` names them."""
-    return {"section": load.ap * load.ae, "ap": load.ap, "chip": load.chip_max, "plunge": load.feed,
+    return {"section": load.ap * load.ae, "chip": load.chip_max, "plunge": load.feed,
             "power": load.power, "torque": load.torque}
 
 
-def _limits(toolpath, tools, conditions, spindle, load: MoveLoad) -> dict:
+def limits_of(toolpath, conditions, spindle, load: MoveLoad) -> dict:
     """``{figure: (k,) limit}`` each move is held to (inf where none applies). The tool's largest
     depth and width are taken as the section it is rated for, ``ap x ae``: a cut may trade one
-    for the other (deep and light, shallow and wide) but not load the tool more; the engaged
-    length never beyond the flutes."""
+    for the other (deep and light, shallow and wide) but not load the tool more."""
     tool_of = np.asarray(toolpath.tool)
     k = len(tool_of)
     inf = np.full(k, np.inf)
@@ -272,7 +269,6 @@ def _limits(toolpath, tools, conditions, spindle, load: MoveLoad) -> dict:
     side = ~load.plunge
     return {
         "section": np.where(side, by(lambda c: c.ap * c.ae), np.inf),
-        "ap": np.array([t.flute_length for t in tools], float)[tool_of],
         "chip": np.where(side, by(lambda c: c.fz if c.known else np.inf), np.inf),
         "plunge": np.where(load.plunge, by(lambda c: c.plunge_feed if c.known else np.inf), np.inf),
         "power": inf if spindle is None or not spindle.power_kw else np.full(k, spindle.power_kw),
@@ -280,21 +276,18 @@ def _limits(toolpath, tools, conditions, spindle, load: MoveLoad) -> dict:
     }
 
 
-def over_limits(toolpath, tools, conditions, spindle, load: MoveLoad) -> dict:
-    """``{figure: (k,) bool}``: the moves in material over each limit of :data:`LIMITS` (by
-    more than :data:`LOAD_SLACK`)."""
-    limits = _limits(toolpath, tools, conditions, spindle, load)
+def over_limits(load: MoveLoad, limits: dict) -> dict:
+    """``{figure: (k,) bool}``: the moves in material over each of ``limits`` (:func:`limits_of`)
+    by more than :data:`LOAD_SLACK`."""
     with np.errstate(invalid="ignore"):
         return {figure: load.in_material & np.isfinite(value) & (value > limits[figure] * (1 + LOAD_SLACK))
                 for figure, value in _values(load).items()}
 
 
-def overloads(toolpath, tools, conditions, spindle, load: MoveLoad) -> list:
-    """One line per tool and limit its moves exceed (:func:`over_limits`), with how many, the
-    worst and where."""
-    limits = _limits(toolpath, tools, conditions, spindle, load)
+def overloads(toolpath, tools, load: MoveLoad, limits: dict, over: dict) -> list:
+    """One line per tool and limit its moves are ``over`` (:func:`over_limits`), with how many,
+    the worst and where."""
     values = _values(load)
-    over = over_limits(toolpath, tools, conditions, spindle, load)
     tool_of = np.asarray(toolpath.tool)
     errors = []
     for figure, what, unit in LIMITS:
@@ -324,8 +317,9 @@ def load_summary(toolpath, tools, conditions, spindle, material, load: MoveLoad)
     """summary.json's ``load``: per tool its limits and the distributions of its moves in
     material (depth, width, engagement, chip, removal rate, power), the moves over a limit, and
     the errors (:func:`overloads`)."""
-    errors = overloads(toolpath, tools, conditions, spindle, load)
-    over = over_limits(toolpath, tools, conditions, spindle, load)
+    limits = limits_of(toolpath, conditions, spindle, load)
+    over = over_limits(load, limits)
+    errors = overloads(toolpath, tools, load, limits, over)
     tool_of = np.asarray(toolpath.tool)
     per_tool = []
     for t in np.unique(tool_of[~np.asarray(toolpath.rapid, bool)]):

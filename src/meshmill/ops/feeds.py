@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from ..simulation.load import PLUNGE_COS, LOAD_SLACK
+from ..simulation.load import PLUNGE_COS, limits_of, over_limits
 
 MAX_THINNING = 3.0  # a light cut is fed at most this many times the table's feed
 FEED_STEP = 1.05  # feeds are rounded down to powers of this
@@ -104,9 +104,7 @@ def optimise_feeds(toolpath, load, conditions, spindle, max_feed: float) -> np.n
                 target = np.where(cutting, np.minimum(target, cap), target)
     plunge = cutting & load.plunge
     target[plunge] = np.where(known[plunge], plunge_limit[plunge], measured[plunge])
-    section = np.array([c.ap * c.ae for c in conditions])[tool_of]
-    with np.errstate(invalid="ignore"):
-        over = cutting & ~load.plunge & (load.ap * load.ae > section * (1 + LOAD_SLACK))
+    over = over_limits(load, limits_of(toolpath, conditions, spindle, load))["section"]
     target[over] = np.minimum(target[over], base[over])  # a cut over its section is not sped up
     air = ~rapid & ~cutting
     target[air] = max_feed
