@@ -221,6 +221,7 @@ def test_meshmill_feeds_writes_the_path_the_program_and_the_times(tmp_path):
     (dict(F10, cutting=[{"vc": 100.0}]), "needs material"),
     (dict(F10, cutting=[{"material": "x", "flutes": 2}]), "unknown key 'flutes'"),
     (dict(F10, vc="fast"), "'vc' must be a number of m/min"),
+    (dict(F10, vc=200.0), "give 'rpm' or 'vc', not both"),
 ])
 def test_bad_cutting_data_is_one_line(entry, message):
     with pytest.raises(InputError, match=message) as exc:
@@ -234,6 +235,15 @@ def test_the_material_overrides_the_tools_own_data_and_the_spindle_holds_the_spe
     assert own.rpm == 8000.0 and own.ae == 5.0 and own.feed == pytest.approx(1200.0)
     assert steel.rpm == 12000.0 and steel.ae == 1.0 and steel.fz == 0.05 and steel.ap == 8.0
     assert steel.plunge_feed == 300.0 and steel.material == "steel-p20"
+
+
+def test_cutting_data_is_written_back_as_read(tmp_path):
+    from meshmill.tools.table import write_tools
+
+    t = tool_from_entry(dict(F10, cutting=[{"material": "steel-p20", "rpm": 3000.0, "ae_ratio": 0.1}]), 1, "t")
+    write_tools(tmp_path / "t.toml", [t])
+    [back] = load_tools(str(tmp_path / "t.toml"))
+    assert back.data == t.data and back.flutes == 3 and back.cutting("steel-p20") == t.cutting("steel-p20")
 
 
 def test_the_machines_spindle_section_is_read_and_checked(tmp_path):

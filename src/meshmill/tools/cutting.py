@@ -115,9 +115,8 @@ class CuttingData:
     ramp_feed: float = 0.0
 
     def given(self) -> dict:
-        """The values it gives (not 0), as a tool table writes them (``material`` and ``rpm`` aside)."""
-        return {f.name: getattr(self, f.name) for f in fields(self)
-                if f.name not in ("material", "rpm") and getattr(self, f.name)}
+        """The values it gives (not 0), as a tool table writes them (``material`` aside)."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "material" and getattr(self, f.name)}
 
 
 def _data(entry: dict, where: str, keys) -> CuttingData:

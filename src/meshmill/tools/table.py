@@ -203,6 +203,8 @@ def tool_from_entry(entry: dict, number: int, where: str) -> Tool:
     if "rpm" in entry and (isinstance(rpm, bool) or not isinstance(rpm, (int, float)) or not 1 <= rpm < MAX_RPM):
         raise InputError(f"{where}: 'rpm' must be a spindle speed from 1 to {MAX_RPM - 1:g} rev/min "
                          f"(or left out for the machine's), got {rpm!r}")
+    if "rpm" in entry and "vc" in entry:
+        raise InputError(f"{where}: give 'rpm' or 'vc', not both")
     flutes = entry.get("flutes", 0)
     if "flutes" in entry and (isinstance(flutes, bool) or not isinstance(flutes, int) or not 1 <= flutes <= 100):
         raise InputError(f"{where}: 'flutes' must be a whole number of teeth from 1 to 100, got {flutes!r}")
