@@ -669,6 +669,7 @@ def optimise_feeds(p) -> FeedsResult:
     load = sim.summary.get("load") or {}
     moved = ~tp.rapid & np.isfinite(new)
     summary = {"operation": "feeds", "toolpath": tp.source, "moves": len(tp), "material": p.material,
+               "design": part_entry(p.design),
                "machine": p.machine.summary(), "tools_file": tools_file(p.tools),
                "time_s": {"before": t0["total"]["total_s"], "optimised": t1["total"]["total_s"]},
                "time": {"before": t0, "optimised": t1},

@@ -33,13 +33,20 @@ def test_cutting_matches_cpu_through_overflow(monkeypatch):
     real = [tool_from_entry(dict(name=t.type, type=t.type, diameter=2 * t.radius, corner_radius=t.corner_radius,
                                  flute_length=2.0, gauge_length=9.0), k + 1, "t") for k, t in enumerate(tools)]
     moves = cutting.Moves.merge(cutting.toolpath_moves(tp, tools), cutting.body_moves(tp, real))
-    stocks = []
+    stocks, loads = [], []
     for device in ("cpu", "cuda"):
         st = cutting.stock_from_model(model)
-        res = cutting.cut(st, moves, device=device)
+        res = cutting.cut(st, moves, device=device, load=len(tp))
         stocks.append((st.to_model(), (res["rapid_cuts"], res["collisions"])))
+        loads.append(res["load"])
     (a, ra), (b, rb) = stocks
     assert ra == rb and ra[1], (ra, rb)
+    # every move's load: per thread on the CPU, by atomics on the GPU (sums in another order)
+    la, lb = loads
+    assert (la.volume > 0).sum() >= 4 and np.allclose(la.volume, lb.volume, rtol=1e-12, atol=1e-12)
+    for f in ("height", "depth", "across"):
+        assert np.array_equal(np.isnan(getattr(la, f)), np.isnan(getattr(lb, f))), f
+        assert np.allclose(getattr(la, f), getattr(lb, f), rtol=0, atol=1e-12, equal_nan=True), f
     for k in range(3):
         assert same(a.start[k], b.start[k]) and same(a.iv[k], b.iv[k]), k
     assert sum(len(v) for v in a.iv) > sum(len(v) for v in model.iv)  # the slots split dexels

@@ -15,8 +15,8 @@ Optimised (:func:`optimise_feeds`), from each move's :class:`~meshmill.simulatio
   the move cuts a section (ap x ae) over the tool's (feeds cannot fix that);
 - in air, the machine's largest feed (a move that removes nothing is still a feed move, never a
   rapid: the stock as measured is clear there, the part may not be);
-- the moves are taken in runs at least ``MERGE_LENGTH`` long, each fed at the lowest feed of
-  its run, so that F does not change on every short block and the control's look-ahead keeps
+- the moves are taken in runs at least ``MERGE_LENGTH`` long (never mixing moves in air, in
+  material and plunging), each fed at the lowest feed of its run, so that F does not change on every short block and the control's look-ahead keeps
   its speed; feeds are rounded down to steps of
   ``FEED_STEP`` (5 %) so that a nearly steady cut keeps one F.
 """
@@ -62,7 +62,7 @@ def table_feeds(toolpath, conditions, entries=None) -> np.ndarray:
 def _runs(length, breaks) -> np.ndarray:
     """Run number ``(k,)`` of each move: the moves are taken in runs at least
     :data:`MERGE_LENGTH` long (a move that long is a run of its own), a ``breaks`` move
-    (a rapid, a new tool) starting a new one."""
+    (a rapid, a new tool, from air into material or a plunge and back) starting a new one."""
     run = np.zeros(len(length), np.int64)
     n, acc = 0, 0.0
     for i, (ln, b) in enumerate(zip(length.tolist(), breaks.tolist())):
@@ -112,7 +112,8 @@ def optimise_feeds(toolpath, load, conditions, spindle, max_feed: float) -> np.n
     target = np.maximum(target, MIN_FEED_SHARE * np.where(np.isfinite(base), base, target))
     target = FEED_STEP ** np.floor(np.log(np.maximum(target, 1e-9)) / math.log(FEED_STEP) + 1e-9)
     length = np.r_[0.0, np.linalg.norm(np.diff(toolpath.tip, axis=0), axis=1)]
-    breaks = rapid | np.r_[True, tool_of[1:] != tool_of[:-1]]
+    kind = cutting.astype(np.int8) + load.plunge  # air, in material, plunging: runs never mix them
+    breaks = rapid | np.r_[True, (tool_of[1:] != tool_of[:-1]) | (kind[1:] != kind[:-1])]
     run = _runs(length, breaks)
     lowest = np.full(run.max() + 1 if k else 0, np.inf)
     feed_moves = ~rapid & np.isfinite(target)
