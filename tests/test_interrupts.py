@@ -96,7 +96,7 @@ def test_ctrl_c_on_a_cluster_is_one_line_too(path, tmp_path):
     pytest.importorskip("distributed")
     argv = ["simulate", "--design", os.path.join(DATA, "vase.stl"), "--toolpath", path, "--tools",
             os.path.join(DATA, "tools.toml"), "--step", "0.5", "--workers", "2", "--out", str(tmp_path / "sim")]
-    for when in (1.2, "cutting "):  # while the workers start (their SIGINT blocked), and while they cut
+    for when in (1.2, "cutting "):  # while the workers start (born ignoring SIGINT), and while they cut
         rc, lines, sent = interrupted(argv, when)
         assert ends_interrupted(rc, lines, sent) or not sent
 
@@ -122,3 +122,28 @@ def test_the_threading_layer_is_pinned_to_one_that_shuts_down():
     env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_THREADING_LAYER")}
     layer = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout
     assert layer.strip() in ("omp", "workqueue")
+
+
+def _sigint_at_start(queue):
+    queue.put(signal.getsignal(signal.SIGINT))
+
+
+def test_the_cluster_workers_are_born_ignoring_sigint():
+    """A worker cannot be interrupted while it imports (and print its traceback): a spawned
+    Python starts with an empty signal mask, so blocking SIGINT here would not reach it."""
+    import multiprocessing
+
+    from meshmill import cluster
+
+    ctx = multiprocessing.get_context("spawn")
+    queue = ctx.Queue()
+    python = multiprocessing.spawn.get_executable()
+    with cluster._python_ignoring_sigint() as wrapper:
+        assert wrapper is not None
+        with cluster._spawning(wrapper):
+            child = ctx.Process(target=_sigint_at_start, args=(queue,))
+            child.start()
+        assert queue.get(timeout=60) == signal.SIG_IGN
+        child.join(timeout=60)
+    assert child.exitcode == 0 and multiprocessing.spawn.get_executable() == python
+    assert signal.getsignal(signal.SIGINT) is not signal.SIG_IGN  # this process keeps its own

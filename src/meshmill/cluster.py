@@ -33,7 +33,7 @@ def connect(cluster):
         yield None
         return
     try:
-        with _sigint_blocked():  # Dask's threads, started now, keep SIGINT blocked (and its processes)
+        with _sigint_blocked():  # Dask's threads, started now, keep SIGINT blocked
             from distributed import Client, LocalCluster
     except ImportError:
         raise InputError("cluster: a Dask cluster needs Dask: pip install 'meshmill[cluster]'", "cluster") from None
@@ -50,11 +50,12 @@ def connect(cluster):
 
         logging.getLogger("distributed").setLevel(logging.ERROR)  # the nannies' notes of workers stopped
         _quiet_resource_tracker()
-        with _sigint_blocked():  # the worker processes start with it blocked: Ctrl-C is the command's alone
-            lc = LocalCluster(n_workers=cluster, threads_per_worker=1, processes=True, dashboard_address=None,
-                              env=worker_env(cluster), preload=[__name__])
-        with lc, Client(lc) as client:
-            yield client
+        with _python_ignoring_sigint() as python:  # Ctrl-C is the command's alone
+            with _sigint_blocked(), _spawning(python):
+                lc = LocalCluster(n_workers=cluster, threads_per_worker=1, processes=True,
+                                  dashboard_address=None, env=worker_env(cluster), preload=[__name__])
+            with lc, Client(lc) as client:
+                yield client
         return
     try:
         client = Client(cluster, timeout=30)
@@ -79,8 +80,10 @@ def _quiet_resource_tracker() -> None:
 
 @contextlib.contextmanager
 def _sigint_blocked():
-    """SIGINT blocked in this thread (and so in the threads and processes started meanwhile, which
-    keep the mask), and delivered when the block ends if it came meanwhile (on the main thread)."""
+    """SIGINT blocked in this thread (and so in the threads started meanwhile, which
+    keep the mask), and delivered when the block ends if it came meanwhile (on the main thread).
+    Processes do not keep it: a spawned Python starts with an empty mask
+    (:func:`_python_ignoring_sigint`)."""
     import signal
     import threading
 
@@ -94,10 +97,57 @@ def _sigint_blocked():
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
+@contextlib.contextmanager
+def _python_ignoring_sigint():
+    """The path of a program that runs this Python with SIGINT ignored (None where none can be
+    run: not POSIX, or a ``noexec`` /tmp), valid while the block lasts.
+
+    Dask's workers start through it (:func:`_spawning`): a Ctrl-C while one imports would otherwise
+    print its traceback. A spawned Python starts with an empty signal mask, so blocking SIGINT
+    here does not reach it, and only an ignored disposition survives ``exec`` (a Python started
+    so keeps it ignored); ignoring it here instead would lose a Ctrl-C meant for the command (any
+    thread of this process may take it). So: a two-line shell script."""
+    import multiprocessing.spawn
+    import shlex
+    import shutil
+    import tempfile
+
+    if os.name != "posix" or not os.path.exists("/bin/sh"):
+        yield None
+        return
+    python = os.fsdecode(multiprocessing.spawn.get_executable())
+    folder = tempfile.mkdtemp(prefix="meshmill-workers-")
+    wrapper = os.path.join(folder, "python")
+    try:
+        with open(wrapper, "w") as f:
+            f.write(f"#!/bin/sh\ntrap '' INT\nexec {shlex.quote(python)} \"$@\"\n")
+        os.chmod(wrapper, 0o755)
+        yield wrapper if os.access(wrapper, os.X_OK) else None  # not on a noexec mount
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def _spawning(python):
+    """multiprocessing's spawned processes run ``python`` while the block lasts (None: as they are)."""
+    import multiprocessing.spawn
+
+    if python is None:
+        yield
+        return
+    previous = multiprocessing.spawn.get_executable()
+    multiprocessing.spawn.set_executable(python)
+    try:
+        yield
+    finally:
+        multiprocessing.spawn.set_executable(previous)
+
+
 def dask_setup(worker) -> None:
     """In each local worker process (a Dask preload): Ctrl-C in the terminal reaches the whole
     process group, but only the command stops the work (and closes its cluster): the workers
-    ignore SIGINT (they start with it blocked, :func:`_sigint_blocked`) rather than each print its
+    ignore SIGINT (they are born ignoring it, :func:`_python_ignoring_sigint`; this keeps one Dask
+    starts again later from ignoring it too) rather than each print its
     traceback, and keep Dask's notes of the tasks cancelled then to themselves (errors show)."""
     import logging
     import signal
