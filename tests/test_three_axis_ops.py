@@ -9,7 +9,8 @@ from meshmill.kernels.bvh import build_bvh
 from meshmill.geometry.mesh import load_mesh
 from meshmill.geometry.shapes import box, revolve, sphere
 from meshmill.pathing.dropcutter import ToolDrop
-from meshmill.ops.raster import RasterParams, raster, stepover_for_scallop
+from meshmill.ops.raster import RasterParams, raster
+from meshmill.pathing.scallop import stepover as stepover_for_scallop
 from meshmill.ops.waterline import WaterlineParams, waterline
 from meshmill.simulation.stock import Stock
 from meshmill.tools.table import tool_from_entry

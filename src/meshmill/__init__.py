@@ -6,7 +6,8 @@ meshmill`` is quick.
 """
 __version__ = "0.1.0"
 
-API = ("load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline", "plunge",
+API = ("load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline",
+       "steep_shallow", "plunge",
        "rough", "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
        "optimise_feeds", "optimised_feeds",
        "Stock", "Fixture", "Toolpath")

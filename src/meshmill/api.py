@@ -31,11 +31,13 @@ from .errors import InputError, NothingToCut
 from .options import Params
 from .params import (OUTPUTS, AnalyzeParams, ChooseParams, ClearFixturesParams, DexelParams, FinishParams,
                      LoadPartParams, LoadToolpathParams, PlungeParams, PostParams, RasterParams, ReportParams,
-                     RoughParams, SimulateParams, TimeParams, VerifyParams, WaterlineParams, FeedsParams)
+                     RoughParams, SimulateParams, SteepShallowParams, TimeParams, VerifyParams, WaterlineParams,
+                     FeedsParams)
 from .results import (AnalysisResult, ChooseResult, DexelResult, FixturesResult, PathResult, PostResult,
                       SimulateResult, TimeResult, VerifyResult, FeedsResult)
 
-__all__ = ["load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline", "plunge",
+__all__ = ["load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline",
+           "steep_shallow", "plunge",
            "rough", "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
            "optimise_feeds", "optimised_feeds", "in_material", "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
            "VerifyResult", "DexelResult", "SimulateResult", "AnalysisResult", "ChooseResult", "PostResult",
@@ -433,6 +435,20 @@ def waterline(p) -> PathResult:
     with connect(p.cluster) as client:
         tp, summary, _ = run(p.part, p.tools, p.tool, p, progress=p.progress, device=device, cluster=client)
     return _path_result("waterline", tp, summary, p.part, p.tools, device, material=p.material)
+
+
+@operation(SteepShallowParams, "part", "tools")
+def steep_shallow(p) -> PathResult:
+    """3-axis finishing to a scallop limit with the tool named ``tool``: Z levels on the ground
+    steeper than ``threshold``, parallel passes on the shallower, overlapping; with ``rest`` only
+    the pieces that remove more than that depth of the stock (rest finishing)."""
+    from .cluster import connect
+    from .ops.steep_shallow import steep_shallow as run
+
+    device = resolve_device(p.device)
+    with connect(p.cluster) as client:
+        tp, summary = run(p.part, p.tools, p.tool, p, progress=p.progress, device=device, cluster=client)
+    return _path_result("steep-shallow", tp, summary, p.part, p.tools, device, material=p.material)
 
 
 @operation(PlungeParams, "part", "tools")

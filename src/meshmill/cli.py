@@ -111,7 +111,8 @@ def _results(paths) -> RunFiles:
 
 
 def _default_out(command):
-    return {"finish": "out", "raster": "out", "waterline": "out", "plunge": "out", "rough": "out", "simulate": "sim",
+    return {"finish": "out", "raster": "out", "waterline": "out", "steep-shallow": "out", "plunge": "out", "rough": "out",
+            "simulate": "sim",
             "analyze": "analysis", "choose": "choose", "feeds": "feeds"}[command]
 
 
@@ -176,11 +177,11 @@ def cmd_rough(args):
 
 
 def _three_axis(args):
-    """raster, waterline and plunge: load, run the API's function, save, say."""
+    """raster, waterline, steep-shallow and plunge: load, run the API's function, save, say."""
     from . import api
 
     mesh = _load_part(args, args.options.pop("part"))
-    res = getattr(api, args.command)(mesh, progress=_progress(args), **args.options)
+    res = getattr(api, args.command.replace("-", "_"))(mesh, progress=_progress(args), **args.options)
     res.save(args.out)
     summary = res.summary
     if "simulation" in summary:
@@ -505,7 +506,8 @@ def _spec(command):
     """The API function and options of ``command``."""
     from . import api
 
-    return {"finish": api.finish, "raster": api.raster, "waterline": api.waterline, "plunge": api.plunge,
+    return {"finish": api.finish, "raster": api.raster, "waterline": api.waterline,
+            "steep-shallow": api.steep_shallow, "plunge": api.plunge,
             "rough": api.rough, "verify": api.verify, "dexel": api.dexel, "simulate": api.simulate, "analyze": api.analyze,
             "choose": api.choose, "post": api.post, "time": api.machining_time, "report": api.report,
             "feeds": api.optimise_feeds}[command].spec
@@ -606,6 +608,8 @@ def build_parser():
     command("finish", "5-axis Z-constant finishing with ball-end tools", cmd_finish, "out", folder, cluster=True)
     command("raster", "3-axis zigzag finishing (flat, ball or bull-nose)", _three_axis, "out", folder, cluster=True)
     command("waterline", "3-axis Z-level loops (flat, ball or bull-nose)", _three_axis, "out", folder, cluster=True)
+    command("steep-shallow", "3-axis finishing to a scallop limit: Z levels on steep ground, parallel passes on shallow",
+            _three_axis, "out", folder, cluster=True)
     command("plunge", "3- or 5-axis plunge roughing (tréflage)", _three_axis, "out", folder)
     command("rough", "adaptive clearing from the stock: Z levels with a bounded radial engagement", cmd_rough, "out",
             folder, cluster=True)

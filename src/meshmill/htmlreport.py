@@ -200,7 +200,7 @@ def run_figures(run: Run) -> list:
         base.append(_mesh_trace(go, v, f, "part", opacity=opacity))
     if run.zones is not None:
         figs.append((f"{run.kind}: zones", _scene("zones (cells of the sampling grid)", go, base + _zone_traces(go, run))))
-    if run.kind in ("finish", "raster", "waterline", "plunge", "choose") and run.toolpath is not None:
+    if run.kind in ("finish", "raster", "waterline", "steep-shallow", "plunge", "choose") and run.toolpath is not None:
         traces = list(base) + _path_traces(go, run, notes)
         glyphs = _axis_glyphs(go, run, AXIS_GLYPH_LENGTH * size)
         if glyphs is not None:

@@ -35,8 +35,11 @@ from .api import InputError, NothingToCut
 from .options import Params, option
 from .tomlfile import read_toml
 
-OPERATIONS = {"rough": api.rough, "plunge": api.plunge, "raster": api.raster, "waterline": api.waterline, "finish": api.finish,
+OPERATIONS = {"rough": api.rough, "plunge": api.plunge, "raster": api.raster, "waterline": api.waterline,
+              "steep-shallow": api.steep_shallow, "rest-finish": api.steep_shallow, "finish": api.finish,
               "choose": api.choose}
+REST_KINDS = ("raster", "waterline", "steep-shallow", "rest-finish")  # leave out what removes less than rest
+TOOL_LISTS = ("finish", "choose", "rest-finish")  # take tools = [...] rather than tool
 SET_BY_JOB = {"part", "tools", "stock", "fixtures", "device", "progress", "machine", "cluster", "simulate", "surface",
               "tool_pair", "flip", "material"}  # an operation's parameters the job gives it
 JOB_TABLES = ("part", "stock", "fixtures", "operations")
@@ -91,11 +94,12 @@ def _tables(value, what: str, example: str) -> list:
 
 @dataclass
 class Operation:
-    """One operation of the job: ``kind`` (plunge, raster, waterline, finish, choose), its ``name``
-    and the keyword arguments of the API's function of that name (``tool``, ``step_down``, ...,
-    checked against its options when made); ``rest`` mm (raster, waterline): leave out what
-    removes less of the in-process stock (None: cut the whole path); ``tools``: finish's and
-    choose's cutters by name (None: every one)."""
+    """One operation of the job: ``kind`` (rough, plunge, raster, waterline, steep-shallow,
+    rest-finish, finish, choose), its ``name`` and the keyword arguments of the API's function of
+    that name (``tool``, ``step_down``, ..., checked against its options when made); ``rest`` mm
+    (raster, waterline, steep-shallow, rest-finish): leave out what removes less of the in-process
+    stock (None: cut the whole path); ``tools``: finish's and choose's cutters by name (None:
+    every one), rest-finish's in the order they cut, smallest last (:meth:`expanded`)."""
 
     kind: str
     name: str
@@ -120,23 +124,40 @@ class Operation:
         try:
             rest = JobParams.options()["rest"].check(d.pop("rest", rest_default))
             tools = d.pop("tools", None)
-            if tools is not None and kind not in ("finish", "choose"):
-                raise InputError("tools is finish's and choose's (the cutters they choose from); give tool", "tools")
+            if tools is not None and kind not in TOOL_LISTS:
+                raise InputError("tools is finish's, choose's and rest-finish's (the cutters they use); give tool",
+                                 "tools")
             if tools is not None and not (isinstance(tools, list) and tools and all(isinstance(t, str) for t in tools)):
                 raise InputError(f"tools wants a list of tool names, got {tools!r}", "tools")
+            if kind == "rest-finish":
+                if tools is None:
+                    raise InputError("rest-finish needs tools = [...]: the tools that cut what the earlier ones "
+                                     "left, smallest last", "tools")
+                if "tool" in d:
+                    raise InputError("rest-finish takes tools = [...] (each cuts what the earlier ones left), not "
+                                     "tool", "tool")
             spec = OPERATIONS[kind].spec
-            unknown = sorted(set(d) - (set(spec.options()) - SET_BY_JOB))
+            unknown = sorted(set(d) - (set(spec.options()) - SET_BY_JOB - ({"tool"} if kind == "rest-finish" else
+                                                                              set())))
             if unknown:
                 raise InputError(f"unknown parameter{'s' * (len(unknown) > 1)} {', '.join(unknown)} for {kind} (it "
                                  f"takes {', '.join(n for n in spec.options() if n not in SET_BY_JOB)})",
                                  tuple(unknown))
             set_by_job = {k: PLACEHOLDER.get(k) for k, o in spec.options().items()
                           if k in SET_BY_JOB and (o.required or k in PLACEHOLDER)}
-            spec.checked({**d, **set_by_job})  # kinds, ranges, between options
+            spec.checked({**d, **set_by_job, **({"tool": tools[0]} if kind == "rest-finish" else {})})
         except InputError as exc:
             raise exc.within(where) from None
-        return cls(kind, name, d, (None if rest is False else rest) if kind in ("raster", "waterline") else None,
-                   tools)
+        return cls(kind, name, d, (None if rest is False else rest) if kind in REST_KINDS else None, tools)
+
+    def expanded(self) -> list:
+        """The operations this one runs as: itself, or for rest-finish one steep-shallow
+        operation per tool in order, each cutting what the stock holds after the one before
+        (rest machining from the in-process stock)."""
+        if self.kind != "rest-finish":
+            return [self]
+        return [Operation("steep-shallow", f"{self.name} {t}", {**self.params, "tool": t}, self.rest, None)
+                for t in self.tools]
 
 
 PLACEHOLDER = {"tools": "the job's"}  # what stands for the job's own arguments when an operation is checked
@@ -398,8 +419,8 @@ class Job:
                              "tools")
         if not isinstance(self.operations, list) or not self.operations:
             raise InputError("a job needs at least one operation (a list of Operations or tables)", "operations")
-        self.operations = [o if isinstance(o, Operation) else Operation.from_dict(o, k + 1)
-                           for k, o in enumerate(self.operations)]
+        self.operations = [e for k, o in enumerate(self.operations)
+                           for e in (o if isinstance(o, Operation) else Operation.from_dict(o, k + 1)).expanded()]
         if self.stock is None:
             self.stock = api.Stock.box()
         elif isinstance(self.stock, dict):
@@ -549,9 +570,9 @@ class Job:
             params["machine"] = self.machine
             if op.tools:
                 tools = [t for t in self.tools if t.name in op.tools]
-        if op.kind in ("raster", "waterline") and stock is not None and op.rest is not None:
+        if op.kind in REST_KINDS and stock is not None and op.rest is not None:
             params["rest"] = op.rest
-        if client is not None and op.kind in ("raster", "waterline", "finish", "rough"):
+        if client is not None and op.kind in ("raster", "waterline", "steep-shallow", "finish", "rough"):
             params["cluster"] = client
         if stock is not None and op.kind != "choose":  # choose links its zones over the part alone
             params["stock"] = stock

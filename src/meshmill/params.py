@@ -74,6 +74,18 @@ def _rest(what="passes"):
                             f"this depth of it (1.5 samples kept on each side)", None, unit="mm", low=0.0)
 
 
+def _slope(which: str, default=None):
+    bound = {"min": "at least", "max": "at most"}[which]
+    return option("number", f"cut only the pieces of the passes where the surface the tool touches is {bound} this "
+                            "steep, from the horizontal (steep and shallow finishing)", default, unit="deg", low=0.0,
+                  high=90.0)
+
+
+def _overlap():
+    return option("number", "with min_slope or max_slope: each piece kept this far beyond its ground along the pass, "
+                            "so that the steep and the shallow passes overlap (no seam)", 1.0, unit="mm", low=0.0)
+
+
 def _design():
     return option("object", f"design part mesh ({MESH_FORMATS}), mm; closed", role="part")
 
@@ -191,9 +203,12 @@ class RasterParams(Params):
     tool: str = _tool()
     stepover: float | None = option("number", "distance between passes (or give scallop)", None, unit="mm",
                                     above=0.0)
-    scallop: float | None = option("number", "scallop height that sets the stepover (or give stepover)", None,
-                                   unit="mm", above=0.0)
+    scallop: float | None = option("number", "scallop height that sets the stepover (or give stepover): on ground as "
+                                             "steep as max_slope, else on flat ground", None, unit="mm", above=0.0)
     angle: float = option("number", "machining direction from X", 0.0, unit="deg")
+    min_slope: float | None = _slope("min")
+    max_slope: float | None = _slope("max")
+    overlap: float = _overlap()
     sample: float = option("number", "largest distance between CL points along a pass", 0.5, unit="mm", low=1e-3)
     tolerance: float = _tolerance(help="gouge and chord tolerance", positive=True)
     clearance: float = _clearance()
@@ -208,6 +223,7 @@ class RasterParams(Params):
     def check(self):
         if (self.stepover is None) == (self.scallop is None):
             raise InputError("give exactly one of stepover and scallop", ("stepover", "scallop"))
+        _check_slopes(self)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -217,13 +233,59 @@ class WaterlineParams(Params):
     part: object = _part()
     tools: object = _tools()
     tool: str = _tool()
-    step_down: float = option("number", "distance between Z levels", unit="mm", low=1e-4)
+    step_down: float | None = option("number", "distance between Z levels (or give scallop)", None, unit="mm",
+                                     low=1e-4)
+    scallop: float | None = option("number", "scallop height that sets the levels' distance (or give step_down): on "
+                                             "ground as steep as min_slope, else on walls", None, unit="mm", above=0.0)
     sample: float = option("number", "grid spacing of the loop search", 0.5, unit="mm", low=1e-3)
+    min_slope: float | None = _slope("min")
+    max_slope: float | None = _slope("max")
+    overlap: float = _overlap()
     tolerance: float = _tolerance(help="gouge and chord tolerance", positive=True)
     clearance: float = _clearance()
     stock: object = _stock(_STOCK_HELP, _STOCK_ALLOWANCE)
     allowance: float = _allowance()
     rest: float | None = _rest("loops")
+    material: str | None = _material()
+    device: str = _device()
+    cluster: object = _cluster()
+    progress: object = _progress()
+
+
+    def check(self):
+        if (self.step_down is None) == (self.scallop is None):
+            raise InputError("give exactly one of step_down and scallop", ("step_down", "scallop"))
+        _check_slopes(self)
+
+
+def _check_slopes(p):
+    if p.min_slope is not None and p.max_slope is not None and p.min_slope > p.max_slope:
+        raise InputError(f"min_slope {p.min_slope:g} is steeper than max_slope {p.max_slope:g}: no ground between",
+                         ("min_slope", "max_slope"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class SteepShallowParams(Params):
+    """steep-shallow: 3-axis finishing to a scallop limit, Z levels on the steep ground and
+    parallel passes on the shallow (ball or bull-nose)."""
+
+    part: object = _part()
+    tools: object = _tools()
+    tool: str = _tool()
+    scallop: float = option("number", "largest scallop height left between passes, on every slope", unit="mm",
+                            above=0.0)
+    threshold: float = option("number", "ground steeper than this is cut by Z levels, shallower by parallel passes",
+                              45.0, unit="deg", above=5.0, below=85.0)
+    overlap: float = option("number", "each side's passes go this far into the other's ground (and 5 deg of "
+                                      "slope), so no seam is left", 1.0, unit="mm", low=0.0)
+    angle: float = option("number", "the parallel passes' direction from X", 0.0, unit="deg")
+    sample: float = option("number", "largest distance between CL points along a pass, and the levels' grid", 0.5,
+                           unit="mm", low=1e-3)
+    tolerance: float = _tolerance(help="gouge and chord tolerance", positive=True)
+    clearance: float = _clearance()
+    stock: object = _stock(_STOCK_HELP, _STOCK_ALLOWANCE)
+    allowance: float = _allowance()
+    rest: float | None = _rest()
     material: str | None = _material()
     device: str = _device()
     cluster: object = _cluster()

@@ -21,6 +21,7 @@ FOLDER_OUTPUTS = {
     "finish": ("contours.npz", "toolpath.cl", "part.stl", "summary.json"),
     "raster": ("toolpath.cl", "part.stl", "summary.json"),
     "waterline": ("toolpath.cl", "part.stl", "summary.json"),
+    "steep-shallow": ("toolpath.cl", "part.stl", "summary.json"),
     "plunge": ("toolpath.cl", "part.stl", "summary.json"),
     "rough": ("moves.npz", "toolpath.cl", "part.stl", "summary.json"),
     "simulate": ("deviation.npz", "load.npz", "machined.stl", "deviation.json", "summary.json"),

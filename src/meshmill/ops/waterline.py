@@ -13,19 +13,23 @@ height jumps).
 A point counts as inside when ``drop > z`` strictly, so a flat facet lying exactly at z gives no
 loop of its own. Loops are chained by grid-edge identity, closed, and run clockwise around material
 seen from +Z (climb milling with a clockwise spindle).
+
+With ``scallop`` the levels are as far apart as the scallop limit allows on ground as steep as
+``min_slope`` (sod sin(min_slope)); with ``min_slope``/``max_slope`` only the pieces of the loops
+on ground that steep are cut (:mod:`meshmill.pathing.slope`: the steep half of steep and shallow).
 """
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
 
 from ..progress import Meter, StageClock
 from .. import memory
-from ..errors import NothingToCut
+from ..errors import InputError, NothingToCut
 from ..kernels.backend import solid_kernels
 from ..geometry.mesh import Mesh
 from ..geometry.slicing import z_levels
@@ -34,6 +38,7 @@ from ..params import WaterlineParams
 from ..pathing.dropcutter import ToolDrop, pick_tool, stock_for, verified_path
 from ..pathing.rest import REST_JOIN, REST_LEAD, densify, in_material, loop_runs
 from ..pathing.dropgrid import DropGrid
+from ..pathing.slope import level_distance, scallop_radius, slope_pieces
 from ..pathing.verify import DEFAULT_STEP
 
 REFINE_ROUNDS = 8  # chord refinement rounds of a loop
@@ -273,14 +278,24 @@ class WaterlineSetup:
     ys: np.ndarray
 
 
-def waterline_setup(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, device: str = "cpu") -> WaterlineSetup:
+def waterline_setup(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, device: str = "cpu",
+                    stock=None) -> WaterlineSetup:
     """The :class:`WaterlineSetup` of ``mesh`` with the tool ``tool_name`` of ``tools``:
     InputError for a tool not in the table or a grid larger than the memory (``sample``);
-    NothingToCut where ``step_down`` leaves no level."""
-    params, rapid_stock, grow, safe_z, rest_kern = stock_for(mesh, params, device)
+    NothingToCut where ``step_down`` leaves no level. ``stock``: ``params.stock`` as
+    :func:`~meshmill.pathing.dropcutter.stock_for` gives it, where already made (its params aside)."""
+    if stock is None:
+        params, rapid_stock, grow, safe_z, rest_kern = stock_for(mesh, params, device)
+    else:
+        rapid_stock, grow, safe_z, rest_kern = stock
     index, tool = pick_tool(tools, tool_name)
     reach = max(tool.radius, 0.5 * tool.shank_diameter, 0.5 * tool.holder_diameter)  # outside it: no contact
     bounds = mesh.bounds
+    if params.step_down is None:  # the levels the scallop limit needs on ground as steep as min_slope
+        if scallop_radius(tool) is None:
+            raise InputError(f"tool '{tool.name}' is flat: its scallop height is not defined, give step_down instead "
+                             "of scallop", ("step_down", "scallop"))
+        params = replace(params, step_down=level_distance(params.scallop, tool, params.min_slope))
     levels = z_levels(bounds[0, 2], bounds[1, 2], params.step_down)
     if len(levels) == 0:
         raise NothingToCut(f"step_down {params.step_down:g} is larger than the part height "
@@ -357,7 +372,22 @@ def rest_pieces(loops, setup: WaterlineSetup):
                     "loops_before": len(loops)}
 
 
-def waterline_summary(setup: WaterlineSetup, grid: DropGrid, loops, tp, report: dict, rest) -> dict:
+def cut_pieces(loops, setup: WaterlineSetup, drop: ToolDrop, near=None):
+    """``(loops, rest report, slope report)``: the pieces of ``loops`` (``[(z, (k, 3))]``) that
+    remove more than ``rest`` of the stock (:func:`rest_pieces`) and lie on ground within
+    ``min_slope``-``max_slope`` (:func:`~meshmill.pathing.slope.slope_pieces`, with ``near`` only
+    where the tool touches near those points); the reports None where not asked."""
+    params, rest, slopes = setup.params, None, None
+    if params.rest is not None:  # the pieces of the loops in the stock's material, at sample spacing
+        loops, rest = rest_pieces(loops, setup)
+    if loops and (params.min_slope is not None or params.max_slope is not None or near is not None):
+        pieces, slopes = slope_pieces([p for _, p in loops], drop, setup.tool, params.min_slope, params.max_slope,
+                                      params.overlap, params.sample, closed=True, near=near)
+        loops = [(float(p[0, 2]), simplify_polyline(p, 0.25 * params.tolerance)) for p in pieces]
+    return loops, rest, slopes
+
+
+def waterline_summary(setup: WaterlineSetup, grid: DropGrid, loops, tp, report: dict, rest, slopes=None) -> dict:
     """The summary of a waterline (timing aside): its parameters, the grid and how much of it was
     dropped, the ``loops`` cut (``[(z, (k, 3))]``), the path ``tp``, the ``rest`` report (or
     None) and the verification ``report``."""
@@ -381,6 +411,7 @@ def waterline_summary(setup: WaterlineSetup, grid: DropGrid, loops, tp, report: 
         "moves": int(len(tp)),
         "cutting_length": tp.cutting_length(),
         **({"rest": rest} if rest is not None else {}),
+        **({"slopes": slopes} if slopes is not None else {}),
         "verify": report,
     }
 
@@ -408,18 +439,18 @@ def waterline(mesh: Mesh, tools, tool_name: str, params: WaterlineParams, progre
     with clock("levels"):
         loops, grid_s = level_loops(setup, drop, grid, mesh, device, cluster, clock.say)
     clock.seconds.update(grid=grid_s, levels=clock.seconds.pop("levels") - grid_s)
-    rest = None
-    if params.rest is not None:  # the pieces of the loops in the stock's material, at sample spacing
-        loops, rest = rest_pieces(loops, setup)
+    loops, rest, slopes = cut_pieces(loops, setup, drop)
     if not loops:
         why = f"removes more than rest {params.rest:g} mm of the stock" if params.rest is not None else \
             "meets the part at any level"
+        if slopes is not None:
+            why = "lies on ground that steep" if rest is None else why + " on ground that steep"
         raise NothingToCut(f"nothing to cut: no loop {why}", "rest" if params.rest is not None else ())
     with clock("verify"):
         tp, report, kept = verified_path([p for _, p in loops], setup.index, tools, kern, setup.safe_z,
                                          params.tolerance, DEFAULT_STEP, setup.rapid_stock, clock.say)
     loops = [(float(p[0, 2]), p) for p in kept]
-    summary = waterline_summary(setup, grid, loops, tp, report, rest)
+    summary = waterline_summary(setup, grid, loops, tp, report, rest, slopes)
     clock.seconds["total"] = time.perf_counter() - t_all
     summary["seconds"] = {k: round(v, 4) for k, v in clock.seconds.items()}
     return tp, summary, loops

@@ -1,0 +1,225 @@
+"""Steep-and-shallow finishing to a scallop limit and rest finishing from the in-process stock:
+the scallop a simulation of the cut leaves, per slope, against the analytic one; no seam at the
+threshold; rest passes only where the stock stands above the design."""
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import meshmill
+from meshmill import api
+from meshmill.errors import InputError
+from meshmill.geometry.shapes import box, revolve, sphere
+from meshmill.job import Job, Operation
+from meshmill.pathing.slope import contact_slopes, level_distance, raster_stepover
+from meshmill.pathing.scallop import stepover
+from meshmill.tools.table import tool_from_entry
+
+SCALLOP = 0.01
+
+
+@pytest.fixture(scope="module")
+def balls():
+    entry = dict(type="ball", flute_length=15, gauge_length=45, holder_diameter=32, holder_length=40)
+    return [tool_from_entry(dict(entry, name="B6", diameter=6), 1, "t"),
+            tool_from_entry(dict(entry, name="B4", diameter=4), 2, "t"),
+            tool_from_entry(dict(entry, name="B2", diameter=2, shank_diameter=2), 3, "t"),
+            tool_from_entry(dict(entry, name="B1", diameter=1, shank_diameter=1), 4, "t"),
+            tool_from_entry(dict(entry, name="R6", type="bull", diameter=6, corner_radius=1), 5, "t"),
+            tool_from_entry(dict(entry, name="F6", type="flat", diameter=6), 6, "t")]
+
+
+def scallop_of(spacing, radius):
+    """The cusp a ball of ``radius`` leaves between passes ``spacing`` apart on a plane."""
+    return radius - math.sqrt(radius * radius - 0.25 * spacing * spacing)
+
+
+def test_levels_and_stepover_follow_the_ground_they_cut(balls):
+    b4, r6 = balls[1], balls[4]
+    sod = stepover(SCALLOP, 2.0)
+    assert level_distance(SCALLOP, b4, 40.0) == pytest.approx(sod * math.sin(math.radians(40.0)))
+    assert raster_stepover(SCALLOP, b4, 50.0) == pytest.approx(sod * math.cos(math.radians(50.0)))
+    assert raster_stepover(SCALLOP, b4, None) == pytest.approx(sod)  # flat ground: seed 002's stepover
+    assert level_distance(SCALLOP, r6, None) == pytest.approx(stepover(SCALLOP, 1.0))  # the corner's radius
+
+
+def test_contact_slopes_of_ball_and_bull_nose(balls):
+    b4, r6, f6 = balls[1], balls[4], balls[5]
+    tips = np.zeros((3, 3))
+    for theta in (0.0, 30.0, 60.0, 90.0):
+        t = math.radians(theta)
+        # a ball touching a plane sloped theta: the contact is R from the centre, along -n
+        contact = np.array([[-2 * math.sin(t), 0.0, 2 - 2 * math.cos(t)]])
+        assert contact_slopes(tips[:1], contact, b4)[0] == pytest.approx(theta, abs=1e-9)
+        # a bull-nose: the contact is r from its ring point, along -n
+        ring = np.array([-2.0, 0.0, 1.0])
+        c = ring + np.array([-math.sin(t), 0.0, -math.cos(t)])
+        assert contact_slopes(tips[:1], c[None], r6)[0] == pytest.approx(theta, abs=1e-9)
+    assert contact_slopes(tips[:1], np.array([[1.0, 0.0, 0.0]]), f6)[0] == 0.0  # on its flat bottom
+    assert contact_slopes(tips[:1], np.array([[3.0, 0.0, 0.5]]), f6)[0] == 90.0  # its rim: a wall or an edge
+    assert np.isnan(contact_slopes(tips[:1], np.full((1, 3), np.nan), b4)[0])  # on the floor: no ground
+
+
+@pytest.fixture(scope="module")
+def dome_cut(balls):
+    """A hemisphere of radius 10 finished with a 4 mm ball at a 0.01 mm scallop, simulated on 0.05 mm
+    dexels: ``(path result, sample points, deviations)``."""
+    part = sphere(10.0, 96, 192)
+    res = meshmill.steep_shallow(part, balls, tool="B4", scallop=SCALLOP, stock="offset:0.3", device="cpu")
+    sim = meshmill.simulate(part, res.toolpath, balls, step=0.05, stock="offset:0.3", device="cpu")
+    return res, sim.samples["points"], sim.samples["e"]
+
+
+@pytest.mark.parametrize("band", [(2, 12), (15, 25), (28, 38), (40, 50), (52, 62), (65, 75)])
+def test_the_scallop_at_every_slope_is_the_analytic_one(dome_cut, band):
+    """The deviation a simulation of the cut leaves on the dome at each slope is the scallop the
+    passes' spacing leaves there (the levels' dz / sin, the raster's stepover / cos at worst),
+    under the limit; both sides of the 45 deg threshold cut the 40-50 band: no seam."""
+    res, p, e = dome_cut
+    s = res.summary
+    assert s["verify"]["ok"] and s["steep"]["levels"] > 10 and s["shallow"]["passes"] > 10
+    n = p / np.linalg.norm(p, axis=1)[:, None]
+    slope = np.degrees(np.arccos(np.clip(n[:, 2], -1.0, 1.0)))
+    at = (slope >= band[0]) & (slope < band[1]) & (p[:, 2] > 0.2)
+    assert at.sum() > 1000
+    lo, hi = np.radians(band)
+    dz, step = s["steep"]["step_down"], s["shallow"]["stepover_used"]
+    spacing = []
+    if band[1] > s["steep"]["min_slope"]:
+        spacing.append(dz / math.sin(lo) if band[0] >= s["steep"]["min_slope"] else np.inf)
+    if band[0] < s["shallow"]["max_slope"]:
+        spacing.append(step / math.cos(hi) if band[1] <= s["shallow"]["max_slope"] else np.inf)
+    analytic = scallop_of(min(spacing), 2.0)
+    assert analytic <= SCALLOP + 1e-9
+    worst = float(e[at].max())
+    # the cusp as measured: no more than the analytic one, the facets' chords (the sphere's 96
+    # rings) and the path's chord tolerance (half the 0.01 mm); and the cusps are there to see
+    facets = 10.0 * (1 - math.cos(math.pi / 192))
+    assert worst <= analytic + facets + 0.005 + 1e-4, (band, worst, analytic)
+    assert worst >= 0.3 * scallop_of(min(spacing) * math.cos(lo) if band[1] <= 50 else min(spacing), 2.0) - facets
+
+
+def pocket():
+    """A 40 mm block, z 0-10, with a round pocket 16 mm across down to z 2 and a 1 mm fillet
+    between its wall and floor."""
+    a = np.linspace(0.0, 0.5 * math.pi, 9)
+    r = np.r_[0.0, 20.0, 20.0, 8.0, (7.0 + np.sin(a))[::-1], 0.0]
+    z = np.r_[0.0, 0.0, 10.0, 10.0, (3.0 - np.cos(a))[::-1], 2.0]
+    return revolve(r, z, 96, "pocket")
+
+
+def in_fillet(p):
+    r = np.hypot(p[:, 0], p[:, 1])
+    return (r > 6.9) & (r < 8.05) & (p[:, 2] > 1.95) & (p[:, 2] < 3.1)
+
+
+def left_by_b6(p, grow=0.0):
+    """Where a 6 mm ball leaves material on the pocket part: the pocket's corner (the ball sits on
+    the floor and against the wall: r 5-8, z 2-5) and the foot of the block's outside wall (a
+    ball's tip stays above the part's bottom: z < 3)."""
+    r = np.hypot(p[:, 0], p[:, 1])
+    corner = (r > 5.0 - grow) & (r < 8.05 + grow) & (p[:, 2] > 1.95 - grow) & (p[:, 2] < 5.0 + grow)
+    foot = (r > 19.95 - grow) & (p[:, 2] < 3.0 + grow)
+    return corner | foot
+
+
+@pytest.fixture(scope="module")
+def pocket_job(balls):
+    ops = [{"type": "steep-shallow", "name": "finish", "tool": "B6", "scallop": SCALLOP},
+           {"type": "rest-finish", "tools": ["B2", "B1"], "scallop": SCALLOP, "rest": 0.015}]
+    job = Job(part=pocket(), tools=balls, operations=[Operation.from_dict(o, k + 1) for k, o in enumerate(ops)],
+              stock=api.Stock.from_dict({"type": "offset", "allowance": 0.2}), machine="generic-3axis", step=0.25,
+              device="cpu")
+    return job.run()
+
+
+def test_rest_finishing_cuts_only_what_the_larger_ball_left(pocket_job):
+    """A 6 mm ball leaves the 1 mm fillet uncut (and the corner 3 mm up the wall and out on the
+    floor); the 2 mm and then the 1 mm ball cut only where it left material (their passes where
+    the stock stands more than rest above the design, measured on the in-process stock) and the
+    simulated deviation in the fillet ends within the scallop limit and the tolerance."""
+    ops = pocket_job.operations
+    assert [o.operation.name for o in ops] == ["finish", "rest-finish B2", "rest-finish B1"]
+    assert pocket_job.ok and all(not o.skipped for o in ops)
+    p, e = ops[0].cut.samples["points"], ops[0].cut.samples["e"]
+    assert e[in_fillet(p)].max() > 0.15  # the 6 mm ball does not fit the 1 mm fillet
+    for o in ops[1:]:
+        s = o.path.summary
+        assert s["rest"]["min_depth"] == 0.015 and s["rest"]["points_left"] > 0
+        tp = o.path.toolpath
+        a, b = tp.tip[:-1], tp.tip[1:]
+        length = np.linalg.norm(b - a, axis=1)
+        feed = ~tp.rapid[1:] & (np.abs(b[:, 2] - a[:, 2]) < 0.9 * length)  # not the entries and exits
+        a, b, length = a[feed], b[feed], length[feed]
+        ball = next(t for t in o.path.tools if t.name == s["tool"])
+        # the ball of each feed move along the part: where the 6 mm ball left material, grown by
+        # the overlap, the lattice step the stock is measured on and the ball
+        centre = 0.5 * (a + b) + [0.0, 0.0, ball.radius]
+        near = left_by_b6(centre, grow=s["overlap"] + 0.25 + 2 * ball.radius)
+        assert length[near].sum() > 0.97 * length.sum(), (s["tool"], length[~near].sum(), length.sum())
+    p, e = ops[-1].cut.samples["points"], ops[-1].cut.samples["e"]
+    assert e[in_fillet(p)].max() <= SCALLOP + 0.01  # the limit and the tolerance
+    assert e[left_by_b6(p) & (p[:, 2] > 1.95)].max() <= SCALLOP + 0.01
+    final = pocket_job.summary["final"]
+    assert final["gouge_max"] <= 0.01
+
+
+def test_steep_shallow_refuses_what_it_cannot_do(balls):
+    part = box([0, 0, 0], [20, 20, 5])
+    with pytest.raises(InputError, match="flat"):
+        meshmill.steep_shallow(part, balls, tool="F6", scallop=SCALLOP)
+    with pytest.raises(InputError, match="threshold"):
+        meshmill.steep_shallow(part, balls, tool="B4", scallop=SCALLOP, threshold=89.0)
+    with pytest.raises(InputError, match="scallop"):
+        meshmill.steep_shallow(part, balls, tool="B4")
+    with pytest.raises(InputError, match="min_slope"):
+        meshmill.raster(part, balls, tool="B4", stepover=1.0, min_slope=50.0, max_slope=40.0)
+    with pytest.raises(InputError, match="step_down"):
+        meshmill.waterline(part, balls, tool="B4", step_down=1.0, scallop=SCALLOP)
+    with pytest.raises(InputError, match="rest-finish needs tools"):
+        Operation.from_dict({"type": "rest-finish", "scallop": SCALLOP}, 1)
+    with pytest.raises(InputError, match="not tool"):
+        Operation.from_dict({"type": "rest-finish", "tools": ["B2"], "tool": "B2", "scallop": SCALLOP}, 1)
+
+
+def test_waterline_and_raster_keep_to_their_ground(balls):
+    """On a box (walls at 90 deg, a top at 0) the levels with min_slope 45 keep the walls, the
+    raster with max_slope 45 the top."""
+    part = box([0, 0, 0], [20, 20, 5])
+    w = meshmill.waterline(part, balls, tool="B4", scallop=SCALLOP, min_slope=45.0, device="cpu")
+    r = meshmill.raster(part, balls, tool="B4", scallop=SCALLOP, max_slope=45.0, device="cpu")
+    assert w.summary["step_down"] == pytest.approx(level_distance(SCALLOP, balls[1], 45.0))
+    wt, rt = w.toolpath.tip[~w.toolpath.rapid], r.toolpath.tip[~r.toolpath.rapid]
+    a, b = w.toolpath.tip[:-1], w.toolpath.tip[1:]
+    level = ~w.toolpath.rapid[1:] & (np.abs(a[:, 2] - b[:, 2]) < 1e-9)
+    assert level.sum() > 100 and a[level, 2].max() < 5.0 - 1e-9  # no level on the top face
+    a, b = r.toolpath.tip[:-1], r.toolpath.tip[1:]
+    feed = ~r.toolpath.rapid[1:]
+    length = np.linalg.norm(b - a, axis=1)
+    on_top = feed & (a[:, 2] >= 5.0 - 1e-9) & (b[:, 2] >= 5.0 - 1e-9)
+    assert length[on_top].sum() > 0.55 * length[feed].sum()  # the rest: rolling over the edges, entries
+    # the raster stops where the ball rolls over the edge past 45 deg (R sin 45 out), plus the
+    # overlap and a sample
+    out = 2.0 * math.sin(math.radians(45.0)) + 1.0 + 0.5 + 1e-6
+    assert np.all((rt[:, 0] >= -out) & (rt[:, 0] <= 20.0 + out) & (rt[:, 1] >= -out) & (rt[:, 1] <= 20.0 + out))
+
+
+def test_the_command_line(tmp_path, balls):
+    import trimesh
+
+    stl = tmp_path / "dome.stl"
+    m = sphere(8.0, 48, 96)
+    trimesh.Trimesh(m.vertices, m.faces, process=False).export(str(stl))
+    tools = os.path.join(os.path.dirname(meshmill.__file__), "data", "tools.toml")
+    run = [sys.executable, "-m", "meshmill", "steep-shallow", str(stl), "--tools", tools, "--tool", "B4"]
+    out = subprocess.run([*run, "--scallop", "0.02", "--out", str(tmp_path / "o"), "--device", "cpu"],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["operation"] == "steep-shallow" and s["verify"]["ok"]
+    bad = subprocess.run([*run, "--scallop", "-1"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
