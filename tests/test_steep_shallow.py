@@ -223,3 +223,34 @@ def test_the_command_line(tmp_path, balls):
     assert s["operation"] == "steep-shallow" and s["verify"]["ok"]
     bad = subprocess.run([*run, "--scallop", "-1"], capture_output=True, text=True)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_what_is_left_and_why(pocket_job, balls):
+    """After the 6 mm ball alone, the pocket's corner is left: no tool of a table of 6 mm balls
+    fits it, a tool the job does not use takes it from a table with smaller ones, and it is the
+    job's to take when it runs them; the block's bottom is below a 3-axis shadow (in 5 axes: no
+    axis within 60 deg reaches it). Areas are the design's, exact in sum."""
+    part = pocket()
+    v = part.vertices[part.faces]
+    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1).sum()
+    after_b6 = pocket_job.operations[0].cut.samples
+    corner = None
+    for tools, used, five, expect in (([balls[0]], {"B6"}, False, "no tool of the table fits"),
+                                      (balls, {"B6"}, False, "a tool the job does not use"),
+                                      (balls, {"B6", "B2", "B1"}, False, "left by the job"),
+                                      (balls, {"B6", "B2", "B1"}, True, "left by the job")):
+        arrays, report = meshmill.what_is_left(part, after_b6["points"], after_b6["e"], 0.25, tools, used,
+                                               five_axis=five, tolerance=0.01, device="cpu")
+        assert report["area_mm2"] == pytest.approx(area, rel=1e-9)
+        assert sum(report["by_reason_mm2"].values()) == pytest.approx(area, rel=1e-9)
+        names = np.array(report["reasons"])[arrays["reason"]]
+        p, n = arrays["points"], arrays["normals"]
+        corner = in_fillet(p)
+        assert np.mean(names[corner] == expect) > 0.9, (expect, np.unique(names[corner], return_counts=True))
+        bottom = n[:, 2] < -0.99
+        assert np.all(names[bottom] == ("no collision-free axis" if five else "below a 3-axis shadow"))
+        assert report["by_reason_mm2"]["not measured"] < 0.01 * area
+    final = pocket_job.summary["left"]
+    assert final["reachable_within_tolerance"] >= 0.95
+    assert final["by_reason_mm2"]["below a 3-axis shadow"] == pytest.approx(math.pi * 400, rel=0.05)  # the bottom
+    assert final["within_tolerance"] == pytest.approx(final["by_reason_mm2"]["within tolerance"] / final["area_mm2"])

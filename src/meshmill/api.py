@@ -39,7 +39,7 @@ from .results import (AnalysisResult, ChooseResult, DexelResult, FixturesResult,
 __all__ = ["load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline",
            "steep_shallow", "plunge",
            "rough", "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
-           "optimise_feeds", "optimised_feeds", "in_material", "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
+           "optimise_feeds", "optimised_feeds", "what_is_left", "in_material", "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
            "VerifyResult", "DexelResult", "SimulateResult", "AnalysisResult", "ChooseResult", "PostResult",
            "TimeResult", "FixturesResult", "FeedsResult", "InputError", "NothingToCut"]
 TYPES = {"Stock": "simulation.stock", "Fixture": "ops.fixtures", "Toolpath": "toolpath.model"}
@@ -449,6 +449,24 @@ def steep_shallow(p) -> PathResult:
     with connect(p.cluster) as client:
         tp, summary = run(p.part, p.tools, p.tool, p, progress=p.progress, device=device, cluster=client)
     return _path_result("steep-shallow", tp, summary, p.part, p.tools, device, material=p.material)
+
+
+def what_is_left(part, points, e, step, tools, used=(), five_axis=False, tolerance=0.01, device="cpu"):
+    """What a stock leaves on ``part``, where and why (:mod:`meshmill.ops.left`): the design
+    sampled by area, each sample given the deviation of the stock's dexel ends ``points (k, 3)``,
+    ``e (k,)`` mm next to it (a lattice ``step`` mm apart: :attr:`SimulateResult.samples`) and,
+    out of tolerance, the reason no tool of ``tools`` took it (``used``: the names of those the
+    job ran; ``five_axis``: it had 5-axis operations). Returns ``(arrays, report)``: per sample
+    ``points``, ``normals``, ``area`` mm², ``e`` mm, ``reason``; the area per reason (mm²) and
+    the shares within tolerance of the whole surface and of what the table's tools reach."""
+    import numpy as np
+
+    from .kernels.backend import solid_kernels
+    from .ops.left import what_is_left as run
+
+    kern = solid_kernels(part, resolve_device(device))
+    return run(part, kern, np.asarray(points, float), np.asarray(e, float), float(step), tools, set(used),
+               bool(five_axis), float(tolerance))
 
 
 @operation(PlungeParams, "part", "tools")

@@ -215,6 +215,8 @@ def run_figures(run: Run) -> list:
                                                    base + _deviation_traces(go, run, notes))))
         if run.samples is not None and len(run.samples["e"]):
             figs.append(("simulate: histogram", _histogram(go, run)))
+    if run.left is not None and len(run.left["area"]):
+        figs += _left_figures(go, run, base)
     if run.load is not None and run.toolpath is not None and len(run.load["volume"]) == len(run.toolpath):
         figs += _load_figures(go, run, base)
     if run.kind == "dexel" and run.part is not None:
@@ -234,6 +236,44 @@ def run_figures(run: Run) -> list:
                                sort=False, marker=dict(colors=[PATH_COLOURS[t % len(PATH_COLOURS)] for t in share])))
         pie.update_layout(title="tools: share of the cutting length (mm)", height=320, margin=dict(t=40, b=10))
         figs.append((f"{run.kind}: tools", pie))
+    return figs
+
+
+LEFT_COLOURS = ("#bdbdbd", "#d62728", "#ff7f0e", "#bcbd22", "#1f77b4", "#9467bd", "#8c564b", "#7f7f7f")
+LEFT_POINTS = 20000  # most points of the what-is-left map drawn (the out-of-tolerance ones first)
+
+
+def _left_figures(go, run, base) -> list:
+    """What a job left on the part: the design's samples coloured by the reason they are out of
+    tolerance (within tolerance in grey), and the area per reason."""
+    left = run.left
+    reasons = [str(r) for r in left["reasons"]]
+    reason, pts, area = left["reason"].astype(int), left["points"], left["area"]
+    out = np.nonzero(reason != 0)[0]
+    within = np.nonzero(reason == 0)[0]
+    room = max(0, LEFT_POINTS - len(out))
+    if len(out) > LEFT_POINTS:
+        out = out[:: int(np.ceil(len(out) / LEFT_POINTS))]
+        run.notes.append(f"the map of what is left shows every {int(np.ceil(len(reason != 0) / LEFT_POINTS))}th point")
+    within = within[:: max(1, int(np.ceil(len(within) / max(room, 1))))] if room else within[:0]
+    traces = list(base)
+    for k, name in enumerate(reasons):
+        sel = np.r_[within, out][reason[np.r_[within, out]] == k]
+        if not len(sel):
+            continue
+        e = left["e"][sel]
+        hover = dict(hoverinfo="skip") if k == 0 else dict(text=[f"{v:.3f} mm" for v in e], hoverinfo="text+name")
+        traces.append(go.Scatter3d(x=pts[sel, 0].round(3), y=pts[sel, 1].round(3), z=pts[sel, 2].round(3),
+                                   mode="markers", name=name, **hover,
+                                   marker=dict(size=2 if k == 0 else 3, color=LEFT_COLOURS[k % len(LEFT_COLOURS)])))
+    tol = float(run.deviation.get("tolerance", 0.01)) if run.deviation else 0.01
+    figs = [("job: what is left", _scene(f"what is left on the part (over ±{tol:g} mm) and why", go, traces))]
+    sums = [float(area[reason == k].sum()) for k in range(len(reasons))]
+    bar = go.Figure(go.Bar(x=sums, y=reasons, orientation="h", marker=dict(color=list(LEFT_COLOURS[:len(reasons)])),
+                           text=[f"{v:.0f} mm²" for v in sums], textposition="auto"))
+    bar.update_layout(title=f"the design's surface by what is left on it ({sum(sums):.0f} mm²)",
+                      height=120 + 28 * len(reasons), margin=dict(l=200, r=20, t=40, b=30), xaxis_title="mm²")
+    figs.append(("job: area per reason", bar))
     return figs
 
 

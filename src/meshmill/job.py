@@ -256,13 +256,15 @@ def _is_operation_folder(path) -> bool:
 @dataclass
 class JobResult:
     """The job's ``operations`` (:class:`OperationResult`), the program as ``posted``
-    (:class:`~meshmill.results.PostResult`: its ``program`` lines and report), and the ``summary``
-    (job.json)."""
+    (:class:`~meshmill.results.PostResult`: its ``program`` lines and report), the ``summary``
+    (job.json) and what is ``left`` on the part, where and why (:func:`~meshmill.api.what_is_left`'s
+    arrays; its report is ``summary["left"]``)."""
 
     job: "Job"
     operations: list
     posted: object
     summary: dict
+    left: dict | None = None  # what is left on the part (api.what_is_left's arrays)
 
     @property
     def ok(self) -> bool:
@@ -276,9 +278,9 @@ class JobResult:
     def save(self, folder, report=True, progress=None) -> list:
         """Write the job's folder (a path or a :class:`JobFolder`): per operation ``NN-name/`` (the
         operation's files and ``stock.npz``, the in-process stock after it, with ``stock/`` its
-        view: machined.stl, deviation.npz, deviation.json, summary.json), ``program.nc``,
-        ``job.json`` (last) and, with ``report``, ``report.html``; whole or not at all. Returns the
-        folders and files written."""
+        view: machined.stl, deviation.npz, deviation.json, summary.json; the last one's also
+        left.npz, what is left on the part and why), ``program.nc``, ``job.json`` (last) and, with
+        ``report``, ``report.html``; whole or not at all. Returns the folders and files written."""
         target = folder if isinstance(folder, JobFolder) else JobFolder(folder)
         return target.write(lambda path: self._write(target, report, progress))
 
@@ -295,6 +297,12 @@ class JobResult:
             op.cut.summary["toolpath"] = {"file": os.path.join(sub, "toolpath.cl"), "warnings": []}
             op.cut.save(os.path.join(sub, "stock"))
             views += [sub, os.path.join(sub, "stock")]
+        if self.left is not None and views:
+            import numpy as np
+
+            at = os.path.join(views[-1], "left.npz")
+            np.savez_compressed(at, **self.left, reasons=np.array(self.summary["left"]["reasons"]))
+            written.append(at)
         written += self.posted.save(os.path.join(folder.path, "program.nc"))
         self.summary["program"] = written[-1]
         if report:
@@ -627,7 +635,18 @@ class Job:
                    if r.skipped]
         if skipped:  # (job.json has warnings where there are some)
             summary["warnings"] = skipped
-        return JobResult(self, results, posted, summary)
+        left = None
+        samples = ran[-1].cut.samples
+        if samples is not None and samples.get("points") is not None:
+            say("what is left on the part, and why")
+            import numpy as np
+
+            used = {self.tools[int(i)].name for r in ran for i in np.unique(r.path.toolpath.tool)}
+            left, summary["left"] = api.what_is_left(
+                self.part, samples["points"], samples["e"], self.step, self.tools, used,
+                five_axis=any(r.operation.kind == "finish" for r in ran), tolerance=self.tolerance, device=device)
+        summary["seconds"]["total"] = round(time.perf_counter() - t_job, 3)
+        return JobResult(self, results, posted, summary, left)
 
 
 def _entry(r: OperationResult) -> dict:

@@ -65,6 +65,7 @@ class Run:
     machined: tuple | None = None  # (vertices, faces)
     zones: dict | None = None  # choose: the sampling grid's cells and their zones
     load: dict | None = None  # simulate, feeds: every move's load (load.npz)
+    left: dict | None = None  # a job's last stock: what is left on the part and why (left.npz)
     notes: list = field(default_factory=list)
 
 
@@ -135,6 +136,7 @@ def read_run(folder: str, meshes: dict | None = None) -> Run:
     if kind == "simulate":
         run.deviation = read_json(os.path.join(folder, "deviation.json"))
         run.samples = read_npz(os.path.join(folder, "deviation.npz"))
+        run.left = read_npz(os.path.join(folder, "left.npz"))
         m = os.path.join(folder, "machined.stl")
         if os.path.exists(m):
             import numpy as np

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import time
 
-import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import InputError, NothingToCut
@@ -34,6 +33,7 @@ from ..pathing.dropcutter import pick_tool, stock_for, verified_path
 from ..pathing.slope import scallop_radius
 from ..pathing.verify import DEFAULT_STEP
 from ..progress import StageClock
+from .left import design_feet
 from .raster import raster_passes
 from .waterline import cut_pieces, drop_grid, level_loops, waterline_setup
 
@@ -43,20 +43,12 @@ SLOPE_MARGIN = 5.0  # deg: the band of slopes both kinds of passes cut, about th
 def left_points(stock, kern, depth: float, tolerance: float, device="cpu"):
     """``((q, 3) points, reach)``: the points of the design under the dexel ends of the in-process
     ``stock`` (:class:`~meshmill.simulation.stock.Stock` of kind dexels) that stand more than
-    ``depth`` mm above it (each end moved its exact distance down the distance's gradient, by
-    central differences, onto the design of ``kern``), and how near a tool contact must come to
-    one to cut it (the lattice step: every piece of surface has an end of some direction within
-    it)."""
+    ``depth`` mm above it (:func:`~meshmill.ops.left.design_feet`, onto the design of ``kern``),
+    and how near a tool contact must come to one to cut it (the lattice step: every piece of
+    surface has an end of some direction within it)."""
     _, _, _, (points, e) = stock.measure(tolerance, samples=True, device=device)
-    points, e = points[e > depth], e[e > depth]
-    if not len(points):
-        return points, float(stock.model.step)
-    h = np.minimum(0.05, 0.25 * e)[:, None, None] * np.eye(3)[None]  # (q, 3, 3)
-    probes = np.concatenate([(points[:, None] + h).reshape(-1, 3), (points[:, None] - h).reshape(-1, 3)])
-    d = kern.mesh_distances(probes).reshape(2, len(points), 3)
-    grad = (d[0] - d[1]) / (2.0 * h[:, 0, 0])[:, None]
-    grad /= np.maximum(np.linalg.norm(grad, axis=1), 1e-12)[:, None]
-    return points - e[:, None] * grad, float(stock.model.step)
+    more = e > depth
+    return design_feet(points[more], e[more], kern, near=0.0), float(stock.model.step)
 
 
 def steep_shallow(mesh: Mesh, tools, tool_name: str, params: SteepShallowParams, progress=None, device: str = "cpu",

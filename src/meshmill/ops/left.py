@@ -1,0 +1,203 @@
+"""What a job leaves on the part, where, and why: the design's surface, sampled by area, each
+sample given the deviation the in-process stock's dexel ends measure next to it and, where that
+is more than the tolerance, the reason no tool took it.
+
+The surface: points on a barycentric grid of every facet, about a lattice step apart, each
+standing for an equal share of its facet's area (mm², exact in sum) with the facet's normal. The
+deviation: the stock's dexel ends (their exact distance to the design, positive where material
+stands on it) carried down to the design along the distance's gradient (central differences),
+and each surface point given the nearest such foot within 1.5 lattice steps (else "not
+measured": no end of any direction near it, which a lattice step finer than the part's thin
+features avoids).
+
+The reasons, for a point with more than the tolerance on it, tried in order with the balls of the
+table (a ball of radius R touches the point from its centre R out along the normal; bull-noses
+and flat end mills are left out of this test):
+
+- no tool of the table fits: no ball's centre there keeps its radius from the part (a concave
+  corner or fillet tighter than the smallest ball, or a gap narrower than it);
+- below a 3-axis shadow (a 3-axis job) / no collision-free axis (a job with 5-axis operations): no
+  ball that fits reaches it with its tip no lower than the part's bottom (the part stands on it)
+  and along the vertical axis (the ball's way up, then flutes, shank and
+  holder, sampled along the axis, each keeping its radius from the part) nor, in 5 axes, along
+  any of a fan of axes within ``max_tilt`` of the vertical;
+- a tool the job does not use: only balls of the table that no operation of the job ran reach it;
+- left by the job: a tool the job uses reaches it (scallops over the limit, material a rest pass
+  did not take, an operation left out).
+
+This is a map for a user, not a certificate: the reach is tested at the points, the axes on a fan.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+REASONS = ("within tolerance", "gouged", "left by the job", "a tool the job does not use",
+           "below a 3-axis shadow", "no collision-free axis", "no tool of the table fits", "not measured")
+WITHIN, GOUGED, LEFT, UNUSED, SHADOW, NO_AXIS, NO_FIT, UNMEASURED = range(len(REASONS))
+NEAR_STEPS = 1.5  # lattice steps: how far a surface point looks for an end's foot
+TILTS = (0.0, 20.0, 40.0, 60.0)  # deg: the fan of 5-axis axes tried (and the normal, tilted no further)
+AZIMUTHS = 8
+
+
+def surface_samples(mesh, spacing: float):
+    """``(points (m, 3), normals (m, 3), area (m,))``: points on every facet of ``mesh`` about
+    ``spacing`` mm apart (a barycentric grid of n x n sub-triangles' centroids, n from the
+    facet's longest edge), each with its facet's unit normal and an equal share of its area."""
+    v = mesh.vertices[mesh.faces]  # (f, 3, 3)
+    cross = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    normal = cross / np.maximum(2.0 * area, 1e-300)[:, None]
+    edge = np.max(np.linalg.norm(v - np.roll(v, 1, axis=1), axis=2), axis=1)
+    n = np.clip(np.ceil(edge / spacing), 1, 64).astype(np.int64)
+    points, normals, areas = [], [], []
+    for k in np.unique(n):
+        faces = np.nonzero(n == k)[0]
+        # the centroids of the k^2 sub-triangles of a k-grid, in barycentric coordinates
+        i, j = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+        up = (i + j) < k
+        bary = [np.column_stack([(i[up] + 1 / 3), (j[up] + 1 / 3)]) / k]
+        down = (i + j) < k - 1
+        bary.append(np.column_stack([(i[down] + 2 / 3), (j[down] + 2 / 3)]) / k)
+        b = np.vstack(bary)  # (k^2, 2)
+        w = np.column_stack([1.0 - b.sum(axis=1), b])  # (k^2, 3)
+        pts = np.einsum("sv,fvc->fsc", w, v[faces]).reshape(-1, 3)
+        points.append(pts)
+        normals.append(np.repeat(normal[faces], len(w), axis=0))
+        areas.append(np.repeat(area[faces] / len(w), len(w)))
+    return np.vstack(points), np.vstack(normals), np.concatenate(areas)
+
+
+def design_feet(points, e, kern, near: float = 0.02):
+    """``(k, 3)``: ``points`` moved their distance ``e (k,)`` to the design of ``kern`` (bound
+    kernels) down the distance's gradient (central differences); those within ``near`` mm of it
+    stay where they are."""
+    points = np.asarray(points, float)
+    feet = points.copy()
+    far = np.abs(e) > near
+    if not far.any():
+        return feet
+    p, d0 = points[far], np.abs(e[far])
+    h = np.minimum(0.05, 0.25 * d0)[:, None, None] * np.eye(3)[None]
+    probes = np.concatenate([(p[:, None] + h).reshape(-1, 3), (p[:, None] - h).reshape(-1, 3)])
+    d = kern.mesh_distances(probes).reshape(2, len(p), 3)
+    grad = (d[0] - d[1]) / (2.0 * h[:, 0, 0])[:, None]
+    grad /= np.maximum(np.linalg.norm(grad, axis=1), 1e-12)[:, None]
+    feet[far] = p - d0[:, None] * grad
+    return feet
+
+
+def _fans(normals, max_tilt: float) -> np.ndarray:
+    """``(k, a, 3)`` unit axes: the fan of :data:`TILTS` x :data:`AZIMUTHS` within ``max_tilt``,
+    and each point's normal tilted no further than ``max_tilt``."""
+    fan = [np.array([0.0, 0.0, 1.0])]
+    for t in TILTS[1:]:
+        if t > max_tilt + 1e-9:
+            break
+        for a in range(AZIMUTHS):
+            phi = 2 * math.pi * a / AZIMUTHS
+            fan.append(np.array([math.sin(math.radians(t)) * math.cos(phi),
+                                 math.sin(math.radians(t)) * math.sin(phi), math.cos(math.radians(t))]))
+    fan = np.repeat(np.array(fan)[None], len(normals), axis=0)
+    n = np.asarray(normals, float)
+    horiz = np.hypot(n[:, 0], n[:, 1])
+    tilt = np.arctan2(horiz, n[:, 2])
+    t = np.minimum(tilt, math.radians(max_tilt))
+    az = np.where(horiz > 1e-12, n[:, :2] / np.maximum(horiz, 1e-12)[:, None], 0.0)
+    own = np.column_stack([np.sin(t)[:, None] * az, np.cos(t)])
+    return np.concatenate([fan, own[:, None]], axis=1)
+
+
+def _clear_along(centre, axes, tool, kern, tol: float) -> np.ndarray:
+    """``(k,) bool``: some axis of ``axes (k, a, 3)`` keeps the ball ``tool`` at ``centre (k, 3)``
+    and its flutes, shank and holder (radii sampled along the axis) clear of the part."""
+    R = tool.radius
+    heights, radii = [], []
+    for top, radius in ((tool.flute_length, R), (tool.gauge_length, 0.5 * tool.shank_diameter),
+                        (tool.gauge_length + tool.holder_length, 0.5 * tool.holder_diameter)):
+        start = heights[-1] if heights else R
+        if radius <= 0 or top <= start:
+            continue
+        count = max(2, int(math.ceil((top - start) / max(0.5 * radius, 0.25))) + 1)
+        heights += list(np.linspace(start, top, count))
+        radii += [radius] * count
+    h, r = np.array(heights), np.array(radii)
+    k, a = axes.shape[:2]
+    pts = centre[:, None, None] + axes[:, :, None] * h[None, None, :, None]  # (k, a, s, 3)
+    d = kern.mesh_distances(pts.reshape(-1, 3)).reshape(k, a, len(h))
+    return ((d >= r[None, None] - tol).all(axis=2)).any(axis=1)
+
+
+def reach(feet, normals, balls, kern, floor: float, five_axis: bool, tol: float, max_tilt: float = 60.0):
+    """``(fits (k, b), reaches (k, b))`` bool: whether each ball of ``balls`` fits at each of
+    ``feet (k, 3)`` (its centre a radius out along ``normals`` keeps that from the part of
+    ``kern``), and fits and reaches it, its tip no lower than ``floor`` (the part's bottom) and its
+    flutes, shank and holder clear along the vertical axis (the ball's way up and out), or with
+    ``five_axis`` along one of a fan of axes (:func:`_clear_along`)."""
+    k = len(feet)
+    fits = np.zeros((k, len(balls)), bool)
+    reaches = np.zeros((k, len(balls)), bool)
+    for j, tool in enumerate(balls):
+        centre = feet + tool.radius * normals
+        fits[:, j] = kern.mesh_distances(centre) >= tool.radius - tol
+        above = centre[:, 2] - tool.radius >= floor - tol  # a tip never goes below the part's bottom
+        at = np.nonzero(fits[:, j] & above)[0]
+        if not len(at):
+            continue
+        ok = _clear_along(centre[at], np.broadcast_to([[[0.0, 0.0, 1.0]]], (len(at), 1, 3)), tool, kern, tol)
+        if five_axis and (~ok).any():
+            rest = at[~ok]
+            ok[~ok] = _clear_along(centre[rest], _fans(normals[rest], max_tilt), tool, kern, tol)
+        reaches[at, j] = ok
+    return fits, reaches
+
+
+def what_is_left(mesh, kern, points, e, step: float, tools, used: set, five_axis: bool, tolerance: float):
+    """``(arrays, report)``: the design ``mesh`` (bound to ``kern``) sampled by area
+    (:func:`surface_samples`), each sample's deviation from the nearest foot of the stock's dexel
+    ends ``points (k, 3)``, ``e (k,)`` (lattice ``step`` mm), and its reason (:data:`REASONS`)
+    with the ``tools`` of the table (``used``: the names the job's operations ran). ``arrays``:
+    ``points``, ``normals``, ``area`` mm², ``e`` mm (NaN: not measured), ``reason`` (index into
+    ``reasons``). ``report``: area per reason (mm²), the shares within tolerance of the whole
+    surface and of the surface some tool of the table reaches."""
+    sp, sn, sa = surface_samples(mesh, step)
+    dev = np.full(len(sp), np.nan)
+    if len(points):
+        feet = design_feet(points, e, kern)
+        dist, idx = cKDTree(feet).query(sp, distance_upper_bound=NEAR_STEPS * step)
+        found = np.isfinite(dist)
+        dev[found] = np.asarray(e)[idx[found]]
+    reason = np.full(len(sp), UNMEASURED, np.int8)
+    reason[np.abs(dev) <= tolerance] = WITHIN
+    reason[dev < -tolerance] = GOUGED
+    left = np.nonzero(dev > tolerance)[0]
+    balls = sorted([t for t in tools if t.type == "ball"], key=lambda t: t.radius)
+    if len(left):
+        if not balls:
+            reason[left] = NO_FIT
+        else:
+            fits, reaches = reach(sp[left], sn[left], balls, kern, float(mesh.bounds[0, 2]), five_axis, tolerance)
+            mine = np.array([t.name in used for t in balls])
+            r = np.full(len(left), LEFT, np.int8)
+            r[~(reaches & mine).any(axis=1)] = UNUSED
+            r[~reaches.any(axis=1)] = NO_AXIS if five_axis else SHADOW
+            r[~fits.any(axis=1)] = NO_FIT
+            reason[left] = r
+    area = {name: float(sa[reason == k].sum()) for k, name in enumerate(REASONS)}
+    total = float(sa.sum())
+    reachable = area["within tolerance"] + area["gouged"] + area["left by the job"] + area["a tool the job does not use"]
+    report = {
+        "area_mm2": total,
+        "by_reason_mm2": area,
+        "within_tolerance": area["within tolerance"] / total if total else 0.0,
+        "reachable_mm2": reachable,
+        "reachable_within_tolerance": area["within tolerance"] / reachable if reachable else 1.0,
+        "unreachable_mm2": total - reachable - area["not measured"],
+        "tolerance": tolerance, "step": step, "five_axis": five_axis,
+        "balls": [t.name for t in balls], "used": sorted(used),
+        "reasons": list(REASONS),
+    }
+    return {"points": sp, "normals": sn, "area": sa, "e": dev, "reason": reason}, report
