@@ -254,3 +254,32 @@ def test_what_is_left_and_why(pocket_job, balls):
     assert final["reachable_within_tolerance"] >= 0.95
     assert final["by_reason_mm2"]["below a 3-axis shadow"] == pytest.approx(math.pi * 400, rel=0.05)  # the bottom
     assert final["within_tolerance"] == pytest.approx(final["by_reason_mm2"]["within tolerance"] / final["area_mm2"])
+
+
+def test_passes_in_a_short_order_joined_and_linked_low(balls):
+    """Passes are taken nearest end first (open ones turned round), close ones joined; a link
+    between passes travels at the lowest height clear of what stands between them, not at the
+    safe plane, and the path still verifies."""
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.pathing.dropcutter import StockClearance, link_heights
+    from meshmill.pathing.verify import StockCheck
+    from meshmill.toolpath.linking import joined_passes, shortest_order
+
+    line = lambda x0, x1: np.array([[x0, 0.0, 0.0], [x1, 0.0, 0.0]])  # noqa: E731
+    order = shortest_order([line(0, 1), line(10, 11), line(4, 2)])
+    assert [tuple(p[:, 0]) for p in order] == [(0, 1), (2, 4), (10, 11)]
+    joined = joined_passes(order, 2.0)
+    assert len(joined) == 2 and len(joined[0]) == 4
+    # a 10 mm wall between two passes on the floor: the link clears it, under the safe plane
+    part = box([-2, -20, 0], [2, 20, 10])
+    kern = solid_kernels(part, "cpu")
+    b4 = balls[1]
+    clear = StockClearance(b4, kern, -1.0, StockCheck(clearance=0.5), widen=0.5 * b4.radius + 1e-6)
+    ends = np.array([[-10.0, 0.0, -8.0, 0.0], [8.0, 0.0, 10.0, 0.0]])
+    z = link_heights(ends, np.zeros(2), np.zeros(2), 30.0, clear, b4.radius)
+    assert z[0] == 30.0 and z[2] == 30.0 and 10.0 + 0.5 - 1e-9 <= z[1] < 12.0
+    far = link_heights(ends, np.zeros(2), np.zeros(2), 30.0, clear, b4.radius, high={(-8.0, 0.0)})
+    assert far[1] == 30.0  # verification found it too close: at the safe plane
+    r = meshmill.steep_shallow(part, balls, tool="B4", scallop=0.02, device="cpu")
+    tp = r.toolpath
+    assert r.summary["verify"]["ok"] and tp.tip[tp.rapid, 2].min() < r.summary["safe_z"] - 1.0

@@ -556,6 +556,7 @@ class Job:
                                                        "max_depth": fixtures.report["max_gouge"],
                                                        "max_collision": fixtures.report["max_collision"]},
             "machining_s": timed["total"]["total_s"], "time": timed, "feeds": feeds,
+            "non_cutting": non_cutting(timed["total"], s["cutting_mm"]),
             "load": s.get("load"),
             "seconds": {"operation": round(op_s, 3), "cut_and_measure": round(cut_s, 3)},
         }
@@ -629,6 +630,7 @@ class Job:
                       "gouged_mm3": final["volumes_mm3"]["gouged"], **final["deviation"]},
             "program": "", "post": {kk: v for kk, v in posted.report.items() if kk not in ("program",)},
             "machining_s": timed["total"]["total_s"], "time": timed,
+            "non_cutting": _program_non_cutting(timed["total"], ran),
             "seconds": {"total": round(time.perf_counter() - t_job, 3)},
         }
         skipped = [f"operation {k + 1} ({r.operation.name}) skipped: {r.skipped}" for k, r in enumerate(results)
@@ -649,6 +651,27 @@ class Job:
         return JobResult(self, results, posted, summary, left)
 
 
+def non_cutting(total: dict, cutting_mm: dict) -> dict:
+    """The machining time that cuts nothing, s: rapids, tool changes, and the feed moves through
+    the air (their share of the feed length, as the in-process stock measured it, of the feed
+    time); ``share`` of the ``total`` time (a machining time's ``total``)."""
+    length = cutting_mm["in_material"] + cutting_mm["in_air"]
+    air = total["cutting_s"] * (cutting_mm["in_air"] / length if length > 0 else 0.0)
+    out = {"rapid_s": total["rapid_s"], "tool_change_s": total["tool_change_s"], "air_feed_s": air}
+    out["share"] = sum(out.values()) / total["total_s"] if total["total_s"] > 0 else 0.0
+    return out
+
+
+def _program_non_cutting(total: dict, ran: list) -> dict:
+    """:func:`non_cutting` of the whole program: its rapids and tool changes, the operations' feed
+    through the air."""
+    air = sum(r.path.summary["job"]["non_cutting"]["air_feed_s"] for r in ran)
+    out = {"rapid_s": total["rapid_s"], "tool_change_s": total["tool_change_s"], "air_feed_s": air}
+    out["share"] = sum(out.values()) / total["total_s"] if total["total_s"] > 0 else 0.0
+    out["tool_change_share"] = total["tool_change_s"] / total["total_s"] if total["total_s"] > 0 else 0.0
+    return out
+
+
 def _entry(r: OperationResult) -> dict:
     """An operation's line in job.json."""
     if r.skipped:
@@ -656,7 +679,7 @@ def _entry(r: OperationResult) -> dict:
     j = r.path.summary["job"]
     return {"name": r.operation.name, "type": r.operation.kind, "folder": j["folder"],
             **{k: j[k] for k in ("ok", "removed_mm3", "left_over_design_mm3", "cutting_mm", "machining_s", "errors",
-                                 "feeds")},
+                                 "feeds", "non_cutting")},
             "load_ok": (j["load"] or {}).get("ok", True),
             "verify_ok": r.path.summary["verify"]["ok"]}
 

@@ -168,8 +168,9 @@ class FinishParams(Params):
     sample: float = option("number", "largest distance between CC points along a contour", 0.5, unit="mm", low=1e-4)
     max_tilt: float = option("number", "largest tool tilt from vertical", 60.0, unit="deg", low=0.0, below=90.0)
     tilt_step: float = option("number", "tilt search step", 5.0, unit="deg", above=0.0)
-    order: str = option("choice", "contour by contour from the top, or grouped by tool (largest first)", "contour",
-                        choices=("contour", "tool"))
+    order: str = option("choice", "grouped by tool, largest first (each tool cuts all it should before the next is "
+                                  "loaded), or contour by contour from the top (seed 004's order: a tool change "
+                                  "wherever the ball changes)", "tool", choices=("tool", "contour"))
     safe_z: float | None = option("number", "plane for rapid moves between passes (default: the part's top + 5 + "
                                             "what a tilted ball hangs below its tip)", None, unit="mm",
                                   low=-MAX_COORDINATE, high=MAX_COORDINATE)

@@ -9,7 +9,9 @@ on its own ground (the contact normal of the tool at every ``sample``,
 :mod:`meshmill.pathing.slope`) widened by ``overlap`` mm along the pass, so the two overlap by
 the margin's band of slopes and no seam is left. Levels and stepover are the limit's on the
 ground each cuts, not on the whole part's shallowest slope. Both kinds of passes are linked and
-verified as one path.
+verified as one path, each kind in an order that keeps the links short and passes closer than
+:data:`JOIN` tool diameters joined by a feed along the part (verification splits them again where
+that would gouge).
 
 With ``rest`` only the pieces that remove more than that of the stock are cut (rest finishing,
 ``type = "rest-finish"`` in a job). From an in-process stock (triple dexels) that is measured,
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import InputError, NothingToCut
@@ -33,11 +36,13 @@ from ..pathing.dropcutter import pick_tool, stock_for, verified_path
 from ..pathing.slope import scallop_radius
 from ..pathing.verify import DEFAULT_STEP
 from ..progress import StageClock
+from ..toolpath.linking import joined_passes, shortest_order
 from .left import design_feet
 from .raster import raster_passes
 from .waterline import cut_pieces, drop_grid, level_loops, waterline_setup
 
 SLOPE_MARGIN = 5.0  # deg: the band of slopes both kinds of passes cut, about the threshold
+JOIN = 2.0  # tool diameters: passes whose end and next start are closer are joined by a feed along the part
 
 
 def left_points(stock, kern, depth: float, tolerance: float, device="cpu"):
@@ -107,8 +112,11 @@ def steep_shallow(mesh: Mesh, tools, tool_name: str, params: SteepShallowParams,
         depth = params.rest if params.rest is not None else (left or {}).get("min_depth")
         why = f" that removes more than rest {depth:g} mm of the stock" if depth is not None else ""
         raise NothingToCut(f"nothing to cut: no pass{why} on the part's ground", "rest" if depth is not None else ())
+    # each kind in an order that keeps links short, passes close to each other joined along the part
+    passes = joined_passes(shortest_order(steep, closed=[np.array_equal(p[0], p[-1]) for p in steep]), JOIN * tool.diameter)
+    passes += joined_passes(shortest_order(shallow, start=passes[-1][-1] if passes else None), JOIN * tool.diameter)
     with clock("verify"):
-        tp, report, kept = verified_path(steep + shallow, index, tools, kern, safe_z, params.tolerance, DEFAULT_STEP,
+        tp, report, kept = verified_path(passes, index, tools, kern, safe_z, params.tolerance, DEFAULT_STEP,
                                          rapid_stock, clock.say)
     clock.seconds["total"] = time.perf_counter() - t_all
     summary = {

@@ -151,12 +151,13 @@ class ToolDrop:
 class StockClearance:
     """Where a vertical tool is clear of the stock: the height ``(k,)`` over ``xy (k, 2)`` above
     which the whole tool keeps ``stock.clearance`` mm from the stock (the design grown by
-    ``stock.allowance``, and the stock mesh when given), never below ``floor``."""
+    ``stock.allowance``, and the stock mesh when given), never below ``floor``; with ``widen``,
+    anywhere within that distance of the point at that height."""
 
-    def __init__(self, tool, kern, floor: float, stock: StockCheck):
-        self.drops = [ToolDrop(tool, kern, floor, grow=stock.allowance + stock.clearance, square=True)]
+    def __init__(self, tool, kern, floor: float, stock: StockCheck, widen: float = 0.0):
+        self.drops = [ToolDrop(tool, kern, floor, grow=stock.allowance + stock.clearance, square=True, widen=widen)]
         if stock.kern is not None:
-            self.drops.append(ToolDrop(tool, stock.kern, floor, grow=stock.clearance, square=True))
+            self.drops.append(ToolDrop(tool, stock.kern, floor, grow=stock.clearance, square=True, widen=widen))
 
     def __call__(self, xy: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy, np.float64).reshape(-1, 2)
@@ -169,11 +170,18 @@ def verified_path(passes, tool_index, tools, kern, safe_z, tol, step, stock: Sto
     of ``kern`` (:class:`~meshmill.kernels.backend.MeshKernels`, :func:`solid_kernels`), and split
     passes at the feed moves that fail (the tool lifts over them) until it verifies clean. Each
     pass is entered and left vertically: rapid down to where the tool is clear of the stock
-    (:class:`StockClearance`), feed the rest, and back. Returns ``(toolpath, report, passes)``;
+    (:class:`StockClearance`), feed the rest, and back; from one pass to the next the tool
+    travels at the lowest height clear of the stock along the way (:func:`link_heights`), at the
+    safe plane where verification finds that link too close. Returns ``(toolpath, report, passes)``;
     ``report["moves_left_out"]`` counts the moves given up; ``progress`` is told the share of each
     round's check done."""
     stock = stock or StockCheck()
-    clear = StockClearance(tools[tool_index], kern, float(kern.bvh.node_lo[0, 2]) - 1.0, stock)
+    tool = tools[tool_index]
+    floor = float(kern.bvh.node_lo[0, 2]) - 1.0
+    clear = StockClearance(tool, kern, floor, stock)
+    spacing = max(tool.radius, 0.5)
+    clear_wide = StockClearance(tool, kern, floor, stock, widen=0.5 * spacing + 1e-6)
+    high = set()  # links verification found too close: at the safe plane
     # each round of repairs checks only the moves it changed
     check = Reverify(lambda path, only: check_parts(kern, path, tools, tol, step, stock, only, progress), tol, step,
                      stock.summary())
@@ -182,20 +190,27 @@ def verified_path(passes, tool_index, tools, kern, safe_z, tol, step, stock: Sto
         ends = np.array([[p[0, 0], p[0, 1], p[-1, 0], p[-1, 1]] for p in passes]).reshape(-1, 4)
         z_in = clear(ends[:, :2]) if len(passes) else None
         z_out = clear(ends[:, 2:]) if len(passes) else None
-        tp = link_passes(passes, tool_index, safe_z, z_in, z_out)
+        links = link_heights(ends, z_in, z_out, safe_z, clear_wide, spacing, high)
+        tp = link_passes(passes, tool_index, safe_z, z_in, z_out, links)
         report = check(tp)
         bad = report.pop("problem_moves")
         if report["ok"] or rnd == REPAIR_ROUNDS:
             break
-        # move m of pass k's block: rapid, rapid, feed to p[0], ..., p[-1], feed up, rapid
+        # move m of pass k's block: rapid across, rapid down, feed to p[0], ..., p[-1], feed up, rapid up
         owner, point = [], []
         for k, p in enumerate(passes):
             owner += [k] * (len(p) + 4)
-            point += [-1, -1] + list(range(len(p))) + [-1, -1]
-        splits = {}
+            point += [-2, -1] + list(range(len(p))) + [-1, -3]
+        splits, raised = {}, set()
         for m in bad:
             if point[m] > 0:
                 splits.setdefault(owner[m], []).append(point[m])
+            elif point[m] in (-2, -3):  # a link into pass k (across) or out of it (up): at the safe plane
+                raised.add((ends[owner[m], 0], ends[owner[m], 1]) if point[m] == -2 else
+                           (ends[owner[m], 2], ends[owner[m], 3]))
+        if raised - high:
+            high |= raised
+            continue
         if not splits:
             break
         new = []
@@ -206,6 +221,32 @@ def verified_path(passes, tool_index, tools, kern, safe_z, tol, step, stock: Sto
         passes = new
     report["moves_left_out"] = left_out
     return tp, report, passes
+
+
+def link_heights(ends, z_in, z_out, safe_z: float, clear, spacing: float, high=frozenset()) -> np.ndarray:
+    """``(n + 1,)`` the heights of the links into each of n passes (``ends (n, 4)``: each pass's
+    first and last XY; ``z_in``, ``z_out`` where the tool is clear of the stock above them) and
+    out of the last: the first and last at ``safe_z``, each other the highest of the two ends'
+    and of ``clear`` (a :class:`StockClearance` widened by half ``spacing``) at points ``spacing``
+    apart on the straight way between them, so that the whole way is clear; at ``safe_z`` where
+    the link's start or end XY is in ``high``."""
+    n = len(ends)
+    out = np.full(n + 1, float(safe_z))
+    if n < 2:
+        return out
+    a, b = ends[:-1, 2:], ends[1:, :2]
+    count = np.maximum(2, np.ceil(np.linalg.norm(b - a, axis=1) / spacing).astype(np.int64) + 1)
+    owner = np.repeat(np.arange(n - 1), count)
+    f = (np.arange(len(owner)) - np.repeat(np.cumsum(count) - count, count)) / np.repeat(count - 1, count)
+    z = clear(a[owner] + f[:, None] * (b - a)[owner])
+    top = np.full(n - 1, -np.inf)
+    np.maximum.at(top, owner, z)
+    links = np.minimum(safe_z, np.maximum.reduce([top, np.asarray(z_out[:-1]), np.asarray(z_in[1:])]))
+    for k in range(n - 1):
+        if (a[k, 0], a[k, 1]) in high or (b[k, 0], b[k, 1]) in high:
+            links[k] = safe_z
+    out[1:-1] = links
+    return out
 
 
 REFINE_ROUNDS = 6  # each halves the spacing where the chord leaves the surface
