@@ -283,3 +283,20 @@ def test_passes_in_a_short_order_joined_and_linked_low(balls):
     r = meshmill.steep_shallow(part, balls, tool="B4", scallop=0.02, device="cpu")
     tp = r.toolpath
     assert r.summary["verify"]["ok"] and tp.tip[tp.rapid, 2].min() < r.summary["safe_z"] - 1.0
+
+
+def test_a_wall_under_an_overhang_is_a_3_axis_shadow_and_reached_in_5_axes(balls):
+    from meshmill.geometry.shapes import overhang_column
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.ops.left import _fans, reach
+
+    part = overhang_column(radius=10.0, height=30.0, cap_radius=14.0, cap_height=5.0)
+    kern = solid_kernels(part, "cpu")
+    foot, normal = np.array([[10.0, 0.0, 10.0]]), np.array([[1.0, 0.0, 0.0]])
+    b2 = [balls[2]]
+    fits, reaches = reach(foot, normal, b2, kern, 0.0, five_axis=False, tol=0.01)
+    assert fits.all() and not reaches.any()  # the shank meets the cap straight above
+    fits, reaches = reach(foot, normal, b2, kern, 0.0, five_axis=True, tol=0.01)
+    assert reaches.all()  # tilted out from the wall
+    fans = _fans(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]), 60.0)
+    assert np.allclose(np.linalg.norm(fans, axis=2), 1.0) and (fans[:, :, 2] >= 0.5 - 1e-12).all()

@@ -106,7 +106,7 @@ def _fans(normals, max_tilt: float) -> np.ndarray:
     horiz = np.hypot(n[:, 0], n[:, 1])
     tilt = np.arctan2(horiz, n[:, 2])
     t = np.minimum(tilt, math.radians(max_tilt))
-    az = np.where(horiz > 1e-12, n[:, :2] / np.maximum(horiz, 1e-12)[:, None], 0.0)
+    az = np.where((horiz > 1e-12)[:, None], n[:, :2] / np.maximum(horiz, 1e-12)[:, None], [1.0, 0.0])
     own = np.column_stack([np.sin(t)[:, None] * az, np.cos(t)])
     return np.concatenate([fan, own[:, None]], axis=1)
 
