@@ -166,6 +166,12 @@ def test_rest_finishing_cuts_only_what_the_larger_ball_left(pocket_job):
     assert e[left_by_b6(p) & (p[:, 2] > 1.95)].max() <= SCALLOP + 0.01
     final = pocket_job.summary["final"]
     assert final["gouge_max"] <= 0.01
+    # the time that cuts nothing: rapids, tool changes (two here), feed through the air
+    nc = pocket_job.summary["non_cutting"]
+    total = pocket_job.summary["time"]["total"]
+    assert nc["tool_change_s"] == total["tool_change_s"] > 0 and 0 < nc["share"] < 1
+    assert nc["share"] * total["total_s"] == pytest.approx(nc["rapid_s"] + nc["tool_change_s"] + nc["air_feed_s"])
+    assert all(0 <= o["non_cutting"]["share"] < 1 for o in pocket_job.summary["operations"])
 
 
 def test_steep_shallow_refuses_what_it_cannot_do(balls):

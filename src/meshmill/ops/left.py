@@ -113,7 +113,8 @@ def _fans(normals, max_tilt: float) -> np.ndarray:
 
 def _clear_along(centre, axes, tool, kern, tol: float) -> np.ndarray:
     """``(k,) bool``: some axis of ``axes (k, a, 3)`` keeps the ball ``tool`` at ``centre (k, 3)``
-    and its flutes, shank and holder (radii sampled along the axis) clear of the part."""
+    and its flutes, shank and holder (radii sampled about a radius apart along the axis) clear of
+    the part; the axes tried in turn, each only for the points no axis before cleared."""
     R = tool.radius
     heights, radii = [], []
     for top, radius in ((tool.flute_length, R), (tool.gauge_length, 0.5 * tool.shank_diameter),
@@ -121,30 +122,38 @@ def _clear_along(centre, axes, tool, kern, tol: float) -> np.ndarray:
         start = heights[-1] if heights else R
         if radius <= 0 or top <= start:
             continue
-        count = max(2, int(math.ceil((top - start) / max(0.5 * radius, 0.25))) + 1)
+        count = max(2, int(math.ceil((top - start) / max(radius, 0.25))) + 1)
         heights += list(np.linspace(start, top, count))
         radii += [radius] * count
     h, r = np.array(heights), np.array(radii)
-    k, a = axes.shape[:2]
-    pts = centre[:, None, None] + axes[:, :, None] * h[None, None, :, None]  # (k, a, s, 3)
-    d = kern.mesh_distances(pts.reshape(-1, 3)).reshape(k, a, len(h))
-    return ((d >= r[None, None] - tol).all(axis=2)).any(axis=1)
+    ok = np.zeros(len(centre), bool)
+    for a in range(axes.shape[1]):
+        at = np.nonzero(~ok)[0]
+        if not len(at):
+            break
+        pts = centre[at, None] + axes[at, a, None] * h[None, :, None]  # (q, s, 3)
+        d = kern.mesh_distances(pts.reshape(-1, 3)).reshape(len(at), len(h))
+        ok[at] = (d >= r[None] - tol).all(axis=1)
+    return ok
 
 
-def reach(feet, normals, balls, kern, floor: float, five_axis: bool, tol: float, max_tilt: float = 60.0):
+def reach(feet, normals, balls, kern, floor: float, five_axis: bool, tol: float, max_tilt: float = 60.0,
+          skip=None):
     """``(fits (k, b), reaches (k, b))`` bool: whether each ball of ``balls`` fits at each of
     ``feet (k, 3)`` (its centre a radius out along ``normals`` keeps that from the part of
     ``kern``), and fits and reaches it, its tip no lower than ``floor`` (the part's bottom) and its
     flutes, shank and holder clear along the vertical axis (the ball's way up and out), or with
-    ``five_axis`` along one of a fan of axes (:func:`_clear_along`)."""
+    ``five_axis`` along one of a fan of axes (:func:`_clear_along`). ``skip (k,) bool``: points whose
+    reach need not be tested (left False)."""
     k = len(feet)
     fits = np.zeros((k, len(balls)), bool)
     reaches = np.zeros((k, len(balls)), bool)
+    done = np.zeros(k, bool) if skip is None else np.asarray(skip, bool).copy()
     for j, tool in enumerate(balls):
         centre = feet + tool.radius * normals
         fits[:, j] = kern.mesh_distances(centre) >= tool.radius - tol
         above = centre[:, 2] - tool.radius >= floor - tol  # a tip never goes below the part's bottom
-        at = np.nonzero(fits[:, j] & above)[0]
+        at = np.nonzero(fits[:, j] & above & ~done)[0]
         if not len(at):
             continue
         ok = _clear_along(centre[at], np.broadcast_to([[[0.0, 0.0, 1.0]]], (len(at), 1, 3)), tool, kern, tol)
@@ -152,6 +161,7 @@ def reach(feet, normals, balls, kern, floor: float, five_axis: bool, tol: float,
             rest = at[~ok]
             ok[~ok] = _clear_along(centre[rest], _fans(normals[rest], max_tilt), tool, kern, tol)
         reaches[at, j] = ok
+        done[at[ok]] = True  # one ball that reaches is enough
     return fits, reaches
 
 
@@ -178,13 +188,17 @@ def what_is_left(mesh, kern, points, e, step: float, tools, used: set, five_axis
     if len(left):
         if not balls:
             reason[left] = NO_FIT
-        else:
-            fits, reaches = reach(sp[left], sn[left], balls, kern, float(mesh.bounds[0, 2]), five_axis, tolerance)
-            mine = np.array([t.name in used for t in balls])
+        else:  # the job's balls first (smallest first): one that reaches settles it
+            floor = float(mesh.bounds[0, 2])
+            mine = [t for t in balls if t.name in used]
+            others = [t for t in balls if t.name not in used]
+            fits_m, reach_m = reach(sp[left], sn[left], mine, kern, floor, five_axis, tolerance)
+            by_job = reach_m.any(axis=1)
+            fits_o, reach_o = reach(sp[left], sn[left], others, kern, floor, five_axis, tolerance, skip=by_job)
             r = np.full(len(left), LEFT, np.int8)
-            r[~(reaches & mine).any(axis=1)] = UNUSED
-            r[~reaches.any(axis=1)] = NO_AXIS if five_axis else SHADOW
-            r[~fits.any(axis=1)] = NO_FIT
+            r[~by_job] = UNUSED
+            r[~(by_job | reach_o.any(axis=1))] = NO_AXIS if five_axis else SHADOW
+            r[~(fits_m.any(axis=1) | fits_o.any(axis=1))] = NO_FIT
             reason[left] = r
     area = {name: float(sa[reason == k].sum()) for k, name in enumerate(REASONS)}
     total = float(sa.sum())
