@@ -71,15 +71,17 @@ def surface_samples(mesh, spacing: float):
     return np.vstack(points), np.vstack(normals), np.concatenate(areas)
 
 
-def design_feet(points, e, kern, near: float = 0.02):
+def design_feet(points, e, kern, near: float = 0.02, normals: bool = False):
     """``(k, 3)``: ``points`` moved their distance ``e (k,)`` to the design of ``kern`` (bound
     kernels) down the distance's gradient (central differences); those within ``near`` mm of it
-    stay where they are."""
+    stay where they are. With ``normals``, also ``(k, 3)`` the unit gradient (from the design out
+    to the point; zero where not moved)."""
     points = np.asarray(points, float)
     feet = points.copy()
+    out = np.zeros_like(feet)
     far = np.abs(e) > near
     if not far.any():
-        return feet
+        return (feet, out) if normals else feet
     p, d0 = points[far], np.abs(e[far])
     h = np.minimum(0.05, 0.25 * d0)[:, None, None] * np.eye(3)[None]
     probes = np.concatenate([(p[:, None] + h).reshape(-1, 3), (p[:, None] - h).reshape(-1, 3)])
@@ -87,7 +89,8 @@ def design_feet(points, e, kern, near: float = 0.02):
     grad = (d[0] - d[1]) / (2.0 * h[:, 0, 0])[:, None]
     grad /= np.maximum(np.linalg.norm(grad, axis=1), 1e-12)[:, None]
     feet[far] = p - d0[:, None] * grad
-    return feet
+    out[far] = grad
+    return (feet, out) if normals else feet
 
 
 def _fans(normals, max_tilt: float) -> np.ndarray:

@@ -17,8 +17,8 @@ With ``rest`` only the pieces that remove more than that of the stock are cut (r
 ``type = "rest-finish"`` in a job). From an in-process stock (triple dexels) that is measured,
 not guessed from a reference tool: the stock's dexel ends that stand more than ``rest`` above the
 design (their exact distance to it, :meth:`~meshmill.simulation.stock.Stock.measure`) are what
-is left, and the passes are kept where the tool touches the design within a lattice step of one
-of them (:func:`left_points`); from a mesh or box stock, by the depth below its surface
+is left (where a vertical tool could touch it), and the passes are kept where the tool touches
+the design within a lattice step of one of them (:func:`left_points`); from a mesh or box stock, by the depth below its surface
 (:mod:`meshmill.pathing.rest`).
 """
 from __future__ import annotations
@@ -42,18 +42,24 @@ from .raster import raster_passes
 from .waterline import cut_pieces, drop_grid, level_loops, waterline_setup
 
 SLOPE_MARGIN = 5.0  # deg: the band of slopes both kinds of passes cut, about the threshold
+SHADOW_NZ = 0.05  # what is left on ground facing down more than this (normal's z) no vertical tool touches
 JOIN = 2.0  # tool diameters: passes whose end and next start are closer are joined by a feed along the part
 
 
-def left_points(stock, kern, depth: float, tolerance: float, device="cpu"):
+def left_points(stock, kern, depth: float, tolerance: float, tool, device="cpu"):
     """``((q, 3) points, reach)``: the points of the design under the dexel ends of the in-process
     ``stock`` (:class:`~meshmill.simulation.stock.Stock` of kind dexels) that stand more than
-    ``depth`` mm above it (:func:`~meshmill.ops.left.design_feet`, onto the design of ``kern``),
-    and how near a tool contact must come to one to cut it (the lattice step: every piece of
-    surface has an end of some direction within it)."""
+    ``depth`` mm above it (:func:`~meshmill.ops.left.design_feet`, onto the design of ``kern``)
+    and that a vertical ``tool`` could touch (not facing down, nor so low on a wall that its tip
+    would go below the part's bottom), and how near a tool contact must come to one to cut it
+    (the lattice step: every piece of surface has an end of some direction within it)."""
     _, _, _, (points, e) = stock.measure(tolerance, samples=True, device=device)
     more = e > depth
-    return design_feet(points[more], e[more], kern, near=0.0), float(stock.model.step)
+    feet, normal = design_feet(points[more], e[more], kern, near=0.0, normals=True)
+    r = tool.corner_radius
+    floor = float(kern.bvh.node_lo[0, 2])
+    touchable = (normal[:, 2] >= -SHADOW_NZ) & (feet[:, 2] + r * normal[:, 2] - r >= floor - tolerance)
+    return feet[touchable], float(stock.model.step)
 
 
 def steep_shallow(mesh: Mesh, tools, tool_name: str, params: SteepShallowParams, progress=None, device: str = "cpu",
@@ -77,7 +83,7 @@ def steep_shallow(mesh: Mesh, tools, tool_name: str, params: SteepShallowParams,
     near, left = None, None
     if params.rest is not None and Stock.of(params.stock, "offset").kind == "dexels":  # what is left, measured
         with clock("what is left on the part", "left"):
-            points, reach = left_points(params.stock, kern, params.rest, params.tolerance, device)
+            points, reach = left_points(params.stock, kern, params.rest, params.tolerance, tool, device)
         left = {"min_depth": params.rest, "points_left": int(len(points)), "reach": reach}
         if not len(points):
             raise NothingToCut(f"nothing to cut: the stock stands nowhere more than rest {params.rest:g} mm above the "
