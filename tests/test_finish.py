@@ -115,7 +115,7 @@ def test_candidates_start_vertical_and_stay_within_max_tilt():
 @pytest.mark.parametrize("kw, message", [
     (dict(step_down=0), "^step_down must be a number of mm >= 0.0001, got 0$"),
     (dict(step_down=1, max_tilt=95), "^max_tilt must be a number of deg from 0 to below 90, got 95$"),
-    (dict(step_down=1, order="zigzag"), "^order must be one of contour, tool, got 'zigzag'$"),
+    (dict(step_down=1, order="zigzag"), "^order must be one of tool, contour, got 'zigzag'$"),
     (dict(step_down=100), "larger than the part"),
     (dict(step_down=1, safe_z=5), "^safe_z 5 is too low"),
 ])

@@ -172,7 +172,7 @@ JOB_FILES = [
     ("an operation without a type", dict(text=BASE.replace('type = "raster"\n', "").format(
         top="", part="", stock="", fixtures="", op="")), "operation 1: type must be one of rough, plunge, raster"),
     ("an unknown operation", dict(text=BASE.replace('type = "raster"', 'type = "drill"').format(
-        top="", part="", stock="", fixtures="", op="")), "type must be one of rough, plunge, raster, waterline, finish"),
+        top="", part="", stock="", fixtures="", op="")), "type must be one of rough, plunge, raster, waterline, steep-shallow, rest-finish, finish"),
     ("the tool as a number", dict(text=BASE.replace('tool = "B4"', "tool = 5").format(
         top="", part="", stock="", fixtures="", op="")), "tool must be text, got 5"),
     ("a tool not in the table", dict(text=BASE.replace('tool = "B4"', 'tool = "B3"').format(
@@ -193,12 +193,12 @@ JOB_FILES = [
     ("the allowance as text", dict(op='allowance = "0.3"'), "allowance must be a number of mm >= 0, got '0.3'"),
     ("the stock set in an operation", dict(op='stock = "box"'), "unknown parameter stock for raster"),
     ("a device set in an operation", dict(op='device = "cpu"'), "unknown parameter device for raster"),
-    ("a list of tools for a raster", dict(op='tools = ["B4"]'), "tools is finish's and choose's"),
+    ("a list of tools for a raster", dict(op='tools = ["B4"]'), "tools is finish's, choose's and rest-finish's"),
     ("a finish's tools as text", dict(op='[[operations]]\ntype = "finish"\nstep_down = 2.0\ntools = "B4"'),
      "tools wants a list of tool names"),
     ("a finish without step_down", dict(op='[[operations]]\ntype = "finish"'), "step_down is required"),
     ("a finish's unknown order", dict(op='[[operations]]\ntype = "finish"\nstep_down = 2.0\norder = "zigzag"'),
-     "order must be one of contour, tool, got 'zigzag'"),
+     "order must be one of tool, contour, got 'zigzag'"),
     ("a finish tilted past 90", dict(op='[[operations]]\ntype = "finish"\nstep_down = 2.0\nmax_tilt = 95'),
      "max_tilt must be a number of deg from 0 to below 90, got 95"),
     ("a waterline's step_down as a list", dict(op='[[operations]]\ntype = "waterline"\ntool = "B4"\nstep_down = []'),

@@ -77,12 +77,8 @@ def raster_passes(mesh: Mesh, kern, tool, params: RasterParams, grow: float, res
     simplified within half the tolerance: ``(k, 3)`` tips each, not yet verified; ``near``: only
     where the tool touches near those points (:func:`~meshmill.pathing.slope.slope_pieces`).
     ``report``: the stepover, the lines, the points dropped and kept, the rest and slope reports."""
-    stepover = params.stepover if params.stepover is not None else raster_stepover(params.scallop, tool,
-                                                                                   params.max_slope)
+    stepover = checked_stepover(mesh, tool, params)
     bounds = mesh.bounds
-    extent = bounds[1, :2] - bounds[0, :2] + 2 * tool.radius
-    estimate = (extent.max() * 1.5 / stepover + 1) * (extent.max() * 1.5 / params.sample + 1)
-    memory.check(CL_BYTES * estimate, f"about {estimate:.3g} CL points", "use a larger stepover or sample", ("stepover", "sample"))
     say("drop-cutter")
     pieces, n_lines, spacing = raster_lines(bounds, tool.radius, stepover, params.angle, params.sample)
     xy = np.concatenate(pieces)
@@ -117,6 +113,19 @@ def raster_passes(mesh: Mesh, kern, tool, params: RasterParams, grow: float, res
     return passes, report
 
 
+def checked_stepover(mesh: Mesh, tool, params: RasterParams) -> float:
+    """The distance between passes (given, or from the scallop on ground up to ``max_slope``),
+    refused where its points would not fit in memory."""
+    stepover = params.stepover if params.stepover is not None else raster_stepover(params.scallop, tool,
+                                                                                   params.max_slope)
+    bounds = mesh.bounds
+    extent = bounds[1, :2] - bounds[0, :2] + 2 * tool.radius
+    estimate = (extent.max() * 1.5 / stepover + 1) * (extent.max() * 1.5 / params.sample + 1)
+    memory.check(CL_BYTES * estimate, f"about {estimate:.3g} CL points", "use a larger stepover or sample",
+                 ("stepover", "sample"))
+    return stepover
+
+
 def _slopes_text(lo, hi) -> str:
     """"between 10 and 45 deg", "at least 45 deg steep", ..."""
     if lo is None and hi is None:
@@ -142,6 +151,7 @@ def raster(mesh: Mesh, tools, tool_name: str, params: RasterParams, progress=Non
     t_all = time.perf_counter()
     if params.scallop is not None:
         effective_radius(tool)  # a flat end mill has no scallop: refused
+    checked_stepover(mesh, tool, params)  # before anything is computed
     say("index")
     t = time.perf_counter()
     kern = solid_kernels(mesh, device)  # the solid the part bounds, on the device from here on
