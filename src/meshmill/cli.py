@@ -376,8 +376,19 @@ def cmd_job(args):
         for e in op["errors"][:5]:
             _say(args, f"  error: {e}")
     f = s["final"]
-    _say(args, f"final: {100 * f['within_tolerance']:.1f} % of the surface within ±{f['tolerance']:g} mm, "
+    _say(args, f"final: {100 * f['within_tolerance']:.1f} % of the dexel ends within ±{f['tolerance']:g} mm, "
                f"{f['left_over_design_mm3']:.0f} mm^3 left over the part, max gouge {_mm(f['gouge_max'])} mm")
+    if s.get("left"):
+        left = s["left"]
+        out = ", ".join(f"{k} {v:.0f} mm^2" for k, v in left["by_reason_mm2"].items()
+                        if k != "within tolerance" and v >= 0.5)
+        _say(args, f"left: {100 * left['within_tolerance']:.1f} % of the surface within ±{f['tolerance']:g} mm, "
+                   f"{100 * left['reachable_within_tolerance']:.1f} % of what the table's balls reach"
+                   + (f"; out of it: {out}" if out else ""))
+    if s.get("non_cutting"):
+        nc = s["non_cutting"]
+        _say(args, f"time cutting nothing: {100 * nc['share']:.0f} % (rapids {_clock(nc['rapid_s'])}, tool changes "
+                   f"{_clock(nc['tool_change_s'])}, feed through the air {_clock(nc['air_feed_s'])})")
     _say(args, f"wrote {args.out}/ (program.nc: {s['post']['blocks']} blocks, {_clock(s['machining_s'])} on "
                f"{s['machine']['name']}; job.json{'' if args.no_report else ', report.html'}) in "
                f"{s['seconds']['total']:.1f} s")
