@@ -699,12 +699,24 @@ def _flags_of(parser, command):
 
 def _on_interrupt(signum, frame):
     """SIGINT: remember it (whatever exception it leaves, a numba kernel's included, is the
-    interrupt's) and stop the Python code running; once the command has ended, nothing."""
+    interrupt's) and stop the Python code running; once the command has ended, nothing. Within
+    llvmlite (numba compiling a kernel, whose object cache calls back into Python from native
+    code: an exception raised in such a callback is printed with its traceback and dropped) it is
+    only remembered: the next stage of the command raises it (:func:`_progress`)."""
     if _finished[0]:
         return
     _interrupted[0] = True
-    if not _held[0]:
+    if not _held[0] and not _in_llvmlite(frame):
         raise KeyboardInterrupt
+
+
+def _in_llvmlite(frame) -> bool:
+    """Whether ``frame`` or a frame it was called from runs llvmlite's code."""
+    while frame is not None:
+        if f"{os.sep}llvmlite{os.sep}" in frame.f_code.co_filename:
+            return True
+        frame = frame.f_back
+    return False
 
 
 @contextlib.contextmanager
