@@ -181,6 +181,23 @@ def test_rest_machining_cuts_less_air_than_the_whole_path(ran, tmp_path):
     assert rest["left_over_design_mm3"] <= every["left_over_design_mm3"] + 0.05 * area
 
 
+def test_moves_through_the_air_run_at_the_largest_feed(ran):
+    """The job's runs of feed moves that cut nothing of the in-process stock are fed at the
+    machine's largest feed (written G1, so the path stays the one verified): each operation is
+    shorter than at the table's feeds, and the air is where the stock measured it."""
+    job, res, out = ran
+    fast = job.machine.spindle.max_feed
+    for o in res.operations:
+        j = o.path.summary["job"]
+        assert j["feeds"]["air_fast_s"] <= j["feeds"]["table_s"]
+        tp, inside = o.path.toolpath, o.cut.load.in_material
+        sped = np.isclose(tp.feed, fast)
+        assert not (sped & inside).any() and not (sped & tp.rapid).any()
+    assert any(np.isclose(o.path.toolpath.feed, fast).any() for o in res.operations)
+    program = open(os.path.join(out, "program.nc")).read()
+    assert re.search(rf"G1\b[^\n]*F{fast:.0f}\b", program)
+
+
 def test_job_file_errors_are_one_line(tmp_path, capsys):
     path = job_toml(str(tmp_path), extra='colour = "red"')
     assert main(["job", path, "--out", str(tmp_path / "o")]) == 2

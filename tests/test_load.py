@@ -14,7 +14,7 @@ from meshmill.errors import InputError
 from meshmill.geometry.mesh import closed_mesh
 from meshmill.machine.config import load_machine
 from meshmill.simulation.load import effective_diameter
-from meshmill.ops.feeds import MAX_THINNING, table_feeds
+from meshmill.ops.feeds import MAX_THINNING, MERGE_LENGTH, air_feeds, air_time_share, table_feeds
 from meshmill.toolpath.model import Toolpath
 from meshmill.tools.cutting import MATERIALS, conditions
 from meshmill.tools.table import load_tools, tool_from_entry
@@ -183,6 +183,37 @@ def test_feed_optimisation_speeds_light_cuts_and_air_and_keeps_every_move_within
     t0 = meshmill.machining_time(tp, machine, tools).summary["total"]["total_s"]
     t1 = meshmill.machining_time(again, machine, tools).summary["total"]["total_s"]
     assert t1 < 0.8 * t0
+
+
+def test_runs_in_air_are_fed_at_the_largest_feed_and_the_cuts_keep_theirs():
+    """A slot, a 0.5 mm hop up in it, the slot on, a 25 mm move through the air: the long run in
+    air at the machine's largest feed, the hop and the cuts as programmed; cut again with the new
+    feeds, the air is still air and the time is shorter."""
+    tools = [tool_from_entry(dict(F10, ae_ratio=1.0), 1, "t")]
+    tp = straight([(-10, 20, 30), (-10, 20, 15), (20, 20, 15), (20, 20, 15.5), (30, 20, 15.5), (30, 20, 25),
+                   (30, 0.0, 25), (30, 0.0, 15)])
+    tp.feed = table_feeds(tp, conditions(tools))
+    machine = load_machine("generic-3axis")
+    res = meshmill.simulate(block(), tp, tools, step=0.5, stock="box", outputs=())
+    inside = res.load.in_material
+    new = meshmill.air_feeds(tp, inside, machine)
+    air = ~tp.rapid & ~inside
+    air[0] = False
+    lifted = air & (tp.tip[:, 2] > 20)  # up out of the slot, over and down to the stock: 25 mm in air
+    assert lifted.sum() >= 20 and np.all(new[lifted] == machine.spindle.max_feed)
+    assert np.array_equal(new[~air], tp.feed[~air], equal_nan=True)  # cuts and rapids untouched
+    # every fast move lies in a run in air at least MERGE_LENGTH long; the others keep their feed
+    hop = air & (np.abs(tp.tip[:, 2] - 15.5) < 1e-9) & (np.abs(tp.tip[:, 0] - 20) < 1e-9)
+    assert hop.any() and np.array_equal(new[hop], tp.feed[hop], equal_nan=True)
+    again = Toolpath(tp.tip, tp.axis, tp.rapid, tp.tool, tp.line, new)
+    res2 = meshmill.simulate(block(), again, tools, step=0.5, stock="box", outputs=())
+    assert np.array_equal(res2.load.in_material, inside) and res2.ok
+    nominal = machine.motion.feed * 60.0
+    assert air_time_share(again, inside, nominal) < air_time_share(tp, inside, nominal)
+    t0 = meshmill.machining_time(tp, machine, tools).summary["total"]["cutting_s"]
+    t1 = meshmill.machining_time(again, machine, tools).summary["total"]["cutting_s"]
+    assert t1 < t0
+    assert MERGE_LENGTH > 1.0  # the hop is shorter than a run the feed changes for
 
 
 def test_meshmill_feeds_writes_the_path_the_program_and_the_times(tmp_path):

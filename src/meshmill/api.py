@@ -39,7 +39,7 @@ from .results import (AnalysisResult, ChooseResult, DexelResult, FixturesResult,
 __all__ = ["load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline",
            "steep_shallow", "plunge",
            "rough", "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
-           "optimise_feeds", "optimised_feeds", "what_is_left", "in_material", "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
+           "optimise_feeds", "optimised_feeds", "air_feeds", "what_is_left", "in_material", "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
            "VerifyResult", "DexelResult", "SimulateResult", "AnalysisResult", "ChooseResult", "PostResult",
            "TimeResult", "FixturesResult", "FeedsResult", "InputError", "NothingToCut"]
 TYPES = {"Stock": "simulation.stock", "Fixture": "ops.fixtures", "Toolpath": "toolpath.model"}
@@ -672,6 +672,16 @@ def optimised_feeds(toolpath, load, tools, material=None, machine=None):
     machine = load_machine(machine or "generic-3axis") if not hasattr(machine, "spindle") else machine
     return optimise(toolpath, load, conditions(tools, material, machine.spindle), machine.spindle,
                     machine.spindle.max_feed)
+
+
+def air_feeds(toolpath, in_material, machine=None):
+    """mm/min ``(k,)``: the feeds of ``toolpath`` with its runs of moves in air (``in_material
+    (k,) bool`` False, as the in-process stock measured them: :attr:`SimulateResult.load`'s) at the
+    largest feed of ``machine`` (None: generic-3axis) (:func:`~meshmill.ops.feeds.air_feeds`)."""
+    from .ops.feeds import air_feeds as fast
+
+    machine = load_machine(machine or "generic-3axis") if not hasattr(machine, "spindle") else machine
+    return fast(toolpath, in_material, machine.spindle.max_feed)
 
 
 @operation(FeedsParams, "design", "toolpath", "tools")

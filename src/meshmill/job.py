@@ -75,6 +75,9 @@ class JobParams(Params):
     feeds: str = option("choice", "each move's feed: from the tool table's cutting data (table), or optimised on the load "
                                   "the in-process stock measures (optimised: meshmill feeds)", "table",
                         choices=("table", "optimised"))
+    air_feed: str = option("choice", "feed moves that remove nothing of the in-process stock as it is cut (in runs of "
+                                     "at least 2 mm): at the machine's largest feed (fast), or at the table's feed "
+                                     "(table; optimised feeds always run them fast)", "fast", choices=("fast", "table"))
 
 
 SETUP = tuple(n for n in api.load_part.spec.options() if n != "path")  # [part]'s keys besides file
@@ -335,6 +338,7 @@ class Job:
     nothing_to_cut: str = "skip"
     material: str | None = None
     feeds: str = "table"
+    air_feed: str = "fast"
 
     @classmethod
     def from_toml(cls, path) -> "Job":
@@ -405,7 +409,7 @@ class Job:
         return cls(part=part, tools=tools, operations=operations, stock=stock, fixtures=fixtures, machine=machine,
                    step=settings.step, tolerance=settings.tolerance, in_process=settings.in_process,
                    clearance=settings.clearance, device=settings.device, nothing_to_cut=settings.nothing_to_cut,
-                   material=settings.material, feeds=settings.feeds,
+                   material=settings.material, feeds=settings.feeds, air_feed=settings.air_feed,
                    name=settings.name or os.path.splitext(os.path.basename(path))[0])
 
     # ------------------------------------------------------------ checks
@@ -415,7 +419,8 @@ class Job:
         part, no fixture overlaps it. Raises :class:`InputError` before anything is computed."""
         JobParams.checked(dict(name=self.name, tools="given", step=self.step, tolerance=self.tolerance,
                                in_process=self.in_process, clearance=self.clearance, device=self.device,
-                               nothing_to_cut=self.nothing_to_cut, material=self.material, feeds=self.feeds), "a job")
+                               nothing_to_cut=self.nothing_to_cut, material=self.material, feeds=self.feeds,
+                               air_feed=self.air_feed), "a job")
         if isinstance(self.part, (str, os.PathLike)):
             self.part = api.load_part(self.part)
         if not (hasattr(self.part, "vertices") and hasattr(self.part, "faces")):
@@ -534,6 +539,11 @@ class Job:
             tp.feed = api.optimised_feeds(tp, cut.load, self.tools, self.material, self.machine)
             timed = api.machining_time(tp, self.machine, self.tools).summary
             feeds = {"table_s": table_s, "optimised_s": timed["total"]["total_s"]}
+        elif self.air_feed == "fast" and cut.load is not None:
+            table_s = timed["total"]["total_s"]
+            tp.feed = api.air_feeds(tp, cut.load.in_material, self.machine)
+            timed = api.machining_time(tp, self.machine, self.tools).summary
+            feeds = {"table_s": table_s, "air_fast_s": timed["total"]["total_s"]}
         s = cut.summary
         errors = list(s["errors"])
         if not check["ok"]:
@@ -556,7 +566,7 @@ class Job:
                                                        "max_depth": fixtures.report["max_gouge"],
                                                        "max_collision": fixtures.report["max_collision"]},
             "machining_s": timed["total"]["total_s"], "time": timed, "feeds": feeds,
-            "non_cutting": non_cutting(timed["total"], s["cutting_mm"]),
+            "non_cutting": non_cutting(timed["total"], air_time_share(tp, cut.load, self.machine, s["cutting_mm"])),
             "load": s.get("load"),
             "seconds": {"operation": round(op_s, 3), "cut_and_measure": round(cut_s, 3)},
         }
@@ -651,12 +661,23 @@ class Job:
         return JobResult(self, results, posted, summary, left)
 
 
-def non_cutting(total: dict, cutting_mm: dict) -> dict:
-    """The machining time that cuts nothing, s: rapids, tool changes, and the feed moves through
-    the air (their share of the feed length, as the in-process stock measured it, of the feed
-    time); ``share`` of the ``total`` time (a machining time's ``total``)."""
+def air_time_share(tp, load, machine, cutting_mm: dict) -> float:
+    """The share of ``tp``'s feed time in air, as the in-process stock measured it (``load``, a
+    :class:`~meshmill.simulation.load.MoveLoad`; None: the share of the feed length in air,
+    ``cutting_mm``, a simulation's)."""
+    from .ops.feeds import air_time_share as share
+
+    if load is not None:
+        return share(tp, load.in_material, machine.motion.feed * 60.0)
     length = cutting_mm["in_material"] + cutting_mm["in_air"]
-    air = total["cutting_s"] * (cutting_mm["in_air"] / length if length > 0 else 0.0)
+    return cutting_mm["in_air"] / length if length > 0 else 0.0
+
+
+def non_cutting(total: dict, air_share: float) -> dict:
+    """The machining time that cuts nothing, s: rapids, tool changes, and the feed moves through
+    the air (``air_share`` of the feed time, :func:`air_time_share`); ``share`` of the ``total``
+    time (a machining time's ``total``)."""
+    air = total["cutting_s"] * air_share
     out = {"rapid_s": total["rapid_s"], "tool_change_s": total["tool_change_s"], "air_feed_s": air}
     out["share"] = sum(out.values()) / total["total_s"] if total["total_s"] > 0 else 0.0
     return out

@@ -19,6 +19,10 @@ Optimised (:func:`optimise_feeds`), from each move's :class:`~meshmill.simulatio
   material and plunging), each fed at the lowest feed of its run, so that F does not change on every short block and the control's look-ahead keeps
   its speed; feeds are rounded down to steps of
   ``FEED_STEP`` (5 %) so that a nearly steady cut keeps one F.
+
+Air (:func:`air_feeds`, a job's default with the table's feeds): the runs of feed moves that
+remove nothing of the stock as it is cut, at least ``MERGE_LENGTH`` long, at the machine's largest
+feed; the others as programmed.
 """
 from __future__ import annotations
 
@@ -122,3 +126,44 @@ def optimise_feeds(toolpath, load, conditions, spindle, max_feed: float) -> np.n
     if k:
         out[0] = np.nan
     return out
+
+
+def _air_moves(toolpath, in_material) -> np.ndarray:
+    """``(k,) bool``: the feed moves that remove nothing (``in_material (k,) bool`` False)."""
+    air = ~np.asarray(toolpath.rapid, bool) & ~np.asarray(in_material, bool)
+    if len(air):
+        air[0] = False
+    return air
+
+
+def air_feeds(toolpath, in_material, max_feed: float) -> np.ndarray:
+    """mm/min ``(k,)``: the feeds of ``toolpath`` with its runs of feed moves in air (``in_material
+    (k,) bool`` False: they remove nothing of the stock as it was cut) at ``max_feed``, where a run
+    of one tool is at least :data:`MERGE_LENGTH` long; the other moves' as programmed (NaN: the
+    machine's nominal feed)."""
+    feed = np.asarray(toolpath.feed, np.float64).copy()
+    if len(feed) < 2:
+        return feed
+    air = _air_moves(toolpath, in_material)
+    tool_of = np.asarray(toolpath.tool)
+    length = np.r_[0.0, np.linalg.norm(np.diff(toolpath.tip, axis=0), axis=1)]
+    start = air & ~np.r_[False, air[:-1] & (tool_of[1:] == tool_of[:-1])]
+    run = np.cumsum(start) - 1
+    run_length = np.bincount(run[air], weights=length[air], minlength=int(start.sum()))
+    fast = air.copy()
+    fast[air] = run_length[run[air]] >= MERGE_LENGTH
+    feed[fast] = max_feed
+    return feed
+
+
+def air_time_share(toolpath, in_material, nominal_feed: float) -> float:
+    """The share of the feed moves' time spent in air (``in_material (k,) bool`` False), each move
+    taking its length over its feed (NaN: ``nominal_feed``, mm/min)."""
+    if len(toolpath) < 2:
+        return 0.0
+    feed = np.where(np.isfinite(toolpath.feed), toolpath.feed, nominal_feed)
+    moves = ~np.asarray(toolpath.rapid, bool)
+    moves[0] = False
+    seconds = np.r_[0.0, np.linalg.norm(np.diff(toolpath.tip, axis=0), axis=1)] / np.maximum(feed, 1e-9)
+    total = float(seconds[moves].sum())
+    return float(seconds[_air_moves(toolpath, in_material)].sum()) / total if total > 0 else 0.0
