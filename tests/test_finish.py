@@ -632,3 +632,50 @@ def test_the_verify_and_repair_stage_splits_a_pass_at_a_bad_move(tools):
     assert done.report["ok"] and done.report["repair_rounds"] == 1 and done.dropped == 0
     assert [list(p["idx"]) for p in done.passes] == [[0, 1, 2], [4, 5, 6]]
     assert done.path.tip[:, 2].min() >= 10.0 - 1e-9
+
+
+def test_passes_are_linked_straight_where_the_rapid_is_clear_else_by_the_safe_plane(tools):
+    """Two passes over a block's top 4 mm apart, then one beside the far wall: the first link is
+    one rapid straight between the passes (nothing at the safe plane), the second, whose chord
+    would cross the block, goes by the safe plane. The path verifies; every rapid keeps the ball
+    the allowance and the clearance off the block (exact distances). A direct link that
+    verification flags is not tried again."""
+    from meshmill.geometry.shapes import box
+    from meshmill.ops.finish import Passes, path_builder, path_check
+    from meshmill.ops.finish_path import repair_passes
+
+    m = box([0, 0, 0], [40, 20, 10])
+    setup, kern, _ = _stage_setup(m, tools, step_down=5.0, lead=0.0)
+    b6 = next(i for i, t in enumerate(tools) if t.name == "B6")
+    x = np.linspace(10, 30, 5)
+    top = [np.c_[x, np.full(5, y), np.full(5, 10.0)] for y in (8.0, 12.0)]
+    wall = np.c_[np.full(5, 44.5), np.linspace(5, 15, 5), np.full(5, 2.0)]  # B6 1.5 mm off the wall x = 40
+    tip = np.vstack(top + [wall])
+    up = np.tile([0.0, 0.0, 1.0], (15, 1))
+    side = np.vstack([np.tile([0.0, 1.0, 0.0], (10, 1)), np.tile([1.0, 0.0, 0.0], (5, 1))])
+    passes = [dict(contour=c, tool=b6, rank=2, idx=np.arange(5 * c, 5 * c + 5), entry=2, exit=2, first_link=2,
+                   shallow=False) for c in range(3)]
+    cut = Passes(passes, tip, up, tip + 3.0 * up, side, 15, 0)
+    rapid_stock = setup.stock_check()
+    builder = path_builder(cut, setup, tools, kern, rapid_stock)
+    tp, owner, role = builder.build(passes)
+    at_safe = np.isclose(tp.tip[:, 2], setup.safe_z)
+    owner, role = np.array(owner), np.array(role, object)
+    assert list(role).count("direct_in") == 1 and owner[list(role).index("direct_in")] == 1
+    between = (owner == 0) & (role != "link_in") | (owner == 1) & (role != "link_out")
+    assert not at_safe[between].any() and at_safe[(owner == 2) & (role == "link_in")].any()
+    report = path_check(m, kern, setup, tools, rapid_stock)(tp)
+    assert report["ok"], report["worst"]
+    # independent: the ball's centre along every rapid, R + allowance + clearance off the block
+    f = np.linspace(0, 1, 81)[:, None]
+    rapid = np.nonzero(tp.rapid)[0]
+    centres = np.concatenate([tp.tip[i - 1] + 3.0 * tp.axis[i - 1] + f * (tp.tip[i] - tp.tip[i - 1])
+                              for i in rapid[rapid > 0]])
+    gap = kern.mesh_distances(centres) - 3.0
+    assert gap.min() >= rapid_stock.allowance + rapid_stock.clearance - setup.params.tolerance
+    # a direct link flagged by verification: that pass is reached by the safe plane from then on
+    moved = list(role).index("direct_in")
+    again, dropped = repair_passes(passes, [moved], list(owner), list(role))
+    assert dropped == 0 and again[1]["direct_in"] is False and again[1]["entry"] == passes[1]["entry"]
+    tp2, owner2, role2 = builder.build(again)
+    assert "direct_in" not in role2 and np.isclose(tp2.tip[np.array(owner2) == 1, 2], setup.safe_z).any()

@@ -171,6 +171,9 @@ class FinishParams(Params):
     order: str = option("choice", "grouped by tool, largest first (each tool cuts all it should before the next is "
                                   "loaded), or contour by contour from the top (seed 004's order: a tool change "
                                   "wherever the ball changes)", "tool", choices=("tool", "contour"))
+    links: str = option("choice", "between two passes of one tool: a rapid straight from one to the next where it "
+                                  "passes verification, else by the safe plane (direct), or always by the safe "
+                                  "plane (safe)", "direct", choices=("direct", "safe"))
     safe_z: float | None = option("number", "plane for rapid moves between passes (default: the part's top + 5 + "
                                             "what a tilted ball hangs below its tip)", None, unit="mm",
                                   low=-MAX_COORDINATE, high=MAX_COORDINATE)

@@ -52,7 +52,8 @@ from .finish_levels import added_contours
 from .finish_path import NO_LEAD, PathBuilder, repair_passes
 from .finish_shallow import SCALLOP_MIN_SLOPE, shallow_fill
 from ..pathing.reverify import Reverify
-from ..pathing.verify import DEFAULT_STEP, StockCheck, check_parts, path_pieces, rapid_reach, verify_piece
+from ..pathing.verify import (DEFAULT_STEP, StockCheck, check_parts, path_pieces, rapid_reach, rapids_clear,
+                              verify_piece)
 
 REPAIR_ROUNDS = 7
 MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
@@ -422,9 +423,11 @@ def path_builder(cut: Passes, setup: FinishSetup, tools, kern, rapid_stock: Stoc
     params = setup.params
     gentle = machine.chain.singular if machine is not None and machine.chain.type != "3-axis" else None
     reach = None if setup.stock is None else functools.partial(rapid_reach, kern, tools, params.tolerance, rapid_stock)
+    direct = None if params.links == "safe" else functools.partial(rapids_clear, kern, tools, params.tolerance,
+                                                                  rapid_stock, step=min(DEFAULT_STEP, params.sample))
     return PathBuilder(cut.tip, cut.axis, cut.side, setup.safe_z, params.lead,
                        approach=rapid_stock.allowance + rapid_stock.clearance + params.tolerance,
-                       radius=np.array([t.radius for t in tools]), gentle=gentle, reach=reach)
+                       radius=np.array([t.radius for t in tools]), gentle=gentle, reach=reach, direct=direct)
 
 
 def path_check(mesh: Mesh, kern, setup: FinishSetup, tools, rapid_stock: StockCheck, device="cpu", cluster=None,
@@ -632,6 +635,8 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
                                  path_check(mesh, kern, setup, tools, rapid_stock, device, cluster, clock.say))
     summary, detail = finish_summary(mesh, kern, tools, setup, con, scallop, balls, poses, shallow, cut, done,
                                      rapid_stock.summary(), builder.pole_report())
+    summary["links"] = {"way": params.links, "direct": builder.direct_links,
+                        "safe_plane": max(0, len(done.passes) - 1 - builder.direct_links)}
     clock.seconds["total"] = time.perf_counter() - t_all
     summary["seconds"] = {k: round(v, 4) for k, v in clock.seconds.items()}
     return done.path, summary, detail

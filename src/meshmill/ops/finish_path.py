@@ -1,10 +1,15 @@
-"""A finish's passes as moves: leads, links to the safe plane, repairs of what verification found.
+"""A finish's passes as moves: leads, links, repairs of what verification found.
 
 :class:`PathBuilder` turns passes (dicts: ``tool``, ``idx`` into the points' arrays, ``entry`` and
 ``exit`` into :data:`LINKS`, ...) into a :class:`~meshmill.toolpath.model.Toolpath` and says which
 pass and which part of it (``link_in``, ``approach_in``, ``lead_in``, the j-th cutting move,
-``lead_out``, ``approach_out``, ``link_out``) each move is; :func:`repair_passes` changes the
-passes that own failing moves. Lengths in mm.
+``lead_out``, ``approach_out``, ``link_out``, ``direct_in``) each move is; :func:`repair_passes`
+changes the passes that own failing moves. Lengths in mm.
+
+Two passes of one tool, one after the other, are linked by a rapid straight from where the first
+one's rapids may start to where the next one's may end (``direct_in``), where that rapid passes
+verification; else up to the safe plane, across and down. A direct link that verification of the
+whole path still flags is not tried again for that pass.
 """
 from __future__ import annotations
 
@@ -26,11 +31,15 @@ class PathBuilder:
     """Turns passes into moves and maps verification problems back onto passes. ``approach``: the
     distance (mm) above a lead's end where the rapid stops and the feed begins. ``gentle``: the
     ``singular`` angle (rad) of a 5-axis machine whose C must turn gently (:func:`gentle_turns`), or
-    None. Between passes the axis turns where the last pass left the safe plane, then travels."""
+    None. Between passes the axis turns where the last pass left the safe plane, then travels;
+    ``direct``: :func:`~meshmill.pathing.verify.rapids_clear`'s call for straight links (None: every
+    link by the safe plane)."""
 
-    def __init__(self, tip, axis, side, safe_z, lead, approach, radius, gentle=None, reach=None):
+    def __init__(self, tip, axis, side, safe_z, lead, approach, radius, gentle=None, reach=None, direct=None):
         self.tip, self.axis, self.side, self.safe_z, self.lead = tip, axis, side, safe_z, lead
         self.approach, self.radius, self.gentle, self.reach = approach, radius, gentle, reach
+        self.direct = direct
+        self.direct_links = 0  # in the last path built
 
     def _reaches(self, passes):
         """Per pass, the distances ``(in, out)`` down the way to the safe plane to which a rapid
@@ -62,6 +71,38 @@ class PathBuilder:
                     out[k][side] = max(float(tk), self.approach)
         return out
 
+    def _rapid_ends(self, ps, reach):
+        """Where the rapids into and out of pass ``ps`` end and start, ``(in, out)`` (each a point
+        or None where the entry or exit feeds all the way from or to the safe plane)."""
+        ends = []
+        for key, end, r in (("entry", 0, reach[0]), ("exit", -1, reach[1])):
+            lead, vertical, feed = LINKS[ps[key]]
+            i = ps["idx"][end]
+            p = self.tip[i] + (self.lead * self.side[i] if lead else 0.0)
+            if not feed:
+                ends.append(self._above(p, self.axis[i], vertical))
+            elif r is not None:
+                ends.append(p + r * self._dir(self.axis[i], vertical))
+            else:
+                ends.append(None)
+        return ends
+
+    def _directs(self, passes, reaches):
+        """``(n,) bool``: the passes reached straight from the pass before (:attr:`direct`)."""
+        out = np.zeros(len(passes), bool)
+        if self.direct is None or len(passes) < 2:
+            return out
+        ends = [self._rapid_ends(ps, r) for ps, r in zip(passes, reaches)]
+        ks = [k for k in range(1, len(passes)) if passes[k]["tool"] == passes[k - 1]["tool"]
+              and passes[k].get("direct_in", True) and ends[k - 1][1] is not None and ends[k][0] is not None]
+        if ks:
+            a = np.array([ends[k - 1][1] for k in ks])
+            b = np.array([ends[k][0] for k in ks])
+            xa = np.array([self.axis[passes[k - 1]["idx"][-1]] for k in ks])
+            xb = np.array([self.axis[passes[k]["idx"][0]] for k in ks])
+            out[ks] = self.direct(a, xa, b, xb, np.array([passes[k]["tool"] for k in ks]))
+        return out
+
     def _up(self, p, u, vertical):
         if vertical or u[2] < 1e-6:
             return np.array([p[0], p[1], self.safe_z])
@@ -88,6 +129,8 @@ class PathBuilder:
             role.append(r)
 
         reaches = self._reaches(passes)
+        directs = np.r_[self._directs(passes, reaches), False]
+        self.direct_links = int(directs.sum())
         for k, ps in enumerate(passes):
             idx, tool = ps["idx"], ps["tool"]
             reach_in, reach_out = reaches[k]
@@ -97,13 +140,16 @@ class PathBuilder:
             lead_out, vertical_out, feed_out = LINKS[ps["exit"]]
             start = t0 + (self.lead * self.side[idx[0]] if lead_in else 0.0)
             end = t1 + (self.lead * self.side[idx[-1]] if lead_out else 0.0)
-            if tips and float(np.dot(axes[-1], u0)) < 1.0 - 1e-12:  # turn in place, then travel
-                add(tips[-1], u0, True, tool, k, "link_in")
-            add(self._up(start, u0, vertical_in), u0, True, tool, k, "link_in")
-            if not feed_in:
-                add(self._above(start, u0, vertical_in), u0, True, tool, k, "link_in")
-            elif reach_in is not None:  # rapid down to where the stock begins, then feed
-                add(start + reach_in * self._dir(u0, vertical_in), u0, True, tool, k, "link_in")
+            if directs[k]:  # straight from where the pass before left off
+                add(self._rapid_ends(ps, reaches[k])[0], u0, True, tool, k, "direct_in")
+            else:
+                if tips and float(np.dot(axes[-1], u0)) < 1.0 - 1e-12:  # turn in place, then travel
+                    add(tips[-1], u0, True, tool, k, "link_in")
+                add(self._up(start, u0, vertical_in), u0, True, tool, k, "link_in")
+                if not feed_in:
+                    add(self._above(start, u0, vertical_in), u0, True, tool, k, "link_in")
+                elif reach_in is not None:  # rapid down to where the stock begins, then feed
+                    add(start + reach_in * self._dir(u0, vertical_in), u0, True, tool, k, "link_in")
             add(start, u0, False, tool, k, "approach_in")
             if lead_in:
                 add(t0, u0, False, tool, k, "lead_in")
@@ -113,10 +159,12 @@ class PathBuilder:
                 add(end, u1, False, tool, k, "lead_out")
             if not feed_out:
                 add(self._above(end, u1, vertical_out), u1, False, tool, k, "approach_out")
-                add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
+                if not directs[k + 1]:
+                    add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
             elif reach_out is not None:  # feed out of the stock, then rapid
                 add(end + reach_out * self._dir(u1, vertical_out), u1, False, tool, k, "approach_out")
-                add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
+                if not directs[k + 1]:
+                    add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
             else:
                 add(self._up(end, u1, vertical_out), u1, False, tool, k, "approach_out")
         tp = Toolpath(np.array(tips).reshape(-1, 3), np.array(axes).reshape(-1, 3), np.array(rapid, bool),
@@ -140,8 +188,9 @@ class PathBuilder:
 def repair_passes(passes, problem_moves, owner, role):
     """New pass list after fixing the passes that own the problem moves; returns (passes, dropped).
 
-    A failing entry or exit tries the next of :data:`LINKS` (a failing lead jumps to the first
-    option without one); when none is left the pass is dropped. A failing cutting move splits its
+    A failing direct link is not tried again (the pass is reached by the safe plane); a failing
+    entry or exit tries the next of :data:`LINKS` (a failing lead jumps to the first option
+    without one); when none is left the pass is dropped. A failing cutting move splits its
     pass, and pieces of a single point are left out.
     """
     fixes = {}
@@ -154,6 +203,8 @@ def repair_passes(passes, problem_moves, owner, role):
             continue
         ps = dict(ps)
         roles = fixes[k]
+        if "direct_in" in roles:
+            ps["direct_in"] = False
         if "lead_in" in roles:
             ps["entry"] = max(ps["entry"] + 1, NO_LEAD)
         elif "link_in" in roles and LINKS[ps["entry"]][2] and ps.get("reach_in", True):

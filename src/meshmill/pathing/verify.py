@@ -112,6 +112,27 @@ def rapid_reach(kern, tools, tol: float, stock: StockCheck, points, dirs, axes, 
     return t
 
 
+def rapids_clear(kern, tools, tol: float, stock: StockCheck, starts, start_axes, ends, end_axes, tool,
+                 step: float = DEFAULT_STEP) -> np.ndarray:
+    """``(k,) bool``: whether a rapid from each of ``starts`` to ``ends`` (``(k, 3)`` tips, the
+    tool ``tool (k,)`` turning from ``start_axes`` to ``end_axes``) passes verification as a move
+    of a path would (:func:`verify_moves`: both ends and every interval, out of the part and the
+    stock as ``stock`` grows them)."""
+    k = len(starts)
+    if not k:
+        return np.zeros(0, bool)
+    tips = np.stack([starts, ends], axis=1).reshape(-1, 3)
+    axes = np.stack([start_axes, end_axes], axis=1).reshape(-1, 3)
+    tp = Toolpath(tips, axes, np.ones(2 * k, bool), np.repeat(np.asarray(tool, np.int64), 2))
+    only = np.zeros(2 * k, bool)
+    only[1::2] = True
+    found = verify_moves(kern, tp, tools, tol, step, stock, only=only)
+    ok = np.ones(k, bool)
+    ok[[p.move // 2 for p in found["problems"]]] = False
+    ok[[m // 2 for m in found["unresolved"]]] = False
+    return ok
+
+
 def sample_moves(tp: Toolpath, tools, step: float):
     """Poses along the path: ``tip, axis (s, 3)``, ``tool, move (s,)``, ``frac (s,)`` (the pose's
     place along its move, 0 at the point before, 1 at the move's point), ``rapid (s,) bool``."""
