@@ -679,3 +679,66 @@ def test_passes_are_linked_straight_where_the_rapid_is_clear_else_by_the_safe_pl
     assert dropped == 0 and again[1]["direct_in"] is False and again[1]["entry"] == passes[1]["entry"]
     tp2, owner2, role2 = builder.build(again)
     assert "direct_in" not in role2 and np.isclose(tp2.tip[np.array(owner2) == 1, 2], setup.safe_z).any()
+
+
+def test_a_link_the_straight_rapid_fails_is_lifted_by_the_lowest_height_that_passes():
+    """PathBuilder with a stand-in check that refuses any move across lower than z = 16: the link
+    between two passes at z = 10 goes 10 mm up the first pass's axis, across (the axis turning
+    there), and down the next one's; with the check refusing everything, by the safe plane."""
+    from meshmill.ops.finish_path import LIFTS, PathBuilder
+
+    tip = np.array([[0.0, 0, 10], [10, 0, 10], [0, 5, 10], [10, 5, 10]])
+    tilted = np.array([0.0, math.sin(0.2), math.cos(0.2)])
+    axis = np.array([[0.0, 0, 1], [0, 0, 1], tilted, tilted])
+    side = np.tile([0.0, -1.0, 0.0], (4, 1))
+    passes = [dict(tool=0, idx=np.array([0, 1]), entry=2, exit=2), dict(tool=0, idx=np.array([2, 3]), entry=2, exit=2)]
+
+    def high(a, xa, b, xb, tool):
+        across = np.linalg.norm((b - a)[:, :2], axis=1) > 2.0  # not a leg up or down
+        return ~across | (np.minimum(a[:, 2], b[:, 2]) >= 16.0 - 1e-9)
+
+    builder = PathBuilder(tip, axis, side, safe_z=50.0, lead=0.0, approach=1.0, radius=np.array([3.0]), direct=high)
+    tp, owner, role = builder.build(passes)
+    way = [i for i, r in enumerate(role) if r == "direct_in"]
+    assert len(way) == 3 and builder.direct_links == 1 and LIFTS[:4] == (0.0, 2.0, 5.0, 10.0)
+    assert np.allclose(tp.tip[way[0]], tp.tip[way[0] - 1] + 10.0 * axis[1])  # up the first pass's axis
+    assert np.allclose(tp.tip[way[1]], tip[2] + 11.0 * tilted)  # across, down the next one's (5 mm: 15.8 < 16)
+    assert np.allclose(tp.axis[way[0]], axis[1]) and np.allclose(tp.axis[way[1]], tilted)
+    assert np.allclose(tp.tip[way[2]], tip[2] + 1.0 * tilted) and tp.rapid[way].all()
+    assert not np.isclose(tp.tip[:, 2], 50.0)[way[0] - 1:way[2] + 1].any()
+    builder.direct = lambda a, xa, b, xb, tool: np.zeros(len(a), bool)
+    tp, owner, role = builder.build(passes)
+    assert "direct_in" not in role and np.isclose(tp.tip[:, 2], 50.0).sum() >= 2
+
+
+def test_points_within_the_tolerance_of_a_move_are_merged_and_put_back_where_it_fails():
+    """A pass along a line with 0.002 mm of zigzag and one 0.05 mm bump: merged to its two ends and
+    the bump (the zigzag is within half the tolerance, the bump is not), every point still counted
+    as cut; where verification flags a merged move, repair puts its points back instead of
+    splitting the pass; where the axis starts to turn, the point stays."""
+    from meshmill.ops.finish_path import merged_points, pass_points, repair_passes
+
+    x = np.linspace(0.0, 20.0, 101)
+    tip = np.c_[x, 0.002 * (np.arange(101) % 2), np.zeros(101)]
+    tip[50, 1] = 0.05
+    axis = np.tile([0.0, 0.0, 1.0], (101, 1))
+    ps = dict(tool=0, idx=np.arange(101), entry=0, exit=0, first_link=2)
+    (m,) = merged_points([ps], tip, axis, np.array([40.0]), 0.005)
+    kept = set(m["idx"].tolist())
+    assert {0, 50, 100} <= kept and kept - {0, 100} <= set(range(47, 54))  # the spike and its flanks
+    assert np.array_equal(pass_points(m), np.arange(101))
+    j = list(m["idx"]).index(100)  # the move into the last point fails verification
+    (back,), dropped = repair_passes([m], [j], [0] * (j + 1), list(range(j + 1)))
+    assert dropped == 0 and back["idx"][0] == 0 and back["idx"][-1] == 100
+    assert set(range(m["idx"][j - 1], 101)) <= set(back["idx"]) and np.array_equal(pass_points(back), np.arange(101))
+    # a move that merged nothing splits the pass as before
+    k = list(back["idx"]).index(60)  # the move 59 -> 60, which merged nothing
+    pieces, _ = repair_passes([back], [k], [0] * (k + 1), list(range(k + 1)))
+    assert len(pieces) == 2 and pieces[0]["idx"][-1] == back["idx"][k - 1] and pieces[1]["idx"][0] == back["idx"][k]
+    assert len(np.intersect1d(pass_points(pieces[0]), pass_points(pieces[1]))) == 0
+    # the axis held, then turning 1 deg evenly: the point where it starts to turn stays (0.35 mm off
+    # the axis interpolated from end to end at a reach of 40 mm), the even turn is the interpolation
+    turn = np.radians(np.r_[np.zeros(50), np.linspace(0, 1, 51)])
+    bent = np.c_[np.sin(turn), np.zeros(101), np.cos(turn)]
+    (t,) = merged_points([ps], np.c_[x, np.zeros(101), np.zeros(101)], bent, np.array([40.0]), 0.005)
+    assert list(t["idx"]) == [0, 50, 100]

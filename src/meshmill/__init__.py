@@ -9,7 +9,7 @@ __version__ = "0.1.0"
 API = ("load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline",
        "steep_shallow", "plunge",
        "rough", "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
-       "optimise_feeds", "optimised_feeds", "air_feeds", "what_is_left",
+       "optimise_feeds", "optimised_feeds", "air_feeds", "air_time_share", "what_is_left",
        "Stock", "Fixture", "Toolpath")
 __all__ = [*API, "Job", "InputError", "NothingToCut", "__version__"]
 

@@ -39,7 +39,7 @@ from .results import (AnalysisResult, ChooseResult, DexelResult, FixturesResult,
 __all__ = ["load_part", "load_tools", "load_toolpath", "load_machine", "finish", "raster", "waterline",
            "steep_shallow", "plunge",
            "rough", "verify", "dexel", "simulate", "analyze", "choose", "post", "machining_time", "report", "clear_fixtures",
-           "optimise_feeds", "optimised_feeds", "air_feeds", "what_is_left", "in_material", "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
+           "optimise_feeds", "optimised_feeds", "air_feeds", "air_time_share", "what_is_left", "in_material", "connect", "resolve_device", "part_entry", "tools_file", "Stock", "Fixture", "Toolpath", "PathResult",
            "VerifyResult", "DexelResult", "SimulateResult", "AnalysisResult", "ChooseResult", "PostResult",
            "TimeResult", "FixturesResult", "FeedsResult", "InputError", "NothingToCut"]
 TYPES = {"Stock": "simulation.stock", "Fixture": "ops.fixtures", "Toolpath": "toolpath.model"}
@@ -682,6 +682,16 @@ def air_feeds(toolpath, in_material, machine=None):
 
     machine = load_machine(machine or "generic-3axis") if not hasattr(machine, "spindle") else machine
     return fast(toolpath, in_material, machine.spindle.max_feed)
+
+
+def air_time_share(toolpath, in_material, machine=None) -> float:
+    """The share of ``toolpath``'s feed time in air (``in_material (k,) bool`` False), each move
+    at its feed (NaN: the nominal feed of ``machine``, None: generic-3axis)
+    (:func:`~meshmill.ops.feeds.air_time_share`)."""
+    from .ops.feeds import air_time_share as share
+
+    machine = load_machine(machine or "generic-3axis") if not hasattr(machine, "motion") else machine
+    return share(toolpath, in_material, machine.motion.feed * 60.0)
 
 
 @operation(FeedsParams, "design", "toolpath", "tools")

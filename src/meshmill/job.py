@@ -665,10 +665,8 @@ def air_time_share(tp, load, machine, cutting_mm: dict) -> float:
     """The share of ``tp``'s feed time in air, as the in-process stock measured it (``load``, a
     :class:`~meshmill.simulation.load.MoveLoad`; None: the share of the feed length in air,
     ``cutting_mm``, a simulation's)."""
-    from .ops.feeds import air_time_share as share
-
     if load is not None:
-        return share(tp, load.in_material, machine.motion.feed * 60.0)
+        return api.air_time_share(tp, load.in_material, machine)
     length = cutting_mm["in_material"] + cutting_mm["in_air"]
     return cutting_mm["in_air"] / length if length > 0 else 0.0
 

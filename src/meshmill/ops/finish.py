@@ -49,13 +49,14 @@ from ..toolpath.model import Toolpath
 from .finish_areas import surface_areas
 from .finish_balls import balls_piece, contour_balls, largest_balls, run_balls, smaller_balls
 from .finish_levels import added_contours
-from .finish_path import NO_LEAD, PathBuilder, repair_passes
+from .finish_path import NO_LEAD, PathBuilder, merged_points, pass_points, repair_passes
 from .finish_shallow import SCALLOP_MIN_SLOPE, shallow_fill
 from ..pathing.reverify import Reverify
 from ..pathing.verify import (DEFAULT_STEP, StockCheck, check_parts, path_pieces, rapid_reach, rapids_clear,
                               verify_piece)
 
 REPAIR_ROUNDS = 7
+MERGE_SHARE = 0.5  # a pass's points are merged where the move between the ones kept passes within this share of the tolerance
 MAX_ARC_STEP = math.radians(5.0)  # largest turn of the normal between CC points at a convex edge
 
 
@@ -412,7 +413,23 @@ def cutting_passes(con, balls: Balls, poses: Poses, shallow, setup: FinishSetup,
                            f"within max_tilt {params.max_tilt:g}; add smaller or longer tools", "max_tilt")
     if params.order == "tool":
         passes.sort(key=lambda p: (p["rank"], p["shallow"], p["contour"]))
+    near_starts(passes, tip)
+    reach = np.array([t.reach for t in tools])
+    passes = merged_points(passes, tip, axis, reach, MERGE_SHARE * params.tolerance)
     return Passes(passes, tip, axis, ce, side, raster_first, n_raster)
+
+
+def near_starts(passes: list, tip) -> None:
+    """Each pass that is a whole closed contour (its first point repeated last) starts, in place,
+    at its point nearest the end of the pass before of the same tool (``tip (n, 3)``): the link
+    between them is short."""
+    for before, ps in zip(passes[:-1], passes[1:]):
+        idx = ps["idx"]
+        if ps["tool"] != before["tool"] or len(idx) < 3 or idx[0] != idx[-1]:
+            continue
+        loop = idx[:-1]
+        s = int(np.argmin(np.linalg.norm(tip[loop] - tip[before["idx"][-1]], axis=1)))
+        ps["idx"] = np.r_[loop[s:], loop[:s + 1]]
 
 
 def path_builder(cut: Passes, setup: FinishSetup, tools, kern, rapid_stock: StockCheck, machine=None) -> PathBuilder:
@@ -496,7 +513,7 @@ def _point_status(con, balls: Balls, poses: Poses, cut: Passes, shallow, passes:
     npts = len(con.points)
     cut_all = np.zeros(len(cut.tip), bool)
     for ps in passes:
-        cut_all[ps["idx"]] = True
+        cut_all[pass_points(ps)] = True
     point_cut = cut_all[:npts]  # (the bridges and the raster's tips are no CC points)
     raster_cut = cut_all[cut.raster_first:cut.raster_first + cut.n_raster]
     status = np.select([point_cut, balls.best < 0, poses.point_tool < 0, ~poses.has_axis], [0, 1, 3, 2], 4)
@@ -514,13 +531,14 @@ def _tools_used(tools, passes: list, npts: int) -> dict:
     its ``raster_points``."""
     used = {}
     for ps in passes:
+        points = pass_points(ps)
         entry = used.setdefault(tools[ps["tool"]].name, {"passes": 0, "cc_points": 0, "contours": set(),
                                                          "raster_points": 0})
         entry["passes"] += 1
         if ps["shallow"]:
-            entry["raster_points"] += int(len(ps["idx"]))
+            entry["raster_points"] += int(len(points))
         else:
-            entry["cc_points"] += int(len(np.unique(ps["idx"][ps["idx"] < npts])))
+            entry["cc_points"] += int(len(np.unique(points[points < npts])))
             entry["contours"].add(ps["contour"])
     for entry in used.values():
         entry["contours"] = len(entry["contours"])

@@ -8,7 +8,8 @@ changes the passes that own failing moves. Lengths in mm.
 
 Two passes of one tool, one after the other, are linked by a rapid straight from where the first
 one's rapids may start to where the next one's may end (``direct_in``), where that rapid passes
-verification; else up to the safe plane, across and down. A direct link that verification of the
+verification, else at the lowest of :data:`LIFTS` that passes (up the first pass's way out,
+across, down the next one's way in); else up to the safe plane, across and down. A direct link that verification of the
 whole path still flags is not tried again for that pass.
 """
 from __future__ import annotations
@@ -25,6 +26,7 @@ from .finish_pole import POLE_MARGIN, POLE_STEP, gentle_turns
 LINKS = ((True, False, False), (True, True, False), (False, False, False), (False, True, False), (False, False, True),
          (False, True, True))
 NO_LEAD = 2
+LIFTS = (0.0, 2.0, 5.0, 10.0, 20.0)  # mm: the heights a link between passes is tried at before the safe plane
 
 
 class PathBuilder:
@@ -88,20 +90,57 @@ class PathBuilder:
         return ends
 
     def _directs(self, passes, reaches):
-        """``(n,) bool``: the passes reached straight from the pass before (:attr:`direct`)."""
-        out = np.zeros(len(passes), bool)
+        """``(n,)``: the height (mm) over the pass before at which each pass is reached from it
+        (:attr:`direct`; NaN: by the safe plane): the first of :data:`LIFTS` whose link passes."""
+        out = np.full(len(passes), np.nan)
         if self.direct is None or len(passes) < 2:
             return out
         ends = [self._rapid_ends(ps, r) for ps, r in zip(passes, reaches)]
-        ks = [k for k in range(1, len(passes)) if passes[k]["tool"] == passes[k - 1]["tool"]
-              and passes[k].get("direct_in", True) and ends[k - 1][1] is not None and ends[k][0] is not None]
-        if ks:
-            a = np.array([ends[k - 1][1] for k in ks])
-            b = np.array([ends[k][0] for k in ks])
+        ks = np.array([k for k in range(1, len(passes)) if passes[k]["tool"] == passes[k - 1]["tool"]
+                       and passes[k].get("direct_in", True) and ends[k - 1][1] is not None
+                       and ends[k][0] is not None], np.int64)
+        for h in LIFTS:
+            if not len(ks):
+                break
+            ways = [self._lifted(ends[k - 1][1], self._exit_dir(passes[k - 1]), ends[k][0],
+                                 self._entry_dir(passes[k]), h) for k in ks]
+            fits = np.array([w is not None for w in ways], bool)
+            ks, ways = ks[fits], [w for w in ways if w is not None]
+            if not len(ks):
+                break
             xa = np.array([self.axis[passes[k - 1]["idx"][-1]] for k in ks])
             xb = np.array([self.axis[passes[k]["idx"][0]] for k in ks])
-            out[ks] = self.direct(a, xa, b, xb, np.array([passes[k]["tool"] for k in ks]))
+            tool = np.array([passes[k]["tool"] for k in ks])
+            m = len(ways[0]) - 1  # moves per link
+            starts = np.concatenate([w[:-1] for w in ways])
+            stops = np.concatenate([w[1:] for w in ways])
+            # the axis turns on the move across (the middle one of a lifted link)
+            turn = np.zeros(m, bool)
+            turn[m // 2] = True
+            xa, xb = np.repeat(xa, m, axis=0), np.repeat(xb, m, axis=0)
+            ax0 = np.where(np.tile(np.arange(m) > m // 2, len(ks))[:, None], xb, xa)
+            ax1 = np.where(np.tile(turn, len(ks))[:, None], xb, ax0)
+            ok = self.direct(starts, ax0, stops, ax1, np.repeat(tool, m)).reshape(len(ks), m).all(axis=1)
+            out[ks[ok]] = h
+            ks = ks[~ok]
         return out
+
+    def _exit_dir(self, ps):
+        return self._dir(self.axis[ps["idx"][-1]], LINKS[ps["exit"]][1])
+
+    def _entry_dir(self, ps):
+        return self._dir(self.axis[ps["idx"][0]], LINKS[ps["entry"]][1])
+
+    def _lifted(self, a, da, b, db, h):
+        """The points ``(m + 1, 3)`` of a link from ``a`` to ``b``: straight (``h`` 0), or ``h`` mm
+        up ``da`` from ``a``, across, and down ``db`` to ``b``; None where that would rise past the
+        safe plane (the safe plane's link is then as short)."""
+        if h == 0.0:
+            return np.array([a, b])
+        a2, b2 = a + h * da, b + h * db
+        if max(a2[2], b2[2]) >= self.safe_z:
+            return None
+        return np.array([a, a2, b2, b])
 
     def _up(self, p, u, vertical):
         if vertical or u[2] < 1e-6:
@@ -129,7 +168,8 @@ class PathBuilder:
             role.append(r)
 
         reaches = self._reaches(passes)
-        directs = np.r_[self._directs(passes, reaches), False]
+        lifts = np.r_[self._directs(passes, reaches), np.nan]
+        directs = np.isfinite(lifts)
         self.direct_links = int(directs.sum())
         for k, ps in enumerate(passes):
             idx, tool = ps["idx"], ps["tool"]
@@ -140,8 +180,11 @@ class PathBuilder:
             lead_out, vertical_out, feed_out = LINKS[ps["exit"]]
             start = t0 + (self.lead * self.side[idx[0]] if lead_in else 0.0)
             end = t1 + (self.lead * self.side[idx[-1]] if lead_out else 0.0)
-            if directs[k]:  # straight from where the pass before left off
-                add(self._rapid_ends(ps, reaches[k])[0], u0, True, tool, k, "direct_in")
+            if directs[k]:  # from where the pass before left off: straight, or lifted over what lies between
+                way = self._lifted(tips[-1], self._exit_dir(passes[k - 1]), self._rapid_ends(ps, reaches[k])[0],
+                                   self._entry_dir(ps), lifts[k])
+                for j, p in enumerate(way[1:]):
+                    add(p, u0 if j >= (len(way) - 1) // 2 else axes[-1], True, tool, k, "direct_in")
             else:
                 if tips and float(np.dot(axes[-1], u0)) < 1.0 - 1e-12:  # turn in place, then travel
                     add(tips[-1], u0, True, tool, k, "link_in")
@@ -190,8 +233,9 @@ def repair_passes(passes, problem_moves, owner, role):
 
     A failing direct link is not tried again (the pass is reached by the safe plane); a failing
     entry or exit tries the next of :data:`LINKS` (a failing lead jumps to the first option
-    without one); when none is left the pass is dropped. A failing cutting move splits its
-    pass, and pieces of a single point are left out.
+    without one); when none is left the pass is dropped. A failing cutting move that merged points
+    (:func:`merged_points`) gets them back; another splits its pass, and pieces of a single point
+    are left out.
     """
     fixes = {}
     for m in problem_moves:
@@ -220,17 +264,86 @@ def repair_passes(passes, problem_moves, owner, role):
         if ps["entry"] >= len(LINKS) or ps["exit"] >= len(LINKS):
             dropped += 1
             continue
-        # split at cutting moves that failed: the move from point j-1 to j is not cut
+        # a failing move that merged points: its points back; other failing moves split the pass
         cuts = sorted(r for r in roles if isinstance(r, int))
+        if "full" in ps:
+            ps, cuts = _unmerged(ps, cuts)
         bounds = [0, *cuts, len(ps["idx"])]
         pieces = [ps["idx"][a:b] for a, b in zip(bounds[:-1], bounds[1:])]
         for i, piece in enumerate(pieces):
             if len(piece) < 2:
                 continue
             new = dict(ps, idx=piece)
+            if "full" in ps:
+                new["at"] = ps["at"][bounds[i]:bounds[i + 1]]
             if i > 0:
                 new["entry"] = ps["first_link"]
             if i < len(pieces) - 1:
                 new["exit"] = ps["first_link"]
             out.append(new)
     return out, dropped
+
+
+def _unmerged(ps, cuts):
+    """``(pass, cuts)``: pass ``ps`` with the points :func:`merged_points` dropped from its failing
+    moves ``cuts`` (j: the move from point j-1 to j) put back, and the failing moves that dropped
+    none (to split at, renumbered)."""
+    at, idx, full = ps["at"], ps["idx"], ps["full"]
+    back = [j for j in cuts if at[j] - at[j - 1] > 1]
+    if not back:
+        return ps, cuts
+    new_at = np.unique(np.concatenate([at] + [np.arange(at[j - 1] + 1, at[j]) for j in back]))
+    split = [int(np.searchsorted(new_at, at[j])) for j in cuts if j not in back]
+    return dict(ps, idx=full[new_at], at=new_at), split
+
+
+def merged_points(passes, tip, axis, reach, tolerance: float) -> list:
+    """The passes with the points dropped whose pose the move between the points kept either side
+    passes within ``tolerance`` mm (the tip off the chord plus the axis's turn off the
+    interpolated one, in radians, times the tool's ``reach (T,)`` mm), so that a smooth surface is
+    not cut as a chain of short zigzags; the first and last points stay. A pass that drops points
+    keeps them (``full``, the points before merging, and ``at``, where each point kept lies in
+    it): :func:`repair_passes` puts them back where a merged move fails verification."""
+    out = []
+    for ps in passes:
+        idx = np.asarray(ps["idx"])
+        keep = _kept(tip[idx], axis[idx], float(reach[ps["tool"]]), tolerance) if len(idx) > 2 else None
+        if keep is None or keep.all():
+            out.append(ps)
+            continue
+        out.append(dict(ps, idx=idx[keep], full=idx, at=np.nonzero(keep)[0]))
+    return out
+
+
+def _kept(p, u, reach: float, tol: float) -> np.ndarray:
+    """``(k,) bool``: the points of one pass (tips ``p``, axes ``u`` (k, 3)) Douglas-Peucker keeps
+    within ``tol`` (:func:`merged_points`)."""
+    keep = np.zeros(len(p), bool)
+    keep[[0, -1]] = True
+    stack = [(0, len(p) - 1)]
+    while stack:
+        a, b = stack.pop()
+        if b - a < 2:
+            continue
+        inner = np.arange(a + 1, b)
+        d = p[b] - p[a]
+        dd = float(d @ d)
+        t = np.clip((p[inner] - p[a]) @ d / dd, 0.0, 1.0) if dd > 0 else np.zeros(len(inner))
+        off = np.linalg.norm(p[inner] - (p[a] + t[:, None] * d), axis=1)
+        mid = (1.0 - t)[:, None] * u[a] + t[:, None] * u[b]
+        mid /= np.maximum(np.linalg.norm(mid, axis=1, keepdims=True), 1e-12)
+        turn = np.arccos(np.clip(np.einsum("ij,ij->i", mid, u[inner]), -1.0, 1.0))
+        err = off + reach * turn
+        k = int(np.argmax(err))
+        if err[k] > tol:
+            keep[inner[k]] = True
+            stack += [(a, inner[k]), (inner[k], b)]
+    return keep
+
+
+def pass_points(ps) -> np.ndarray:
+    """The points pass ``ps`` cuts ``(q,)``: its own, and those :func:`merged_points` dropped
+    between its first and last."""
+    if "full" not in ps:
+        return np.asarray(ps["idx"])
+    return ps["full"][ps["at"][0]:ps["at"][-1] + 1]
