@@ -8,7 +8,8 @@ Per part, the 5-axis finish (`finish`, the tools of bench/realparts.py, `--order
 part's step-down there, `--scallop 0.01` on the vase) run twice in the same process, with
 ``links = "safe"`` (every link up to the safe plane, across and down) and ``links = "direct"``
 (a rapid straight from one pass to the next of the same tool where it passes verification, else
-the safe plane). Reported: the links of each kind, the rapid and feed length, the machining time
+the safe plane). Reported: the links of each kind, the rapid and feed length, the moves and the stops the machine makes
+(turns sharper than its corner angle), the machining time
 on table-table-ac and its non-cutting share (rapids and tool changes over the total), the CC
 points cut, whether the path verified, and the finish's wall time. Prints a table and writes
 bench/out/links.json.
@@ -61,7 +62,7 @@ def run(name, tools, machine, links):
     return {"part": name, "links": links, "direct_links": s["links"]["direct"],
             "safe_plane_links": s["links"]["safe_plane"],
             "rapid_m": round(float(seg[tp.rapid].sum()) / 1000, 2), "feed_m": round(float(seg[~tp.rapid].sum()) / 1000, 2),
-            "machining_min": round(total["total_s"] / 60, 1),
+            "moves": int(len(tp)), "stops": int(total["stops"]), "machining_min": round(total["total_s"] / 60, 1),
             "non_cutting": round((total["rapid_s"] + total["tool_change_s"]) / total["total_s"], 3),
             "points_cut": s["points_cut"], "verified": s["verify"]["ok"], "finish_s": round(wall, 1)}
 

@@ -150,6 +150,7 @@ def test_rest_finishing_cuts_only_what_the_larger_ball_left(pocket_job):
     for o in ops[1:]:
         s = o.path.summary
         assert s["rest"]["min_depth"] == 0.015 and s["rest"]["points_left"] > 0
+        assert s["pencil"]["lines"] >= 1
         tp = o.path.toolpath
         a, b = tp.tip[:-1], tp.tip[1:]
         length = np.linalg.norm(b - a, axis=1)
@@ -306,3 +307,50 @@ def test_a_wall_under_an_overhang_is_a_3_axis_shadow_and_reached_in_5_axes(balls
     assert reaches.all()  # tilted out from the wall
     fans = _fans(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]), 60.0)
     assert np.allclose(np.linalg.norm(fans, axis=2), 1.0) and (fans[:, :, 2] >= 0.5 - 1e-12).all()
+
+
+def v_groove(width=8.0, depth=4.0, length=20.0):
+    """A 20 x ``length`` x 10 mm block with a 90 deg V-groove along Y down the middle of its top
+    (``width`` across at the top, its bottom line at x = 10, z = 10 - ``depth``)."""
+    from meshmill.geometry.mesh import mesh_from_arrays
+
+    h = 0.5 * width
+    ring = np.array([(0, 0), (10, 0), (20, 0), (20, 10), (10 + h, 10), (10, 10 - depth), (10 - h, 10), (0, 10)],
+                    float)  # (x, z), round the section
+    n = len(ring)
+    v = np.vstack([np.c_[ring[:, 0], np.zeros(n), ring[:, 1]], np.c_[ring[:, 0], np.full(n, length), ring[:, 1]]])
+    front = [(1, k + 1, k) for k in range(2, n - 1)] + [(1, 0, n - 1)]
+    faces = front + [(n + a, n + c, n + b) for a, b, c in front]
+    faces += [f for k in range(n) for f in ((k, (k + 1) % n, n + (k + 1) % n), (k, n + (k + 1) % n, n + k))]
+    return mesh_from_arrays(v, np.array(faces)[:, ::-1], "groove")
+
+
+def pencil_lines(part, tool):
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.pathing.dropcutter import ToolDrop
+    from meshmill.pathing.pencil import pencil_passes
+
+    drop = ToolDrop(tool, solid_kernels(part), float(part.bounds[0, 2]) - 1.0)
+    reach = tool.radius
+    return pencil_passes(drop, part.bounds[0, :2] - reach, part.bounds[1, :2] + reach, 0.5 * tool.radius, 0.5,
+                         tool.diameter)
+
+
+def test_pencil_passes_run_along_the_corners_the_ball_touches_twice(balls):
+    """A 90 deg V-groove: one pass along its bottom line, the ball touching both walls (tip
+    r (sqrt 2 - 1) above the line, exact: the walls are planes). The pocket: B6 sits on the floor
+    against the wall (a circle r 5 at the floor), B2 fits the 1 mm fillet (r 7); nothing on a
+    sphere, which has no concave corner."""
+    b4, b6, b2 = balls[1], balls[0], balls[2]
+    (line,) = pencil_lines(v_groove(), b4)
+    inside = (line[:, 1] > 2.0) & (line[:, 1] < 18.0)  # off the groove's open ends
+    assert np.abs(line[inside, 0] - 10.0).max() < 2e-3
+    assert np.abs(line[inside, 2] - (6.0 + 2.0 * (math.sqrt(2.0) - 1.0))).max() < 2e-3
+    assert np.ptp(line[:, 1]) > 15.0
+    facets = 8.0 * (1.0 - math.cos(math.pi / 96))  # the pocket's wall: a polygon of 96 sides
+    for tool, radius, z, tol in ((b6, 5.0, 2.0, facets + 2e-3), (b2, 7.0, 2.0, 0.05)):
+        (ring,) = pencil_lines(pocket(), tool)
+        assert np.allclose(ring[0], ring[-1])  # a closed line round the pocket
+        assert np.abs(np.hypot(ring[:, 0], ring[:, 1]) - radius).max() < tol
+        assert np.abs(ring[:, 2] - z).max() < 0.05
+    assert pencil_lines(sphere(10.0), b4) == []

@@ -535,7 +535,9 @@ def _add_options(parser, spec, skip=()):
             parser.add_argument(name, nargs="+" if o.role == "folders" else None, help=o.help_text())
             continue
         if o.kind == "flag":
-            parser.add_argument(o.flag, action="store_true", default=argparse.SUPPRESS, help=o.help_text())
+            on = o.default is True  # a flag on by default is turned off by --no-...
+            parser.add_argument(o.flag, action=argparse.BooleanOptionalAction if on else "store_true",
+                                default=argparse.SUPPRESS, help=o.help_text())
             continue
         target = parser.add_mutually_exclusive_group(required=o.required) if o.aliases else parser
         metavar = o.metavar or (o.unit.upper().replace("/", "_PER_") if o.unit else None)

@@ -285,6 +285,8 @@ class SteepShallowParams(Params):
     angle: float = option("number", "the parallel passes' direction from X", 0.0, unit="deg")
     sample: float = option("number", "largest distance between CL points along a pass, and the levels' grid", 0.5,
                            unit="mm", low=1e-3)
+    pencil: bool = option("flag", "also pencil passes along the concave corners and fillets, where the tool touches "
+                                  "two sides at once (first, before the levels and the parallel passes)", True)
     tolerance: float = _tolerance(help="gouge and chord tolerance", positive=True)
     clearance: float = _clearance()
     stock: object = _stock(_STOCK_HELP, _STOCK_ALLOWANCE)

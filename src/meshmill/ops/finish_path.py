@@ -42,6 +42,7 @@ class PathBuilder:
         self.approach, self.radius, self.gentle, self.reach = approach, radius, gentle, reach
         self.direct = direct
         self.direct_links = 0  # in the last path built
+        self._known, self._known_for = {}, direct  # the rapids direct has passed or failed
 
     def _reaches(self, passes):
         """Per pass, the distances ``(in, out)`` down the way to the safe plane to which a rapid
@@ -99,6 +100,13 @@ class PathBuilder:
         ks = np.array([k for k in range(1, len(passes)) if passes[k]["tool"] == passes[k - 1]["tool"]
                        and passes[k].get("direct_in", True) and ends[k - 1][1] is not None
                        and ends[k][0] is not None], np.int64)
+        if len(ks):  # a link whose ends are not clear passes at no height: their poses alone first
+            a = np.array([ends[k - 1][1] for k in ks])
+            b = np.array([ends[k][0] for k in ks])
+            xa = np.array([self.axis[passes[k - 1]["idx"][-1]] for k in ks])
+            xb = np.array([self.axis[passes[k]["idx"][0]] for k in ks])
+            tool = np.array([passes[k]["tool"] for k in ks])
+            ks = ks[self._clear(a, xa, a, xa, tool) & self._clear(b, xb, b, xb, tool)]
         for h in LIFTS:
             if not len(ks):
                 break
@@ -120,10 +128,22 @@ class PathBuilder:
             xa, xb = np.repeat(xa, m, axis=0), np.repeat(xb, m, axis=0)
             ax0 = np.where(np.tile(np.arange(m) > m // 2, len(ks))[:, None], xb, xa)
             ax1 = np.where(np.tile(turn, len(ks))[:, None], xb, ax0)
-            ok = self.direct(starts, ax0, stops, ax1, np.repeat(tool, m)).reshape(len(ks), m).all(axis=1)
+            ok = self._clear(starts, ax0, stops, ax1, np.repeat(tool, m)).reshape(len(ks), m).all(axis=1)
             out[ks[ok]] = h
             ks = ks[~ok]
         return out
+
+    def _clear(self, a, xa, b, xb, tool):
+        """:attr:`direct` of the rapids ``a -> b``, each asked once over the builds of one path
+        (a round of repairs rebuilds the passes it did not change the same)."""
+        if self._known_for is not self.direct:
+            self._known, self._known_for = {}, self.direct
+        keys = [np.concatenate([a[i], xa[i], b[i], xb[i], [tool[i]]]).tobytes() for i in range(len(a))]
+        new = [i for i, k in enumerate(keys) if k not in self._known]
+        if new:
+            for i, ok in zip(new, self.direct(a[new], xa[new], b[new], xb[new], tool[new])):
+                self._known[keys[i]] = bool(ok)
+        return np.array([self._known[k] for k in keys], bool)
 
     def _exit_dir(self, ps):
         return self._dir(self.axis[ps["idx"][-1]], LINKS[ps["exit"]][1])

@@ -32,8 +32,9 @@ from ..errors import InputError, NothingToCut
 from ..geometry.mesh import Mesh
 from ..kernels.backend import solid_kernels
 from ..params import RasterParams, SteepShallowParams, WaterlineParams
-from ..pathing.dropcutter import pick_tool, stock_for, verified_path
-from ..pathing.slope import scallop_radius
+from ..pathing.dropcutter import ToolDrop, pick_tool, stock_for, verified_path
+from ..pathing.pencil import pencil_passes
+from ..pathing.slope import scallop_radius, slope_pieces
 from ..pathing.verify import DEFAULT_STEP
 from ..progress import StageClock
 from ..toolpath.linking import joined_passes, shortest_order
@@ -107,6 +108,16 @@ def steep_shallow(mesh: Mesh, tools, tool_name: str, params: SteepShallowParams,
             steep = [p for _, p in loops]
         except NothingToCut:  # no level in the part's height
             pass
+    pencil, lines = [], 0
+    if params.pencil:
+        with clock("pencil: corners", "pencil"):
+            drop = ToolDrop(tool, kern, float(mesh.bounds[0, 2]) - 1.0, grow=params.allowance, body_grow=grow)
+            reach = tool.radius + params.allowance
+            found = pencil_passes(drop, mesh.bounds[0, :2] - reach, mesh.bounds[1, :2] + reach,
+                                  min(params.sample, 0.5 * tool.radius), params.sample, tool.diameter)
+            lines = len(found)
+            pencil = slope_pieces(found, drop, tool, None, None, params.overlap, params.sample, near=near)[0] \
+                if near is not None else found
     rp = RasterParams(scallop=params.scallop, max_slope=shallow_to, angle=params.angle, **common)
     shallow, built = [], {}
     with clock("shallow: parallel passes", "shallow"):
@@ -114,12 +125,15 @@ def steep_shallow(mesh: Mesh, tools, tool_name: str, params: SteepShallowParams,
             shallow, built = raster_passes(mesh, kern, tool, rp, grow, rest_kern, clock.say, device, cluster, near)
         except NothingToCut:  # no shallow ground (or none in the stock's material)
             pass
-    if not steep and not shallow:
+    if not steep and not shallow and not pencil:
         depth = params.rest if params.rest is not None else (left or {}).get("min_depth")
         why = f" that removes more than rest {depth:g} mm of the stock" if depth is not None else ""
         raise NothingToCut(f"nothing to cut: no pass{why} on the part's ground", "rest" if depth is not None else ())
     # each kind in an order that keeps links short, passes close to each other joined along the part
-    passes = joined_passes(shortest_order(steep, closed=[np.array_equal(p[0], p[-1]) for p in steep]), JOIN * tool.diameter)
+    passes = joined_passes(shortest_order(pencil, closed=[np.array_equal(p[0], p[-1]) for p in pencil]),
+                           JOIN * tool.diameter)
+    passes += joined_passes(shortest_order(steep, start=passes[-1][-1] if passes else None,
+                                           closed=[np.array_equal(p[0], p[-1]) for p in steep]), JOIN * tool.diameter)
     passes += joined_passes(shortest_order(shallow, start=passes[-1][-1] if passes else None), JOIN * tool.diameter)
     with clock("verify"):
         tp, report, kept = verified_path(passes, index, tools, kern, safe_z, params.tolerance, DEFAULT_STEP,
@@ -133,6 +147,7 @@ def steep_shallow(mesh: Mesh, tools, tool_name: str, params: SteepShallowParams,
         "overlap": params.overlap,
         "steep": {"min_slope": steep_from, "step_down": step_down, "levels": levels, "passes": len(steep),
                   **({"slopes": steep_report} if steep_report else {})},
+        "pencil": {"lines": lines, "passes": len(pencil)} if params.pencil else None,
         "shallow": {"max_slope": shallow_to, "angle": params.angle, "passes": len(shallow),
                     **{k: built[k] for k in ("stepover", "stepover_used", "lines", "slopes") if k in built}},
         "sample": params.sample,
