@@ -29,6 +29,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(ROOT, "src"))
 sys.path.insert(0, HERE)
+from finished import table  # noqa: E402
 from realparts import PARTS as REAL_PARTS, TOOLS  # noqa: E402
 
 SETUPS = {
@@ -65,13 +66,6 @@ def run(name, tools, machine, links):
             "moves": int(len(tp)), "stops": int(total["stops"]), "machining_min": round(total["total_s"] / 60, 1),
             "non_cutting": round((total["rapid_s"] + total["tool_change_s"]) / total["total_s"], 3),
             "points_cut": s["points_cut"], "verified": s["verify"]["ok"], "finish_s": round(wall, 1)}
-
-
-def table(rows):
-    keys = list(dict.fromkeys(k for r in rows for k in r))
-    lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
-    lines += ["| " + " | ".join(str(r.get(k, "")) for k in keys) + " |" for r in rows]
-    return "\n".join(lines)
 
 
 def main():

@@ -90,47 +90,42 @@ class PathBuilder:
                 ends.append(None)
         return ends
 
-    def _directs(self, passes, reaches):
-        """``(n,)``: the height (mm) over the pass before at which each pass is reached from it
-        (:attr:`direct`; NaN: by the safe plane): the first of :data:`LIFTS` whose link passes."""
-        out = np.full(len(passes), np.nan)
+    def _directs(self, passes, reaches) -> dict:
+        """``{pass number: (m + 1, 3) points}``: the passes reached from the pass before without the
+        safe plane (:attr:`direct`), by the first of :data:`LIFTS` whose link passes
+        (:meth:`_lifted`)."""
         if self.direct is None or len(passes) < 2:
-            return out
+            return {}
         ends = [self._rapid_ends(ps, r) for ps, r in zip(passes, reaches)]
         ks = np.array([k for k in range(1, len(passes)) if passes[k]["tool"] == passes[k - 1]["tool"]
                        and passes[k].get("direct_in", True) and ends[k - 1][1] is not None
                        and ends[k][0] is not None], np.int64)
-        if len(ks):  # a link whose ends are not clear passes at no height: their poses alone first
-            a = np.array([ends[k - 1][1] for k in ks])
-            b = np.array([ends[k][0] for k in ks])
-            xa = np.array([self.axis[passes[k - 1]["idx"][-1]] for k in ks])
-            xb = np.array([self.axis[passes[k]["idx"][0]] for k in ks])
-            tool = np.array([passes[k]["tool"] for k in ks])
-            ks = ks[self._clear(a, xa, a, xa, tool) & self._clear(b, xb, b, xb, tool)]
+        if not len(ks):
+            return {}
+        a = np.array([ends[k - 1][1] for k in ks])
+        b = np.array([ends[k][0] for k in ks])
+        da = np.array([self._dir(self.axis[passes[k - 1]["idx"][-1]], LINKS[passes[k - 1]["exit"]][1]) for k in ks])
+        db = np.array([self._dir(self.axis[passes[k]["idx"][0]], LINKS[passes[k]["entry"]][1]) for k in ks])
+        xa = np.array([self.axis[passes[k - 1]["idx"][-1]] for k in ks])
+        xb = np.array([self.axis[passes[k]["idx"][0]] for k in ks])
+        tool = np.array([passes[k]["tool"] for k in ks])
+        # a link whose ends are not clear passes at no height: their poses alone first
+        live = np.nonzero(self._clear(a, xa, a, xa, tool) & self._clear(b, xb, b, xb, tool))[0]
+        out = {}
         for h in LIFTS:
-            if not len(ks):
+            ways = {i: self._lifted(a[i], da[i], b[i], db[i], h) for i in live}
+            live = np.array([i for i in live if ways[i] is not None], np.int64)
+            if not len(live):
                 break
-            ways = [self._lifted(ends[k - 1][1], self._exit_dir(passes[k - 1]), ends[k][0],
-                                 self._entry_dir(passes[k]), h) for k in ks]
-            fits = np.array([w is not None for w in ways], bool)
-            ks, ways = ks[fits], [w for w in ways if w is not None]
-            if not len(ks):
-                break
-            xa = np.array([self.axis[passes[k - 1]["idx"][-1]] for k in ks])
-            xb = np.array([self.axis[passes[k]["idx"][0]] for k in ks])
-            tool = np.array([passes[k]["tool"] for k in ks])
-            m = len(ways[0]) - 1  # moves per link
-            starts = np.concatenate([w[:-1] for w in ways])
-            stops = np.concatenate([w[1:] for w in ways])
-            # the axis turns on the move across (the middle one of a lifted link)
-            turn = np.zeros(m, bool)
-            turn[m // 2] = True
-            xa, xb = np.repeat(xa, m, axis=0), np.repeat(xb, m, axis=0)
-            ax0 = np.where(np.tile(np.arange(m) > m // 2, len(ks))[:, None], xb, xa)
-            ax1 = np.where(np.tile(turn, len(ks))[:, None], xb, ax0)
-            ok = self._clear(starts, ax0, stops, ax1, np.repeat(tool, m)).reshape(len(ks), m).all(axis=1)
-            out[ks[ok]] = h
-            ks = ks[~ok]
+            m = len(ways[live[0]]) - 1  # moves per link; the axis turns on the middle one
+            starts = np.concatenate([ways[i][:-1] for i in live])
+            stops = np.concatenate([ways[i][1:] for i in live])
+            after = np.tile(np.arange(m) > m // 2, len(live))[:, None]
+            ax0 = np.where(after, np.repeat(xb[live], m, axis=0), np.repeat(xa[live], m, axis=0))
+            ax1 = np.where(np.tile(np.arange(m) >= m // 2, len(live))[:, None], np.repeat(xb[live], m, axis=0), ax0)
+            ok = self._clear(starts, ax0, stops, ax1, np.repeat(tool[live], m)).reshape(len(live), m).all(axis=1)
+            out.update({int(ks[i]): ways[i] for i in live[ok]})
+            live = live[~ok]
         return out
 
     def _clear(self, a, xa, b, xb, tool):
@@ -144,12 +139,6 @@ class PathBuilder:
             for i, ok in zip(new, self.direct(a[new], xa[new], b[new], xb[new], tool[new])):
                 self._known[keys[i]] = bool(ok)
         return np.array([self._known[k] for k in keys], bool)
-
-    def _exit_dir(self, ps):
-        return self._dir(self.axis[ps["idx"][-1]], LINKS[ps["exit"]][1])
-
-    def _entry_dir(self, ps):
-        return self._dir(self.axis[ps["idx"][0]], LINKS[ps["entry"]][1])
 
     def _lifted(self, a, da, b, db, h):
         """The points ``(m + 1, 3)`` of a link from ``a`` to ``b``: straight (``h`` 0), or ``h`` mm
@@ -188,9 +177,8 @@ class PathBuilder:
             role.append(r)
 
         reaches = self._reaches(passes)
-        lifts = np.r_[self._directs(passes, reaches), np.nan]
-        directs = np.isfinite(lifts)
-        self.direct_links = int(directs.sum())
+        directs = self._directs(passes, reaches)
+        self.direct_links = len(directs)
         for k, ps in enumerate(passes):
             idx, tool = ps["idx"], ps["tool"]
             reach_in, reach_out = reaches[k]
@@ -200,9 +188,8 @@ class PathBuilder:
             lead_out, vertical_out, feed_out = LINKS[ps["exit"]]
             start = t0 + (self.lead * self.side[idx[0]] if lead_in else 0.0)
             end = t1 + (self.lead * self.side[idx[-1]] if lead_out else 0.0)
-            if directs[k]:  # from where the pass before left off: straight, or lifted over what lies between
-                way = self._lifted(tips[-1], self._exit_dir(passes[k - 1]), self._rapid_ends(ps, reaches[k])[0],
-                                   self._entry_dir(ps), lifts[k])
+            if k in directs:  # from where the pass before left off: straight, or lifted over what lies between
+                way = directs[k]
                 for j, p in enumerate(way[1:]):
                     add(p, u0 if j >= (len(way) - 1) // 2 else axes[-1], True, tool, k, "direct_in")
             else:
@@ -222,11 +209,11 @@ class PathBuilder:
                 add(end, u1, False, tool, k, "lead_out")
             if not feed_out:
                 add(self._above(end, u1, vertical_out), u1, False, tool, k, "approach_out")
-                if not directs[k + 1]:
+                if k + 1 not in directs:
                     add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
             elif reach_out is not None:  # feed out of the stock, then rapid
                 add(end + reach_out * self._dir(u1, vertical_out), u1, False, tool, k, "approach_out")
-                if not directs[k + 1]:
+                if k + 1 not in directs:
                     add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
             else:
                 add(self._up(end, u1, vertical_out), u1, False, tool, k, "approach_out")
