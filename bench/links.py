@@ -10,7 +10,8 @@ part's step-down there, `--scallop 0.01` on the vase) run twice in the same proc
 (a rapid straight from one pass to the next of the same tool where it passes verification, else
 the safe plane). Reported: the links of each kind, the rapid and feed length, the moves and the stops the machine makes
 (turns sharper than its corner angle), the machining time
-on table-table-ac and its non-cutting share (rapids and tool changes over the total), the CC
+on table-table-ac and its non-cutting share (rapids and tool changes over the total, and each
+alone), the CC
 points cut, whether the path verified, and the finish's wall time. Prints a table and writes
 bench/out/links.json.
 """
@@ -65,6 +66,8 @@ def run(name, tools, machine, links):
             "rapid_m": round(float(seg[tp.rapid].sum()) / 1000, 2), "feed_m": round(float(seg[~tp.rapid].sum()) / 1000, 2),
             "moves": int(len(tp)), "stops": int(total["stops"]), "machining_min": round(total["total_s"] / 60, 1),
             "non_cutting": round((total["rapid_s"] + total["tool_change_s"]) / total["total_s"], 3),
+            "rapids_share": round(total["rapid_s"] / total["total_s"], 3),
+            "tool_change_share": round(total["tool_change_s"] / total["total_s"], 3),
             "points_cut": s["points_cut"], "verified": s["verify"]["ok"], "finish_s": round(wall, 1)}
 
 

@@ -742,3 +742,55 @@ def test_points_within_the_tolerance_of_a_move_are_merged_and_put_back_where_it_
     bent = np.c_[np.sin(turn), np.zeros(101), np.cos(turn)]
     (t,) = merged_points([ps], np.c_[x, np.zeros(101), np.zeros(101)], bent, np.array([40.0]), 0.005)
     assert list(t["idx"]) == [0, 50, 100]
+
+
+def test_a_finish_from_a_stock_tilts_the_shank_out_of_what_stands_above_the_wall(tmp_path):
+    from meshmill.ops.simulate import simulate
+    from meshmill.tools.table import load_tools
+
+    # one ball whose shank is as wide as it is, 5 mm of flutes
+    (tmp_path / "t.toml").write_text('[[tools]]\nname = "B4"\ntype = "ball"\ndiameter = 4.0\nflute_length = 5.0\n'
+                                     'gauge_length = 40.0\nholder_diameter = 20.0\nholder_length = 20.0\n')
+    tools = load_tools(tmp_path / "t.toml")
+    part = revolve([0, 10, 10, 0], [0, 0, 20, 20])
+    # what the roughing left: 0.3 mm on the wall and a collar 4 mm wide round its top 6 mm
+    collar = revolve([0, 10.3, 10.3, 14, 14, 0], [-0.3, -0.3, 14, 14, 20.3, 20.3])
+    alone = finish(part, tools, FinishParams(step_down=2.0))[2]
+    tp, s, d = finish(part, tools, FinishParams(step_down=2.0, stock=Stock.mesh(collar)))
+    assert s["verify"]["ok"] and s["points_tilted_out_of_stock"] > 0
+    con = d["contours"]
+    low = con.points[:, 2] <= 8.0  # the shank of a vertical ball there runs into the collar
+    tilt = np.degrees(np.arccos(np.clip(d["axis"][:, 2], -1, 1)))
+    assert low.sum() > 100 and np.degrees(np.arccos(alone["axis"][low, 2].min())) < 16.0  # from the part alone
+    assert d["cut"][low].all() and tilt[low].min() > 19.0
+    # independent: the dexel simulation from that stock finds no shank or holder in it
+    _, summary, *_ = simulate(part, tp, tools, 0.25, stock=Stock.mesh(collar))
+    assert summary["colliding_moves"] == 0
+
+
+def test_passes_of_one_tool_on_both_sides_of_a_wall_are_taken_side_by_side():
+    """Open passes at three levels on both sides of a thin wall, sorted by contour (A B A B A B):
+    the short order takes one side top-down, crosses once, and takes the other bottom-up; a
+    closed contour is entered anywhere along it; raster passes keep their order."""
+    from meshmill.ops.finish import short_order
+
+    tip, axis, passes = [], [], []
+    for level, z in enumerate((5.0, 4.0, 3.0)):
+        for side in (-1.0, 1.0):
+            first = len(tip)
+            tip += [[side, -10.0, z], [side, 10.0, z]] if side < 0 else [[side, 10.0, z], [side, -10.0, z]]
+            axis += [[0.5 * side, 0.0, math.sqrt(0.75)]] * 2
+            passes.append(dict(contour=2 * level + (side > 0), tool=0, rank=0, shallow=False,
+                               idx=np.array([first, first + 1])))
+    tip, axis = np.array(tip), np.array(axis)
+    order = short_order(passes, tip, axis, np.array([40.0]))
+    assert [p["contour"] for p in order] == [0, 2, 4, 5, 3, 1]
+    # a closed loop near the end of the last pass goes before an open pass whose start is far
+    loop = len(tip) + np.r_[np.arange(8), 0]
+    ring = np.c_[np.cos(np.arange(8) * math.pi / 4), np.sin(np.arange(8) * math.pi / 4), np.zeros(8)]
+    tip2 = np.vstack([tip, ring + [0.0, 12.0, 5.0]])
+    axis2 = np.vstack([axis, np.tile([0.0, 0.0, 1.0], (8, 1))])
+    mixed = [passes[0], passes[5], dict(contour=9, tool=0, rank=0, shallow=False, idx=loop)]
+    assert [p["contour"] for p in short_order(mixed, tip2, axis2, np.array([0.0]))] == [0, 9, 5]
+    raster = [dict(p, shallow=True) for p in passes]
+    assert short_order(raster, tip, axis, np.array([40.0])) == raster

@@ -309,6 +309,68 @@ def test_a_wall_under_an_overhang_is_a_3_axis_shadow_and_reached_in_5_axes(balls
     assert np.allclose(np.linalg.norm(fans, axis=2), 1.0) and (fans[:, :, 2] >= 0.5 - 1e-12).all()
 
 
+def test_a_ball_reaches_a_floor_by_a_wall_where_its_shank_clears_the_wall_exactly():
+    """A 4 mm ball on a 6 mm shank 10 mm above its tip, on a floor beside a wall 15 mm high: the
+    vertical tool reaches a point of the floor only where the shank clears the wall (3 mm from
+    it), though the ball fits from 2 mm; beside a wall 8 mm high, from 2 mm."""
+    from meshmill.geometry.shapes import box
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.ops.left import reach
+
+    b4 = tool_from_entry(dict(type="ball", name="B4", diameter=4, flute_length=10, gauge_length=40, shank_diameter=6,
+                              holder_diameter=32, holder_length=40), 1, "t")
+    gap = np.array([1.9, 2.1, 2.9, 3.1, 5.0])
+    for height, first in ((15.0, 3), (8.0, 1)):
+        part = box([0, -10, 0], [30, 10, 5])  # the floor at z 5, the wall's face at x 10
+        wall = box([0, -10, 5], [10, 10, 5 + height])
+        from meshmill.geometry.mesh import mesh_from_arrays
+        both = mesh_from_arrays(np.vstack([part.vertices, wall.vertices]),
+                                np.vstack([part.faces, wall.faces + len(part.vertices)]), "step")
+        kern = solid_kernels(both, "cpu")
+        feet = np.c_[10.0 + gap, np.zeros(len(gap)), np.full(len(gap), 5.0)]
+        fits, reaches = reach(feet, np.tile([0.0, 0.0, 1.0], (len(gap), 1)), [b4], kern, 0.0, False, 0.01)
+        assert fits[:, 0].tolist() == [False, True, True, True, True]
+        assert reaches[:, 0].tolist() == [k >= first for k in range(len(gap))], (height, reaches[:, 0])
+
+
+def test_stock_thicker_than_the_lattice_over_the_design_is_left_not_unmeasured(balls):
+    """A block with a slot 3 mm wide and 8 mm deep under 1 mm of a box stock that nothing cut:
+    the slot is full of stock and no dexel end's foot lies within 1.5 steps of its walls and
+    floor (the ends nearest them are over the block's top), yet the stock stands on them: they are
+    the 2 and 1 mm balls' to cut, not "not measured"."""
+    from meshmill.geometry.mesh import mesh_from_arrays
+
+    ring = np.array([(0, 0), (20, 0), (20, 10), (11.5, 10), (11.5, 2), (8.5, 2), (8.5, 10), (0, 10)], float)  # (x, z)
+    tri = np.array([(1, 2, 3), (1, 3, 4), (5, 6, 7), (5, 7, 0), (0, 1, 4), (0, 4, 5)])
+    n = len(ring)
+    v = np.vstack([np.c_[ring[:, 0], np.zeros(n), ring[:, 1]], np.c_[ring[:, 0], np.full(n, 20.0), ring[:, 1]]])
+    faces = np.vstack([tri, tri[:, ::-1] + n] + [[(k, (k + 1) % n, n + (k + 1) % n), (k, n + (k + 1) % n, n + k)]
+                                                 for k in range(n)])
+    part = mesh_from_arrays(v, faces[:, ::-1], "slot")  # wound outward
+    stock = api.Stock.box(1.0).dexels(part, 0.5)
+    _, _, _, (points, e) = stock.measure(0.01, samples=True)
+    walls = 2 * 8 * 20 + 3 * 20  # mm²: the slot's walls and floor
+    arrays, alone = meshmill.what_is_left(part, points, e, 0.5, balls, {"B6"}, tolerance=0.01)
+    p = arrays["points"]
+    slot = (p[:, 0] > 8.5 - 1e-6) & (p[:, 0] < 11.5 + 1e-6) & (p[:, 2] > 1.0) & (p[:, 2] < 9.0) \
+        & (np.abs(arrays["normals"][:, 1]) < 0.5)
+    a = arrays["area"][slot]
+    assert a.sum() > 0.75 * walls
+
+    def share(names, reason):
+        return a[names[slot] == reason].sum() / a.sum()
+
+    assert share(np.array(alone["reasons"])[arrays["reason"]], "not measured") > 0.9
+    for used, expect in (({"B6"}, "a tool the job does not use"), ({"B6", "B2", "B1"}, "left by the job")):
+        arrays, report = meshmill.what_is_left(part, points, e, 0.5, balls, used, tolerance=0.01, stock=stock)
+        names = np.array(report["reasons"])[arrays["reason"]]
+        # the rest: the floor's corners, which no ball fits
+        assert share(names, expect) > 0.8 and share(names, expect) + share(names, "no tool of the table fits") == pytest.approx(1.0)
+        assert report["by_reason_mm2"]["not measured"] < 0.05 * walls
+        thick = a[np.isnan(arrays["e"][slot])].sum()
+        assert thick > 0.9 * a.sum() and report["thick_mm2"] >= thick - 1e-9
+
+
 def v_groove(width=8.0, depth=4.0, length=20.0):
     """A 20 x ``length`` x 10 mm block with a 90 deg V-groove along Y down the middle of its top
     (``width`` across at the top, its bottom line at x = 10, z = 10 - ``depth``)."""

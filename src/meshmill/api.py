@@ -451,14 +451,16 @@ def steep_shallow(p) -> PathResult:
     return _path_result("steep-shallow", tp, summary, p.part, p.tools, device, material=p.material)
 
 
-def what_is_left(part, points, e, step, tools, used=(), five_axis=False, tolerance=0.01, device="cpu"):
+def what_is_left(part, points, e, step, tools, used=(), five_axis=False, tolerance=0.01, device="cpu", stock=None):
     """What a stock leaves on ``part``, where and why (:mod:`meshmill.ops.left`): the design
     sampled by area, each sample given the deviation of the stock's dexel ends ``points (k, 3)``,
     ``e (k,)`` mm next to it (a lattice ``step`` mm apart: :attr:`SimulateResult.samples`) and,
     out of tolerance, the reason no tool of ``tools`` took it (``used``: the names of those the
     job ran; ``five_axis``: it had 5-axis operations). Returns ``(arrays, report)``: per sample
     ``points``, ``normals``, ``area`` mm², ``e`` mm, ``reason``; the area per reason (mm²) and
-    the shares within tolerance of the whole surface and of what the table's tools reach."""
+    the shares within tolerance of the whole surface and of what the table's tools reach.
+    ``stock``: the in-process stock those ends are of (a :class:`Stock` of dexels): where it
+    stands over the design with no end near, the sample gets a reason too, not "not measured"."""
     import numpy as np
 
     from .kernels.backend import solid_kernels
@@ -466,7 +468,7 @@ def what_is_left(part, points, e, step, tools, used=(), five_axis=False, toleran
 
     kern = solid_kernels(part, resolve_device(device))
     return run(part, kern, np.asarray(points, float), np.asarray(e, float), float(step), tools, set(used),
-               bool(five_axis), float(tolerance))
+               bool(five_axis), float(tolerance), None if stock is None else stock.model)
 
 
 @operation(PlungeParams, "part", "tools")

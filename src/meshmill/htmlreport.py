@@ -262,7 +262,8 @@ def _left_figures(go, run, base) -> list:
         if not len(sel):
             continue
         e = left["e"][sel]
-        hover = dict(hoverinfo="skip") if k == 0 else dict(text=[f"{v:.3f} mm" for v in e], hoverinfo="text+name")
+        hover = dict(hoverinfo="skip") if k == 0 else dict(
+            text=[f"{v:.3f} mm" if np.isfinite(v) else "thick: no dexel end near" for v in e], hoverinfo="text+name")
         traces.append(go.Scatter3d(x=pts[sel, 0].round(3), y=pts[sel, 1].round(3), z=pts[sel, 2].round(3),
                                    mode="markers", name=name, **hover,
                                    marker=dict(size=2 if k == 0 else 3, color=LEFT_COLOURS[k % len(LEFT_COLOURS)])))

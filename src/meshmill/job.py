@@ -656,7 +656,8 @@ class Job:
             used = {self.tools[int(i)].name for r in ran for i in np.unique(r.path.toolpath.tool)}
             left, summary["left"] = api.what_is_left(
                 self.part, samples["points"], samples["e"], self.step, self.tools, used,
-                five_axis=any(r.operation.kind == "finish" for r in ran), tolerance=self.tolerance, device=device)
+                five_axis=any(r.operation.kind == "finish" for r in ran), tolerance=self.tolerance, device=device,
+                stock=ran[-1].cut.stock)
         summary["seconds"]["total"] = round(time.perf_counter() - t_job, 3)
         return JobResult(self, results, posted, summary, left)
 

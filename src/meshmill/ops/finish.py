@@ -11,7 +11,9 @@
 3. Collision-free axis: candidates tilted by alpha toward the feed direction and beta toward the
    outward side, in order of increasing tilt up to ``max_tilt``; a point keeps its predecessor's
    choice when that is free and no more than one step more tilted. The flutes must not gouge and the
-   shank and holder keep ``clearance``. Points without a free axis are left out with a lift.
+   shank and holder keep ``clearance``; from a stock, a point whose shank or holder enters it takes
+   the first candidate free of the stock too (:func:`stock_free_axes`). Points without a free
+   axis are left out with a lift.
 4. Passes with lead-in/out along the outward side and retracts along the tool axis (or vertically)
    to the safe plane, ordered by contour or grouped by tool.
 5. The finished path is verified (:mod:`meshmill.pathing.verify`); moves that fail are repaired by
@@ -20,7 +22,8 @@
 
 :func:`finish` runs these as stages, each a function here that takes and returns explicit state
 (lengths in mm): :func:`finish_setup` (the balls, the safe plane, the levels), :func:`contours`
-(1), :func:`point_balls` (2, with :mod:`~meshmill.ops.finish_balls`), :func:`tool_axes` (3),
+(1), :func:`point_balls` (2, with :mod:`~meshmill.ops.finish_balls`), :func:`tool_axes` and
+:func:`stock_free_axes` (3),
 :func:`~meshmill.ops.finish_shallow.shallow_fill` (``scallop``'s flat areas),
 :func:`cutting_passes` (4, moves by :class:`~meshmill.ops.finish_path.PathBuilder`, kept from the
 rotaries' pole by :mod:`~meshmill.ops.finish_pole`), :func:`verify_and_repair` (5) and
@@ -52,8 +55,8 @@ from .finish_levels import added_contours
 from .finish_path import NO_LEAD, PathBuilder, merged_points, pass_points, repair_passes
 from .finish_shallow import SCALLOP_MIN_SLOPE, shallow_fill
 from ..pathing.reverify import Reverify
-from ..pathing.verify import (DEFAULT_STEP, StockCheck, check_parts, path_pieces, rapid_reach, rapids_clear,
-                              verify_piece)
+from ..pathing.verify import (DEFAULT_STEP, StockCheck, body_in_stock, check_parts, path_pieces, rapid_reach,
+                              rapids_clear, verify_piece)
 
 REPAIR_ROUNDS = 7
 MERGE_SHARE = 0.5  # a pass's points are merged where the move between the ones kept passes within this share of the tolerance
@@ -290,7 +293,8 @@ class Poses:
     cut), ``choice (n,)`` its axis candidate (:func:`tilt_candidates`; -1: no free axis),
     ``contour_tool (c,)`` the smallest ball on each contour (-1: none), ``side (n, 3)`` the unit
     outward side (feed x +Z), and the ball's centre ``ce``, unit ``axis`` and ``tip`` (n, 3) mm;
-    ``fallback``: points that found an axis on a smaller ball than their run's."""
+    ``fallback``: points that found an axis on a smaller ball than their run's; ``out_of_stock``:
+    points tilted again to keep the shank and holder out of the stock (:func:`stock_free_axes`)."""
 
     point_tool: np.ndarray
     choice: np.ndarray
@@ -300,6 +304,7 @@ class Poses:
     axis: np.ndarray
     tip: np.ndarray
     fallback: int
+    out_of_stock: int = 0  # points whose axis was tilted again to keep shank and holder out of the stock
 
     @property
     def has_axis(self) -> np.ndarray:
@@ -335,6 +340,49 @@ def tool_axes(con, balls: Balls, setup: FinishSetup, work: ContourWork) -> Poses
     axis[has_axis] = _axes(cand, choice[has_axis], con.feed[has_axis], side[has_axis])
     tip = ce - radii[np.maximum(point_tool, 0)][:, None] * axis
     return Poses(point_tool, choice, contour_tool, side, ce, axis, tip, fallback)
+
+
+def stock_free_axes(con, poses: Poses, setup: FinishSetup, kern, tools, stock: StockCheck) -> int:
+    """Points whose axis (of :func:`tool_axes`, free of the part) puts the shank or holder into the
+    stock the finish starts from (as verification measures it,
+    :func:`~meshmill.pathing.verify.body_in_stock`) take the first candidate of
+    :func:`tilt_candidates` that is free of both (the part as :func:`tool_axes` tests it); ``poses``
+    is changed in place. Returns how many points changed. Without it, the passes of a finish
+    from an in-process stock lose those points in verification."""
+    params, radii = setup.params, setup.radii
+    table_index = {tool.number: i for i, tool in enumerate(tools)}
+    rank_tool = np.array([table_index[b.number] for b in setup.balls])
+    at = np.nonzero(poses.has_axis & (poses.point_tool >= 0))[0]
+    if not len(at):
+        return 0
+    deep = body_in_stock(kern, tools, params.tolerance, stock, poses.tip[at], poses.axis[at],
+                         rank_tool[poses.point_tool[at]]) > 0.0
+    bad = at[deep]
+    if not len(bad):
+        return 0
+    cand, cand_tilt = tilt_candidates(params.max_tilt, params.tilt_step)
+    body, _ = pack_cylinders(setup.balls, params.tolerance, setup.body_clearance)
+    side, rank, ce = poses.side[bad], poses.point_tool[bad], poses.ce[bad]
+    found = np.full(len(bad), -1, np.int64)
+    for c in range(len(cand)):
+        todo = np.nonzero(found < 0)[0]
+        if not len(todo):
+            break
+        free = kern.axis_search(ce[todo], con.feed[bad[todo]], side[todo], rank[todo], cand[c:c + 1],
+                                cand_tilt[c:c + 1], 0.0, radii, body, np.array([0, len(todo)])) >= 0
+        todo = todo[free]
+        if not len(todo):
+            continue
+        axis = _axes(cand, np.full(len(todo), c), con.feed[bad[todo]], side[todo])
+        tip = ce[todo] - radii[rank[todo]][:, None] * axis
+        out = body_in_stock(kern, tools, params.tolerance, stock, tip, axis, rank_tool[rank[todo]]) <= 0.0
+        found[todo[out]] = c
+    moved = bad[found >= 0]
+    c = found[found >= 0]
+    poses.choice[moved] = c
+    poses.axis[moved] = _axes(cand, c, con.feed[moved], poses.side[moved])
+    poses.tip[moved] = poses.ce[moved] - radii[poses.point_tool[moved]][:, None] * poses.axis[moved]
+    return len(moved)
 
 
 @dataclass
@@ -411,12 +459,58 @@ def cutting_passes(con, balls: Balls, poses: Poses, shallow, setup: FinishSetup,
         raise NothingToCut(f"nothing to cut: of {len(con)} contour(s), {int((poses.contour_tool >= 0).sum())} fit a "
                            f"ball of the table (smallest R {min(radii):g} mm) and none has a collision-free axis "
                            f"within max_tilt {params.max_tilt:g}; add smaller or longer tools", "max_tilt")
+    reach = np.array([t.reach for t in tools])
     if params.order == "tool":
         passes.sort(key=lambda p: (p["rank"], p["shallow"], p["contour"]))
+        passes = short_order(passes, tip, axis, reach)
     near_starts(passes, tip)
-    reach = np.array([t.reach for t in tools])
     passes = merged_points(passes, tip, axis, reach, MERGE_SHARE * params.tolerance)
     return Passes(passes, tip, axis, ce, side, raster_first, n_raster)
+
+
+LOOP_SAMPLES = 32  # points of a closed contour the next pass's start is looked for among
+
+
+def short_order(passes: list, tip, axis, reach) -> list:
+    """``passes`` (sorted by tool, raster or not, then contour) with each tool's contour passes
+    taken in a short order: from the first, always the pass whose start lies nearest the end of
+    the one before (a closed contour anywhere along it, as :func:`near_starts` then starts it),
+    the distance being the tip's plus the tool's ``reach (T,)`` times the axis's turn (rad) from
+    ``tip``, ``axis (n, 3)``. Passes on both sides of a thin wall are then taken side by side,
+    level after level, not crossing over at every level. Raster passes keep their order."""
+    out, k = [], 0
+    while k < len(passes):
+        j = k
+        while j < len(passes) and (passes[j]["tool"], passes[j]["shallow"]) == (passes[k]["tool"], passes[k]["shallow"]):
+            j += 1
+        group = passes[k:j]
+        k = j
+        if group[0]["shallow"] or len(group) < 3:
+            out += group
+            continue
+        pts, owner = [], []
+        for g, ps in enumerate(group):
+            idx = ps["idx"]
+            if len(idx) >= 3 and idx[0] == idx[-1]:  # a whole closed contour: any of its points
+                idx = idx[:-1][np.linspace(0, len(idx) - 2, min(LOOP_SAMPLES, len(idx) - 1)).astype(np.int64)]
+            else:
+                idx = idx[:1]
+            pts.append(idx)
+            owner.append(np.full(len(idx), g))
+        pts, owner = np.concatenate(pts), np.concatenate(owner)
+        at_tip, at_axis, r = tip[pts], axis[pts], float(reach[group[0]["tool"]])
+        left = np.ones(len(group), bool)
+        order, g = [0], 0
+        left[0] = False
+        while left.any():
+            end = group[g]["idx"][-1]
+            cost = np.linalg.norm(at_tip - tip[end], axis=1) + r * np.arccos(np.clip(at_axis @ axis[end], -1.0, 1.0))
+            cost[~left[owner]] = np.inf
+            g = int(owner[np.argmin(cost)])
+            left[g] = False
+            order.append(g)
+        out += [group[g] for g in order]
+    return out
 
 
 def near_starts(passes: list, tip) -> None:
@@ -593,6 +687,7 @@ def finish_summary(mesh: Mesh, kern, tools, setup: FinishSetup, con, scallop, ba
         "runs_too_short": int(balls.short_runs),
         "points_in_short_runs": int(balls.short_points),
         "points_on_smaller_balls": int(poses.fallback),
+        "points_tilted_out_of_stock": int(poses.out_of_stock),
         "points_left_out": int((point_tool >= 0).sum() - point_cut[point_tool >= 0].sum()),
         "points_cut": int(point_cut.sum()),
         "raster_points": int(cut.n_raster),
@@ -640,6 +735,7 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
         balls = point_balls(con, setup, work)
     with clock("axes"):
         poses = tool_axes(con, balls, setup, work)
+        poses.out_of_stock = stock_free_axes(con, poses, setup, kern, tools, rapid_stock)
     shallow = None
     if params.scallop is not None:
         with clock("shallow areas", "shallow"):

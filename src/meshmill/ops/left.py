@@ -6,9 +6,11 @@ The surface: points on a barycentric grid of every facet, about a lattice step a
 standing for an equal share of its facet's area (mm², exact in sum) with the facet's normal. The
 deviation: the stock's dexel ends (their exact distance to the design, positive where material
 stands on it) carried down to the design along the distance's gradient (central differences),
-and each surface point given the nearest such foot within 1.5 lattice steps (else "not
-measured": no end of any direction near it, which a lattice step finer than the part's thin
-features avoids).
+and each surface point given the nearest such foot within 1.5 lattice steps. A point with no
+foot that near but the stock's material a step out from it carries more than that of stock (its
+deviation unknown, its reason tested like any other out of tolerance); else it is "not measured":
+no end of any direction near it and no stock on it, which a lattice step finer than the part's
+thin features avoids.
 
 The reasons, for a point with more than the tolerance on it, tried in order with the balls of the
 table (a ball of radius R touches the point from its centre R out along the normal; bull-noses
@@ -18,9 +20,10 @@ and flat end mills are left out of this test):
   corner or fillet tighter than the smallest ball, or a gap narrower than it);
 - below a 3-axis shadow (a 3-axis job) / no collision-free axis (a job with 5-axis operations): no
   ball that fits reaches it with its tip no lower than the part's bottom (the part stands on it)
-  and along the vertical axis (the ball's way up, then flutes, shank and
-  holder, sampled along the axis, each keeping its radius from the part) nor, in 5 axes, along
-  any of a fan of axes within ``max_tilt`` of the vertical;
+  along the vertical axis (the whole tool dropped over the ball's centre, exactly, stops no higher
+  than the ball touching the point) nor, in 5 axes, along any of a fan of axes within
+  ``max_tilt`` of the vertical (flutes, shank and holder sampled along the axis, each keeping its
+  radius from the part);
 - a tool the job does not use: only balls of the table that no operation of the job ran reach it;
 - left by the job: a tool the job uses reaches it (scallops over the limit, material a rest pass
   did not take, an operation left out).
@@ -33,6 +36,8 @@ import math
 
 import numpy as np
 from scipy.spatial import cKDTree
+
+from ..pathing.dropcutter import ToolDrop
 
 
 REASONS = ("within tolerance", "gouged", "left by the job", "a tool the job does not use",
@@ -93,6 +98,48 @@ def design_feet(points, e, kern, near: float = 0.02, normals: bool = False):
     return (feet, out) if normals else feet
 
 
+def stock_over(model, kern, points, normals, step: float) -> np.ndarray:
+    """``(k,) bool``: whether the stock's dexel ``model`` holds material a lattice ``step`` out from
+    each of ``points (k, 3)`` along its unit normal: on the nearest line of some direction, at a
+    point outside the design of ``kern`` (so the material there is stock left on the part, not the
+    part)."""
+    points = np.asarray(points, float)
+    out = np.zeros(len(points), bool)
+    if not len(points):
+        return out
+    q = points + step * np.asarray(normals, float)
+    lo, h, n = np.asarray(model.lo, float), float(model.step), np.asarray(model.n, np.int64)
+    for a in range(3):
+        u, v = (a + 1) % 3, (a + 2) % 3
+        iu = np.clip(np.floor((q[:, u] - lo[u]) / h).astype(np.int64), 0, n[u] - 1)
+        iv = np.clip(np.floor((q[:, v] - lo[v]) / h).astype(np.int64), 0, n[v] - 1)
+        at = q.copy()
+        at[:, u] = lo[u] + (iu + 0.5) * h
+        at[:, v] = lo[v] + (iv + 0.5) * h
+        hit = np.nonzero(~out & _in_lines(model.start[a], model.iv[a], iu * n[v] + iv, at[:, a]))[0]
+        if len(hit):
+            out[hit] = ~np.asarray(kern.points_inside(at[hit]), bool)
+    return out
+
+
+def _in_lines(start, iv, line, t) -> np.ndarray:
+    """``(k,) bool``: ``t (k,)`` lies within an interval of line ``line (k,)`` (CSR ``start``, ``iv``)."""
+    s0, s1 = start[line], start[line + 1]
+    inside = np.zeros(len(t), bool)
+    left = s0.copy()  # binary search: the first interval of the line ending at or after t
+    right = s1.copy()
+    while (left < right).any():
+        go = left < right
+        mid = (left + right) // 2
+        ends = np.where(go, iv[np.minimum(mid, len(iv) - 1), 1], np.inf) if len(iv) else np.full(len(t), np.inf)
+        before = go & (ends < t)
+        left = np.where(before, mid + 1, left)
+        right = np.where(go & ~before, mid, right)
+    has = left < s1
+    inside[has] = iv[left[has], 0] <= t[has]
+    return inside
+
+
 def _fans(normals, max_tilt: float) -> np.ndarray:
     """``(k, a, 3)`` unit axes: the fan of :data:`TILTS` x :data:`AZIMUTHS` within ``max_tilt``,
     and each point's normal tilted no further than ``max_tilt``."""
@@ -144,8 +191,8 @@ def reach(feet, normals, balls, kern, floor: float, five_axis: bool, tol: float,
           skip=None):
     """``(fits (k, b), reaches (k, b))`` bool: whether each ball of ``balls`` fits at each of
     ``feet (k, 3)`` (its centre a radius out along ``normals`` keeps that from the part of
-    ``kern``), and fits and reaches it, its tip no lower than ``floor`` (the part's bottom) and its
-    flutes, shank and holder clear along the vertical axis (the ball's way up and out), or with
+    ``kern``), and fits and reaches it, its tip no lower than ``floor`` (the part's bottom) and the
+    whole tool clear along the vertical axis (dropped over the centre: :class:`ToolDrop`), or with
     ``five_axis`` along one of a fan of axes (:func:`_clear_along`). ``skip (k,) bool``: points whose
     reach need not be tested (left False)."""
     k = len(feet)
@@ -159,7 +206,10 @@ def reach(feet, normals, balls, kern, floor: float, five_axis: bool, tol: float,
         at = np.nonzero(fits[:, j] & above & ~done)[0]
         if not len(at):
             continue
-        ok = _clear_along(centre[at], np.broadcast_to([[[0.0, 0.0, 1.0]]], (len(at), 1, 3)), tool, kern, tol)
+        # the vertical tool dropped over the centre (moved the tolerance off the point, so that a
+        # ball touching a wall slides down it) stops no higher than the ball touching the point
+        off = centre[at] + tol * normals[at]
+        ok = ToolDrop(tool, kern, floor)(off[:, :2]) <= off[:, 2] - tool.radius + tol
         if five_axis and (~ok).any():
             rest = at[~ok]
             ok[~ok] = _clear_along(centre[rest], _fans(normals[rest], max_tilt), tool, kern, tol)
@@ -168,14 +218,18 @@ def reach(feet, normals, balls, kern, floor: float, five_axis: bool, tol: float,
     return fits, reaches
 
 
-def what_is_left(mesh, kern, points, e, step: float, tools, used: set, five_axis: bool, tolerance: float):
+def what_is_left(mesh, kern, points, e, step: float, tools, used: set, five_axis: bool, tolerance: float,
+                 stock=None):
     """``(arrays, report)``: the design ``mesh`` (bound to ``kern``) sampled by area
     (:func:`surface_samples`), each sample's deviation from the nearest foot of the stock's dexel
     ends ``points (k, 3)``, ``e (k,)`` (lattice ``step`` mm), and its reason (:data:`REASONS`)
     with the ``tools`` of the table (``used``: the names the job's operations ran). ``arrays``:
     ``points``, ``normals``, ``area`` mm², ``e`` mm (NaN: not measured), ``reason`` (index into
     ``reasons``). ``report``: area per reason (mm²), the shares within tolerance of the whole
-    surface and of the surface some tool of the table reaches."""
+    surface and of the surface some tool of the table reaches. ``stock``: the stock's dexel model:
+    a sample with no end near it but stock over it (:func:`stock_over`) has more than
+    :data:`NEAR_STEPS` steps of material left on it (``e`` NaN) and is given its reason, not
+    "not measured"."""
     sp, sn, sa = surface_samples(mesh, step)
     dev = np.full(len(sp), np.nan)
     if len(points):
@@ -186,7 +240,11 @@ def what_is_left(mesh, kern, points, e, step: float, tools, used: set, five_axis
     reason = np.full(len(sp), UNMEASURED, np.int8)
     reason[np.abs(dev) <= tolerance] = WITHIN
     reason[dev < -tolerance] = GOUGED
-    left = np.nonzero(dev > tolerance)[0]
+    thick = np.zeros(len(sp), bool)
+    if stock is not None:
+        unmeasured = np.nonzero(np.isnan(dev))[0]
+        thick[unmeasured] = stock_over(stock, kern, sp[unmeasured], sn[unmeasured], step)
+    left = np.nonzero((dev > tolerance) | thick)[0]
     balls = sorted([t for t in tools if t.type == "ball"], key=lambda t: t.radius)
     if len(left):
         if not balls:
@@ -213,6 +271,7 @@ def what_is_left(mesh, kern, points, e, step: float, tools, used: set, five_axis
         "reachable_mm2": reachable,
         "reachable_within_tolerance": area["within tolerance"] / reachable if reachable else 1.0,
         "unreachable_mm2": total - reachable - area["not measured"],
+        "thick_mm2": float(sa[thick].sum()),  # of those out of tolerance: more than NEAR_STEPS steps of stock on it
         "tolerance": tolerance, "step": step, "five_axis": five_axis,
         "balls": [t.name for t in balls], "used": sorted(used),
         "reasons": list(REASONS),

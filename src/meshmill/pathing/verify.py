@@ -133,6 +133,20 @@ def rapids_clear(kern, tools, tol: float, stock: StockCheck, starts, start_axes,
     return ok
 
 
+def body_in_stock(kern, tools, tol: float, stock: StockCheck, tips, axes, tool) -> np.ndarray:
+    """``(k,)`` mm: how deep the shank and holder of the feed poses ``tips``, ``axes`` (``(k, 3)``,
+    tool ``tool (k,)``) enter the stock, as verification measures them (the design grown by
+    ``stock.allowance``, and ``stock``'s mesh); 0 where they keep out of it."""
+    tips = np.asarray(tips, np.float64).reshape(-1, 3)
+    if not len(tips):
+        return np.zeros(0)
+    meas = _Measure(kern, tools, tol, stock)
+    if not meas.body_stocks:
+        return np.zeros(len(tips))
+    return meas._body_stock_depth(tips, np.asarray(axes, np.float64).reshape(-1, 3),
+                                  np.asarray(tool, np.int64).reshape(-1)).max(axis=1)
+
+
 def sample_moves(tp: Toolpath, tools, step: float):
     """Poses along the path: ``tip, axis (s, 3)``, ``tool, move (s,)``, ``frac (s,)`` (the pose's
     place along its move, 0 at the point before, 1 at the move's point), ``rapid (s,) bool``."""
