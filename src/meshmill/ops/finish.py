@@ -477,7 +477,8 @@ def short_order(passes: list, tip, axis, reach) -> list:
     the one before (a closed contour anywhere along it, as :func:`near_starts` then starts it),
     the distance being the tip's plus the tool's ``reach (T,)`` times the axis's turn (rad) from
     ``tip``, ``axis (n, 3)``. Passes on both sides of a thin wall are then taken side by side,
-    level after level, not crossing over at every level. Raster passes keep their order."""
+    level after level, not crossing over at every level. Where that walk is no shorter in sum,
+    the contour order stays. Raster passes keep their order."""
     out, k = [], 0
     while k < len(passes):
         j = k
@@ -499,17 +500,25 @@ def short_order(passes: list, tip, axis, reach) -> list:
             owner.append(np.full(len(idx), g))
         pts, owner = np.concatenate(pts), np.concatenate(owner)
         at_tip, at_axis, r = tip[pts], axis[pts], float(reach[group[0]["tool"]])
+
+        def costs(g):  # (points,): from the end of pass g to each point
+            end = group[g]["idx"][-1]
+            return np.linalg.norm(at_tip - tip[end], axis=1) + r * np.arccos(np.clip(at_axis @ axis[end], -1.0, 1.0))
+
         left = np.ones(len(group), bool)
-        order, g = [0], 0
+        order, g, total = [0], 0, 0.0
         left[0] = False
         while left.any():
-            end = group[g]["idx"][-1]
-            cost = np.linalg.norm(at_tip - tip[end], axis=1) + r * np.arccos(np.clip(at_axis @ axis[end], -1.0, 1.0))
+            cost = costs(g)
             cost[~left[owner]] = np.inf
-            g = int(owner[np.argmin(cost)])
+            best = int(np.argmin(cost))
+            total += cost[best]
+            g = int(owner[best])
             left[g] = False
             order.append(g)
-        out += [group[g] for g in order]
+        # the contour order where it is as short (the greedy walk is not always shorter)
+        before = sum(float(costs(g)[owner == g + 1].min()) for g in range(len(group) - 1))
+        out += [group[g] for g in order] if total < before else group
     return out
 
 
