@@ -534,3 +534,38 @@ def test_blocks_of_lines_measure_and_mesh_as_the_whole_model():
             idx, w = snap_lines(verts, lo, n, step, a, *rows(machined, a, i0, i1), i0)
             verts[idx, a] = w
     assert np.array_equal(verts, whole_v) and len(faces) == len(whole_f)
+
+
+def test_a_turning_shank_is_found_in_material_wherever_its_exact_sweep_is():
+    """A turning cylinder (a shank or holder: flat, on its tip) against a line: the closed-form
+    bound that spares the search over its poses (the cylinder held at its first axis, grown by
+    what the turn moves) never hides material its exact sweep holds: the longest piece found is
+    the exact sweep's, on lines through material in random pieces."""
+    from meshmill.kernels.cpu_dexel import crv
+
+    rng = np.random.default_rng(3)
+    checked = found = 0
+    for _ in range(400):
+        R, F = rng.uniform(2.0, 16.0), rng.uniform(10.0, 40.0)
+        pa = rng.uniform(-3, 3, 3)
+        pb = pa + rng.normal(size=3) * rng.choice([0.0, 0.5, 3.0])
+        xa = rng.normal(size=3) + [0.0, 0.0, 2.0]
+        xa /= np.linalg.norm(xa)
+        k = np.cross(xa, rng.normal(size=3))
+        k /= np.linalg.norm(k)
+        turn = rng.uniform(0.0, 0.2)
+        xb = xa * math.cos(turn) + k * math.sin(turn)
+        # one line along w at (u0, v0) near the cylinder, material in a few random pieces
+        u0, v0 = pa[:2] + rng.uniform(-R - 8, R + 8, 2)
+        ends = np.sort(rng.uniform(-60, 60, 2 * rng.integers(1, 4)))
+        iv = ends.reshape(-1, 2).copy()
+        off, count = np.array([0, len(iv)]), np.array([len(iv)])
+        arrays = [a[None] for a in (pa, pb, xa, xb)] + [np.array([R]), np.array([0.0]), np.array([F]),
+                                                         np.array([1], np.int64)]
+        got = crv.touch_line(0, 0, u0, v0, -100.0, 100.0, iv, off, count, *arrays)
+        lo, hi = swp.tool_move(u0, v0, pa, pb, xa, xb, R, 0.0, F, 1)
+        exact = max([0.0] + [min(b, hi) - max(a, lo) for a, b in iv]) if lo < hi else 0.0
+        assert got == pytest.approx(exact, abs=1e-12), (got, exact)
+        checked += 1
+        found += exact > 0
+    assert found > 50 and checked - found > 50  # both kinds of lines were tried

@@ -213,6 +213,18 @@ def build(jit, inline=None):
         lo, hi = swp.tool_move(u0, v0, qa, qb, xa[m], xb[m], g, g, flutes[m] + 2.0 * g, strips[m])
         if lo >= hi or not material_outside(iv, base, n, lo, hi, 1.0, 0.0):
             return 0.0
+        turn = math.sqrt((xa[m, 0] - xb[m, 0]) ** 2 + (xa[m, 1] - xb[m, 1]) ** 2 + (xa[m, 2] - xb[m, 2]) ** 2)
+        if turn > 0.0:
+            # a turning cylinder's sweep is searched over its poses; it lies within the cylinder
+            # held at the first axis along the move (exact in closed form), grown by how far the
+            # turn moves any of its points from there: 2 asin(turn / 2) (F + R), the angle times
+            # the farthest point's distance from the tip
+            d = 2.0 * math.asin(min(1.0, 0.5 * turn)) * (flutes[m] + R) + 1e-9
+            qa = (pa[m, 0] - d * xa[m, 0], pa[m, 1] - d * xa[m, 1], pa[m, 2] - d * xa[m, 2])
+            qb = (pb[m, 0] - d * xa[m, 0], pb[m, 1] - d * xa[m, 1], pb[m, 2] - d * xa[m, 2])
+            lo, hi = swp.tool_move(u0, v0, qa, qb, xa[m], xa[m], R + d, corner[m], flutes[m] + 2.0 * d, 1)
+            if lo >= hi or not material_outside(iv, base, n, lo, hi, 1.0, 0.0):
+                return 0.0
         lo, hi = swp.tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], corner[m], flutes[m], strips[m])
         best = 0.0
         for k in range(base, base + n):
