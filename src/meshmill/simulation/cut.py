@@ -330,28 +330,6 @@ def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern) -> tuple:
     return kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves
 
 
-def _row_work(stock: Stock, a: int, prepared, strips) -> np.ndarray:
-    """``(rows,)``: the lines each tile row of direction ``a`` cuts, summed over its tiles' moves
-    (each move's box clipped to the tile), each times the move's ``strips (k,)`` (a turning ball's
-    sweep costs a strip's): the work the share done is told by."""
-    u, v = (a + 1) % 3, (a + 2) % 3
-    nu, nv, step = int(stock.n[u]), int(stock.n[v]), float(stock.step)
-    box, tile_start, tile_moves = prepared[1], prepared[8], prepared[9]
-    tv = -(-nv // TILE)
-    tile = np.repeat(np.arange(len(tile_start) - 1), np.diff(tile_start))
-    ti, tj = tile // tv, tile % tv
-    b = box[tile_moves]
-
-    def span(lo, hi, l0, first, n):
-        i0 = np.maximum(np.ceil((lo - l0) / step - 0.5), first)
-        i1 = np.minimum(np.floor((hi - l0) / step - 0.5), np.minimum(first + TILE, n) - 1)
-        return np.maximum(i1 - i0 + 1, 0)
-
-    lines = span(b[:, 0], b[:, 1], float(stock.lo[u]), ti * TILE, nu) * span(b[:, 2], b[:, 3], float(stock.lo[v]),
-                                                                              tj * TILE, nv)
-    return np.bincount(ti, weights=lines * strips[tile_moves], minlength=-(-nu // TILE))
-
-
 def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=None, prepared=None,
                    alone: bool = True, probe=None, load=None) -> None:
     """Cut the lines along ``a`` (those of the tile rows ``rows = (first, stop)`` along the axis
@@ -417,7 +395,9 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None, l
     else:
         kern = DexelKernels(device)
         prepared = [_direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern) for a in range(3)]
-        work = [_row_work(stock, a, prepared[a], moves.strips) for a in range(3)]
+        # the work of each tile row: the moves binned in its tiles
+        work = [np.diff(p[8]).reshape(-(-int(stock.n[(a + 1) % 3]) // TILE), -1).sum(axis=1)
+                for a, p in enumerate(prepared)]
         # the three directions in blocks of tile rows (tiles are independent), the share done and
         # the time left told over all of them
         meter = Meter(progress, "cutting lines along X, Y and Z", sum(1.0 + w.sum() for w in work))
