@@ -156,3 +156,66 @@ def test_a_shank_bottom_exactly_on_a_face_is_seen(drop, limit, clear):
     ok = kern.intervals_clear(ta, up, tb, up, np.zeros(1, np.int64), np.zeros(1), np.full(1, limit), rings,
                               (t0, t1, r), t0)
     assert ok[0] == clear
+
+
+def _patch_call():
+    import numba
+
+    @numba.njit
+    def call(ta, ua, tb, ub, h0, h1, need, node_lo, node_hi, node_child, node_range, tris):
+        w = np.empty(cpu.WORK_SIZE)
+        stack = np.empty(128, np.int32)
+        return cpu.clr.patch_clear(w, ta, ua, tb, ub, h0, h1, need, node_lo, node_hi, node_child, node_range, tris,
+                                   stack)
+    return call
+
+
+def test_a_swept_axis_segment_is_proven_clear_only_where_every_point_of_its_patch_is():
+    """The tetrahedron test of a segment of the axis swept between two poses against the bilinear
+    patch it bounds, sampled densely (the patch's distance is what a ball and its flutes sweep),
+    on soups of random triangles."""
+    from meshmill.kernels.bvh import build_bvh
+
+    call = _patch_call()
+    rng = np.random.default_rng(7)
+    s = np.linspace(0.0, 1.0, 81)
+    proven = doubted = 0
+    for case in range(80):
+        v = rng.uniform(-6, 6, (12, 3))
+        f = np.array([rng.permutation(12)[:3] for _ in range(8)])
+        bvh = build_bvh(v, f).arrays
+        ta = rng.uniform(-3, 3, 3)
+        tb = ta + rng.normal(scale=1.0, size=3)
+        ua = rng.normal(size=3)
+        ua /= np.linalg.norm(ua)
+        ub = ua + rng.normal(scale=0.4, size=3) * (case % 2)
+        ub /= np.linalg.norm(ub)
+        h0, h1 = 1.0, rng.uniform(2, 8)
+        # the patch, densely: (1 - t)(ta + h ua) + t (tb + h ub)
+        tt, hh = np.meshgrid(s, h0 + s * (h1 - h0), indexing="ij")
+        pts = ((1 - tt)[..., None] * (ta + hh[..., None] * ua) + tt[..., None] * (tb + hh[..., None] * ub))
+        ref = cpu.mesh_distances(pts.reshape(-1, 3), bvh).min()
+        step = (np.linalg.norm(tb - ta) + (h1 - h0) * (1 + np.linalg.norm(ub - ua))) / 80
+        for need in (0.5 * ref, ref - step, ref + 0.05, 2 * ref + 0.1):
+            if need <= 0:
+                continue
+            ok = call(ta, ua, tb, ub, h0, h1, need, *bvh)
+            assert not ok or ref >= need - 1e-9, (case, need, ref)
+            proven += ok
+            doubted += not ok
+            if need <= ref - step and case % 2 == 0:
+                assert ok, (case, need, ref)  # a fixed axis: the patch is its own hull, the test exact
+    assert proven > 60 and doubted > 60, (proven, doubted)
+
+
+def test_a_triangle_wholly_inside_the_swept_hull_is_found():
+    from meshmill.kernels.bvh import build_bvh
+
+    call = _patch_call()
+    ta, tb = np.zeros(3), np.array([4.0, 0, 0])
+    ua, ub = np.array([0, 0, 1.0]), np.array([0, 1.0, 0])  # a quarter turn: a fat tetrahedron
+    corners = np.array([ta + ua, ta + 6 * ua, tb + ub, tb + 6 * ub])
+    tri = corners.mean(axis=0) + 0.05 * np.eye(3)
+    assert not call(ta, ua, tb, ub, 1.0, 6.0, 0.01, *build_bvh(tri, np.array([[0, 1, 2]])).arrays)
+    far = tri + np.array([0, 0, 40.0])
+    assert call(ta, ua, tb, ub, 1.0, 6.0, 0.01, *build_bvh(far, np.array([[0, 1, 2]])).arrays)

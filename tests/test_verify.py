@@ -273,10 +273,10 @@ def test_the_first_point_is_proven_and_never_taken_for_a_move_of_length_zero():
         assert check(tp) == whole
 
 
-def test_a_move_whose_axis_stays_put_is_certified_in_one_test_and_still_halved_where_it_must():
+def test_a_move_is_certified_in_one_test_and_still_halved_where_it_must():
     """A straight move with a fixed axis is proven whole (one certified interval over 100 poses);
     a ridge under it that none of its poses see is found all the same (the whole test fails and is
-    halved), and a turning axis keeps one test per interval."""
+    halved); a move whose axis turns is proven whole too."""
     from meshmill.kernels.backend import solid_kernels
     from meshmill.pathing.verify import StockCheck, verify_moves
 
@@ -289,7 +289,15 @@ def test_a_move_whose_axis_stays_put_is_certified_in_one_test_and_still_halved_w
     low = _path([[-5.05, 0, 10 - 0.001 * np.sqrt(2) - 0.0004], [4.95, 0, 10 - 0.001 * np.sqrt(2) - 0.0004]])
     r = verify_toolpath(_ridge(), low, [ball], tol=0.0005, step=0.1)
     assert not r["ok"] and r["gouging_moves"] == 1 and r["poses_refined"] > 0
+    # a turning axis too: proven whole where that holds, and between its poses where it does not
     turn = np.array([0.0, np.sin(0.01), np.cos(0.01)])
     tilted = _path([[-5, 0, 10.5], [5, 0, 10.5]], axes=[UP, turn])
     fig = verify_moves(kern, tilted, [ball], 0.001, 0.1, StockCheck())["figures"]
-    assert fig["certified"][list(fig["move"]).index(1)] >= 100
+    assert fig["certified"][list(fig["move"]).index(1)] == 1
+    low_turn = _path([[-5.05, 0, 10 - 0.001 * np.sqrt(2) - 0.0004], [4.95, 0, 10 - 0.001 * np.sqrt(2) - 0.0004]],
+                     axes=[UP, turn])
+    r = verify_toolpath(_ridge(), low_turn, [ball], tol=0.0005, step=0.1)
+    assert not r["ok"] and r["gouging_moves"] == 1
+    near = _path([[-5.05, 0, 10.02], [4.95, 0, 10.02]], axes=[UP, turn])  # the ball 0.02 mm over the apex
+    fig = verify_moves(kern, near, [ball], 0.001, 0.1, StockCheck())["figures"]
+    assert fig["certified"][list(fig["move"]).index(1)] >= 1

@@ -51,6 +51,7 @@ _TRI_B = _TRI_A + 9
 _POLY = _TRI_B + 9  # up to 5 clipped points (h, x, y), twice
 _POLY_B = _POLY + 15
 _SUB = _POLY_B + 15  # the tips of a piece of a fixed-axis interval (6)
+_HULL = _TRI_A  # a tetrahedron's four faces (36) then its corners (12), over the triangles and polygons
 SPLIT_SHARE = 0.25  # a fixed-axis interval is cut so that each piece moves along the axis by at most
 MAX_SPLIT = 16  # this share of the limit (at most this many pieces; see cylinder_clear)
 
@@ -490,6 +491,148 @@ def build(jit):
         return mesh_tris_dist2(w, need2, need2, node_lo, node_hi, node_child, node_range, tris, stack) >= need2
 
     @jit
+    def in_tetra(px, py, pz, w, o):
+        """Whether p lies in the tetrahedron of the four corners ``w[o:o+12]`` (or on its boundary;
+        a flat one holds what its signed volumes, all near 0, happen to say)."""
+        pos = False
+        neg = False
+        for k in range(4):
+            # the volume with corner k replaced by p, against the others in order
+            ax = px if k == 0 else w[o]
+            ay = py if k == 0 else w[o + 1]
+            az = pz if k == 0 else w[o + 2]
+            bx = px if k == 1 else w[o + 3]
+            by = py if k == 1 else w[o + 4]
+            bz = pz if k == 1 else w[o + 5]
+            cx = px if k == 2 else w[o + 6]
+            cy = py if k == 2 else w[o + 7]
+            cz = pz if k == 2 else w[o + 8]
+            dx = px if k == 3 else w[o + 9]
+            dy = py if k == 3 else w[o + 10]
+            dz = pz if k == 3 else w[o + 11]
+            ux, uy, uz = bx - ax, by - ay, bz - az
+            vx, vy, vz = cx - ax, cy - ay, cz - az
+            wx, wy, wz = dx - ax, dy - ay, dz - az
+            v = ux * (vy * wz - vz * wy) + uy * (vz * wx - vx * wz) + uz * (vx * wy - vy * wx)
+            if v > 0.0:
+                pos = True
+            elif v < 0.0:
+                neg = True
+        return not (pos and neg)
+
+    @jit
+    def hull_reach(q, best):
+        # the query: the work array holding the hull, the segment a-b between the middles of its
+        # two sides (a, b, unit u, length, middle m, pad: half the length and rounding) and how far
+        # the hull strays from that segment (``spread``): no point of it is farther, so a triangle
+        # farther than r + spread from the segment, or than that plus pad from m, is farther than r
+        r = math.sqrt(best)
+        rr = r * (1.0 + 1e-12) + q[15]
+        return r, rr, (rr + q[14]) ** 2
+
+    @jit
+    def hull_box(q, node_lo, node_hi, n, best, reach):
+        w, ax, ay, az, bx, by, bz, ux, uy, uz, length, mx, my, mz, pad, spread = q
+        rr = reach[1]
+        return 0.0 if g.box_near_segment(node_lo, node_hi, n, ax, ay, az, bx, by, bz, rr, rr, rr, rr) else best
+
+    @jit
+    def hull_leaf(q, tris, t, best, reach):
+        w, ax, ay, az, bx, by, bz, ux, uy, uz, length, mx, my, mz, pad, spread = q
+        r = reach[0]
+        # the hull wholly beyond r on one side of the triangle's plane (a facet along the tool)
+        e1x = tris[t, 3] - tris[t, 0]
+        e1y = tris[t, 4] - tris[t, 1]
+        e1z = tris[t, 5] - tris[t, 2]
+        e2x = tris[t, 6] - tris[t, 0]
+        e2y = tris[t, 7] - tris[t, 1]
+        e2z = tris[t, 8] - tris[t, 2]
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
+        nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if nn > 0.0:
+            lo = INF
+            hi = -INF
+            for k in range(4):
+                o = _HULL + 36 + 3 * k
+                sd = ((w[o] - tris[t, 0]) * nx + (w[o + 1] - tris[t, 1]) * ny + (w[o + 2] - tris[t, 2]) * nz) / nn
+                lo = min(lo, sd)
+                hi = max(hi, sd)
+            # (rounding of coordinates this large)
+            slack = 1e-12 * (1.0 + abs(tris[t, 0]) + abs(tris[t, 1]) + abs(tris[t, 2]) + abs(mx) + abs(my)
+                             + abs(mz) + pad)
+            if lo >= r + slack or hi <= -r - slack:
+                return best
+        # cheap bounds: the middle of the segment, then the segment
+        if point_tri(mx, my, mz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5], tris[t, 6],
+                     tris[t, 7], tris[t, 8]) > reach[2]:
+            return best
+        d = axis_dist(tris, t, ax, ay, az, ux, uy, uz, 0.0, length)
+        d = min(d, point_tri(ax, ay, az, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
+                             tris[t, 6], tris[t, 7], tris[t, 8]))
+        d = min(d, point_tri(bx, by, bz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
+                             tris[t, 6], tris[t, 7], tris[t, 8]))
+        if d > reach[1] * reach[1]:
+            return best
+        d = best
+        for f in range(4):
+            d = min(d, tri_tri_dist2(w, _HULL + 9 * f, tris, t))
+            if d <= 0.0:
+                return 0.0
+        # no face meets the triangle: it is out of the hull, or wholly in it
+        if in_tetra(tris[t, 0], tris[t, 1], tris[t, 2], w, _HULL + 36):
+            return 0.0
+        return d
+
+    hull_search = bvh_search(jit, hull_box, hull_leaf, reach_of=hull_reach)
+
+    @jit
+    def patch_clear(w, ta, ua, tb, ub, h0, h1, need, node_lo, node_hi, node_child, node_range, tris, stack):
+        """Whether the segment [h0, h1] of the axis, swept from pose a to pose b (tips ``ta, tb``,
+        unit axes ``ua, ub``: 3-arrays) as the bilinear patch of its two positions, keeps ``need``
+        mm from the mesh: the patch lies in the tetrahedron of its four corners (each of its points
+        a convex combination of them), whose distance to a triangle is exact (its faces, and the
+        triangle wholly inside)."""
+        if need <= 0.0:
+            return True
+        for k in range(3):
+            w[_HULL + 36 + k] = ta[k] + h0 * ua[k]
+            w[_HULL + 39 + k] = ta[k] + h1 * ua[k]
+            w[_HULL + 42 + k] = tb[k] + h0 * ub[k]
+            w[_HULL + 45 + k] = tb[k] + h1 * ub[k]
+        for f in range(4):  # faces (0 1 2) (0 1 3) (0 2 3) (1 2 3): face f leaves corner 3 - f out
+            for j in range(3):
+                c = j + (1 if j >= 3 - f else 0)
+                for k in range(3):
+                    w[_HULL + 9 * f + 3 * j + k] = w[_HULL + 36 + 3 * c + k]
+        # the segment between the middles of the sides a0-b0 and a1-b1; every corner lies within
+        # half its side's length of it, so the hull does
+        o = _HULL + 36
+        ax = 0.5 * (w[o] + w[o + 6])
+        ay = 0.5 * (w[o + 1] + w[o + 7])
+        az = 0.5 * (w[o + 2] + w[o + 8])
+        bx = 0.5 * (w[o + 3] + w[o + 9])
+        by = 0.5 * (w[o + 4] + w[o + 10])
+        bz = 0.5 * (w[o + 5] + w[o + 11])
+        s0 = 0.5 * math.sqrt((w[o + 6] - w[o]) ** 2 + (w[o + 7] - w[o + 1]) ** 2 + (w[o + 8] - w[o + 2]) ** 2)
+        s1 = 0.5 * math.sqrt((w[o + 9] - w[o + 3]) ** 2 + (w[o + 10] - w[o + 4]) ** 2 + (w[o + 11] - w[o + 5]) ** 2)
+        dx = bx - ax
+        dy = by - ay
+        dz = bz - az
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if length <= 1e-12:
+            return False
+        mx = ax + 0.5 * dx
+        my = ay + 0.5 * dy
+        mz = az + 0.5 * dz
+        pad = 0.5 * length + 1e-12 * (1.0 + abs(mx) + abs(my) + abs(mz))
+        spread = max(s0, s1) * (1.0 + 1e-12) + 1e-12 * (1.0 + abs(mx) + abs(my) + abs(mz))
+        q = (w, ax, ay, az, bx, by, bz, dx / length, dy / length, dz / length, length, mx, my, mz, pad, spread)
+        need2 = need * need
+        return hull_search(q, need2, need2, node_lo, node_hi, node_child, node_range, tris, stack)[0] >= need2
+
+    @jit
     def ring_clear(ta, ua, tb, ub, t_ring, rho, r, limit, node_lo, node_hi, node_child, node_range, tris, stack, w):
         """Whether the rounded end (``r`` already grown) keeps within ``limit`` between poses a and b
         (tips ``ta, tb``, unit axes ``ua, ub``: 3-arrays)."""
@@ -664,11 +807,22 @@ def build(jit):
         t = tool[i]
         g_i = grow[i]
         lim = limit[i]
-        if ring_r[t] > 0.0:
+        first = 0
+        if g_i == 0.0 and ring_rho[t] <= 0.0 and ring_r[t] > 0.0 and seg_r[t, 0] > 0.0 \
+                and seg_t0[t, 0] == ring_t[t] and seg_r[t, 0] <= ring_r[t]:
+            # a ball and its flutes: within the ball's radius of the axis from its centre to the
+            # flutes' top, swept (its points off the bilinear patch by at most t1 (1 - cos(theta/2)))
+            cth = min(1.0, max(-1.0, axis_a[i, 0] * axis_b[i, 0] + axis_a[i, 1] * axis_b[i, 1]
+                               + axis_a[i, 2] * axis_b[i, 2]))
+            dev = seg_t1[t, 0] * (1.0 - math.sqrt(0.5 * (1.0 + cth)))
+            if patch_clear(w, tip_a[i], axis_a[i], tip_b[i], axis_b[i], ring_t[t], seg_t1[t, 0],
+                           ring_r[t] + dev - lim, node_lo, node_hi, node_child, node_range, tris, stack):
+                first = 1
+        if first == 0 and ring_r[t] > 0.0:
             if not ring_clear(tip_a[i], axis_a[i], tip_b[i], axis_b[i], ring_t[t], ring_rho[t], ring_r[t] + g_i, lim,
                               node_lo, node_hi, node_child, node_range, tris, stack, w):
                 return False
-        for k in range(seg_r.shape[1]):
+        for k in range(first, seg_r.shape[1]):
             r = seg_r[t, k]
             if r <= 0.0:
                 break
@@ -755,4 +909,5 @@ def build(jit):
     return namespace(seg_seg_dist2=seg_seg_dist2, tri_tri_dist2=tri_tri_dist2, mesh_tris_dist2=mesh_tris_dist2,
                      mesh_segment_dist2=mesh_segment_dist2, seg2d_dist2=seg2d_dist2, stadium_tri_dist2=stadium_tri_dist2,
                      mesh_stadium_dist2=mesh_stadium_dist2, inside=inside, ring_clear=ring_clear,
+                     patch_clear=patch_clear, in_tetra=in_tetra,
                      cylinder_clear=cylinder_clear, interval_clear=interval_clear, pose_depth=pose_depth)

@@ -14,6 +14,9 @@ whole path still flags is not tried again for that pass.
 """
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 from ..toolpath.model import Toolpath
@@ -314,7 +317,8 @@ def merged_points(passes, tip, axis, reach, tolerance: float) -> list:
     out = []
     for ps in passes:
         idx = np.asarray(ps["idx"])
-        keep = _kept(tip[idx], axis[idx], float(reach[ps["tool"]]), tolerance) if len(idx) > 2 else None
+        keep = _kept(np.ascontiguousarray(tip[idx], np.float64), np.ascontiguousarray(axis[idx], np.float64),
+                      float(reach[ps["tool"]]), float(tolerance)) if len(idx) > 2 else None
         if keep is None or keep.all():
             out.append(ps)
             continue
@@ -322,29 +326,56 @@ def merged_points(passes, tip, axis, reach, tolerance: float) -> list:
     return out
 
 
+@numba.njit(cache=True)
 def _kept(p, u, reach: float, tol: float) -> np.ndarray:
     """``(k,) bool``: the points of one pass (tips ``p``, axes ``u`` (k, 3)) Douglas-Peucker keeps
     within ``tol`` (:func:`merged_points`)."""
-    keep = np.zeros(len(p), bool)
-    keep[[0, -1]] = True
-    stack = [(0, len(p) - 1)]
-    while stack:
-        a, b = stack.pop()
+    n = p.shape[0]
+    keep = np.zeros(n, np.bool_)
+    keep[0] = True
+    keep[n - 1] = True
+    stack = np.empty((max(n, 2), 2), np.int64)
+    stack[0, 0] = 0
+    stack[0, 1] = n - 1
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        a = stack[sp, 0]
+        b = stack[sp, 1]
         if b - a < 2:
             continue
-        inner = np.arange(a + 1, b)
-        d = p[b] - p[a]
-        dd = float(d @ d)
-        t = np.clip((p[inner] - p[a]) @ d / dd, 0.0, 1.0) if dd > 0 else np.zeros(len(inner))
-        off = np.linalg.norm(p[inner] - (p[a] + t[:, None] * d), axis=1)
-        mid = (1.0 - t)[:, None] * u[a] + t[:, None] * u[b]
-        mid /= np.maximum(np.linalg.norm(mid, axis=1, keepdims=True), 1e-12)
-        turn = np.arccos(np.clip(np.einsum("ij,ij->i", mid, u[inner]), -1.0, 1.0))
-        err = off + reach * turn
-        k = int(np.argmax(err))
-        if err[k] > tol:
-            keep[inner[k]] = True
-            stack += [(a, inner[k]), (inner[k], b)]
+        dx = p[b, 0] - p[a, 0]
+        dy = p[b, 1] - p[a, 1]
+        dz = p[b, 2] - p[a, 2]
+        dd = dx * dx + dy * dy + dz * dz
+        worst = -1.0
+        k = a + 1
+        for i in range(a + 1, b):
+            ex = p[i, 0] - p[a, 0]
+            ey = p[i, 1] - p[a, 1]
+            ez = p[i, 2] - p[a, 2]
+            t = 0.0
+            if dd > 0.0:
+                t = min(1.0, max(0.0, (ex * dx + ey * dy + ez * dz) / dd))
+            ox = ex - t * dx
+            oy = ey - t * dy
+            oz = ez - t * dz
+            mx = (1.0 - t) * u[a, 0] + t * u[b, 0]
+            my = (1.0 - t) * u[a, 1] + t * u[b, 1]
+            mz = (1.0 - t) * u[a, 2] + t * u[b, 2]
+            mn = max(math.sqrt(mx * mx + my * my + mz * mz), 1e-12)
+            c = (mx * u[i, 0] + my * u[i, 1] + mz * u[i, 2]) / mn
+            err = math.sqrt(ox * ox + oy * oy + oz * oz) + reach * math.acos(min(1.0, max(-1.0, c)))
+            if err > worst:
+                worst = err
+                k = i
+        if worst > tol:
+            keep[k] = True
+            stack[sp, 0] = a
+            stack[sp, 1] = k
+            stack[sp + 1, 0] = k
+            stack[sp + 1, 1] = b
+            sp += 2
     return keep
 
 

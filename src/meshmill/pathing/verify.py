@@ -368,26 +368,30 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     poses = [(tip, tool, move, rapid, end, body, ring, segs, in_stock)]
     bad_move = np.zeros(len(tp), bool)
     bad_move[move[(end > tol) | (body > tol)]] = True
-    # the intervals between neighbouring poses of each move (the first pose of a move starts at the
-    # previous move's last pose), unless the move already failed or is not checked; the path's
-    # first point, a move of length zero, is proven at its pose as one too (its measure samples a
-    # rounded end's circle, the proof covers it)
-    # A move whose axis stays put is proven whole, from the last pose of the move before to its
-    # own last (its proof is exact at any length; its poses between are measured all the same)
+    # Every move is first proven whole, from the last pose of the move before to its own last (a
+    # proof holds at any length; the poses between are measured all the same, for the depths
+    # reported), unless it already failed or is not checked; the path's first point, a move of
+    # length zero, is proven at its pose as one too (its measure samples a rounded end's circle,
+    # the proof covers it). A move whose axis turns and whose whole proof fails is then proven
+    # between its neighbouring poses (its first pose from the move before's last); the rest halve.
     ib = np.arange(1, len(tip))
     if move[0] == 0 and checked[0]:
         ib = np.r_[0, ib]
     run_start = np.searchsorted(move, move)  # each pose's move's first pose (poses go in move order)
-    fixed = _fixed_axis(tp)
-    ib = ib[~fixed[move[ib]] | (frac[ib] == 1.0)]
-    whole = fixed[move[ib]]
-    ia = np.maximum(np.where(whole, run_start[ib] - 1, ib - 1), 0)
-    keep = ~bad_move[move[ib]] & checked[move[ib]]
-    ta, xa, fa = tip[ia][keep], axis[ia][keep], np.zeros(keep.sum())
-    fa[:] = np.where(move[ia][keep] == move[ib][keep], frac[ia][keep], 0.0)
-    tb, xb, fb = tip[ib][keep], axis[ib][keep], frac[ib][keep]
-    im, it, ir = move[ib][keep], tool[ib][keep], rapid[ib][keep]
+    last = ib[(frac[ib] == 1.0) & ~bad_move[move[ib]] & checked[move[ib]]]
+    first_a = np.maximum(run_start[last] - 1, 0)
     certified = np.zeros(len(tp), np.int64)
+    ok = meas.clear(tip[first_a], axis[first_a], tip[last], axis[last], tool[last], rapid[last])
+    certified += np.bincount(move[last[ok]], minlength=len(tp))
+    fixed = _fixed_axis(tp)
+    fail = np.zeros(len(tp), bool)
+    fail[move[last[~ok]]] = True
+    apart = fail & ~fixed & (np.bincount(move, minlength=len(tp)) > 1)  # proven between its poses
+    ib = ib[fail[move[ib]] & (apart[move[ib]] | (frac[ib] == 1.0))]
+    ia = np.maximum(np.where(apart[move[ib]], ib - 1, run_start[ib] - 1), 0)
+    ta, xa, fa = tip[ia], axis[ia], np.where(move[ia] == move[ib], frac[ia], 0.0)
+    tb, xb, fb = tip[ib], axis[ib], frac[ib]
+    im, it, ir = move[ib], tool[ib], rapid[ib]
     unresolved = []  # (move, tip, bound) of intervals too short to halve that stay unproven
     for _ in range(MAX_ROUNDS):
         if len(im) == 0:
