@@ -274,6 +274,35 @@ def test_five_axis_turning_tool_cuts_a_block():
     assert swept == pytest.approx(d.volume - st2.to_model().volume, rel=1e-3)
 
 
+def test_the_cut_does_not_depend_on_combs_of_rows_or_on_lines_running_out_of_room(monkeypatch):
+    """A few tiles are cut in combs of rows over the threads, and a line that runs out of room is
+    grown and cut again alone: the stock, the hits and the loads are those of whole tiles with
+    room to spare."""
+    from meshmill.kernels import cpu_dexel
+    from meshmill.simulation import cut as cutting
+
+    d = dexelize(box((0, 0, 0), (30, 20, 10)), 0.25)
+    tips = np.array([[0.0, 10, 8.5], [30.0, 10, 8.5], [30.0, 4, 7.0], [0.0, 16, 9.5], [15.0, 10, 6.0]])
+    ang = np.radians([0.0, 30.0, 10.0, 0.0, 20.0])
+    axes = np.column_stack([np.sin(ang), np.zeros(5), np.cos(ang)])
+    tp = Toolpath(tips, axes, np.array([True, False, False, False, False]), np.zeros(5, int))
+    moves = toolpath_moves(tp, [BALL])
+    runs = []
+    for spread, slack in ((0, 2), (10 ** 6, 2), (0, 0), (10 ** 6, 0)):
+        monkeypatch.setattr(cpu_dexel, "SPREAD", spread)  # 0: whole tiles; huge: combs of single rows
+        monkeypatch.setattr(cutting, "SLACK", slack)  # 0: every line that gains an interval overflows
+        st = stock_from_model(d)
+        res = cut(st, moves, load=len(tp))
+        runs.append((st.to_model(), res))
+    (m0, r0) = runs[0]
+    for m, r in runs[1:]:
+        assert r["in_material"].tolist() == r0["in_material"].tolist() and r["rapid_cuts"] == r0["rapid_cuts"]
+        assert np.allclose(r["load"].volume, r0["load"].volume, rtol=1e-12, atol=1e-12)
+        for k in range(3):
+            assert np.array_equal(m.start[k], m0.start[k]) and np.array_equal(m.iv[k], m0.iv[k]), k
+    assert sum(len(v) for v in m0.iv) > sum(len(v) for v in d.iv)  # the moves split dexels: lines grew
+
+
 def test_machined_mesh_is_watertight_and_keeps_the_volume():
     d = dexelize(box((0, 0, 0), (20, 10, 10)), 0.2)
     pts = np.array([[-5, 5, 7.0], [25, 5, 7.0]])

@@ -145,45 +145,64 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
     return chord, plane
 
 
-@numba.njit(parallel=True, cache=True)
+SPREAD = 16  # work items a thread is given at least: a call with fewer tiles cuts them in combs of rows
+
+
 def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
               pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit,
-              overflow, row0, probe, load):
+              todo, redo, row0, probe, load):
     """Cut the lines of the given ``tiles`` with their moves, in move order within each line.
 
     Moves as in :mod:`meshmill.kernels.carve`, ``box (k, 6)`` their bounds, ``kind (k,)`` bits
     :data:`~meshmill.kernels.carve.RAPID` and :data:`~meshmill.kernels.carve.BODY`. Sets ``hit[m]``
     when a move removes more than ``hit_min`` mm of a dexel (a rapid that cuts; a feed move in
     material, not in air) or a body move (shank, holder: it removes nothing) meets that much
-    material, and ``overflow[t]`` when a line of tile t ran out of room: the tile stops there, so
-    rerunning it after growing the line is exact (removal is idempotent, and moves before the stop
-    saw the material in path order). ``iv, off, count`` may hold the lines from row ``row0`` on
-    only (a block of rows: the tiles given must lie in it). With ``probe (k, 6)`` (each move's
-    axis and unit vector across its feed in the line frame; ``(0, 6)``: not measured), ``load (T,
-    k, 5)`` gathers per thread and move the length removed from these lines, the highest point
-    along the axis, the extent across the feed and the lowest point along the axis of what it
-    removed (see :mod:`meshmill.
-    simulation.load`)."""
+    material, and ``redo[line]`` when a line ran out of room: the line stops there (the others go
+    on), so cutting it again after growing it is exact (removal is idempotent, and moves before
+    the stop saw the material in path order). ``todo (lines,) uint8``: the lines to cut (those
+    set; empty: every line of the tiles). ``iv, off, count`` may hold the lines from row ``row0``
+    on only (a block of rows: the tiles given must lie in it; ``todo`` and ``redo`` are
+    numbered as ``count``). With ``probe (k, 6)`` (each move's axis and unit vector across its
+    feed in the line frame; ``(0, 6)``: not measured), ``load (T, k, 5)`` gathers per thread and
+    move the length removed from these lines, the highest point along the axis, the extent
+    across the feed and the lowest point along the axis of what it removed (see
+    :mod:`meshmill.simulation.load`). A few tiles are cut in combs of their rows (every ``split``-th row,
+    each line in one comb, its moves still in order), so that every thread has work to the end."""
+    split = 1
+    while split < TILE and len(tiles) * split < SPREAD * numba.get_num_threads():
+        split *= 2
+    _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb, radius, corner,
+               flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo, row0, probe, load, split)
+
+
+@numba.njit(parallel=True, cache=True)
+def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
+               pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit,
+               todo, redo, row0, probe, load, split):
     tv = (nv + TILE - 1) // TILE
     measure = probe.shape[0] > 0
-    for q in prange(tiles.shape[0]):
+    nt = tiles.shape[0]
+    some = todo.shape[0] > 0
+    for q in prange(nt * split):
         me = numba.get_thread_id() if measure else 0
-        t = tiles[q]
+        t = tiles[q % nt]  # the combs of a tile apart in the range, so on different threads
         ti = t // tv
         tj = t % tv
+        comb = q // nt  # the rows i = comb (mod split)
         for s in range(tile_start[t], tile_start[t + 1]):
-            if overflow[t]:
-                break  # the tile stops at the move that overflowed; it is run again with more room
             m = tile_moves[s]
             i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)
             i0 = max(i0, ti * TILE)
+            i0 += (comb - i0) % split
             i1 = min(i1, ti * TILE + TILE - 1)
             j0 = max(j0, tj * TILE)
             j1 = min(j1, tj * TILE + TILE - 1)
-            for i in range(i0, i1 + 1):
+            for i in range(i0, i1 + 1, split):
                 u0 = lu + (i + 0.5) * step
                 for j in range(j0, j1 + 1):
                     line = (i - row0) * nv + j
+                    if redo[line] or (some and not todo[line]):
+                        continue
                     if kind[m] & BODY:
                         if not hit[m] and crv.touch_line(m, line, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5],
                                                          iv, off, count, pa, pb, xa, xb, radius, corner, flutes,
@@ -195,8 +214,7 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
                                                         pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane,
                                                         measure)
                     if removed < 0.0:
-                        overflow[t] = 1
-                        break
+                        redo[line] = 1
                     elif removed > hit_min:
                         hit[m] = 1
                         if measure:

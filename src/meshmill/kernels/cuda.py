@@ -279,12 +279,12 @@ def _move_constants(pa, pb, xa, xb, corner, flutes, chord, plane):
 
 @cuda.jit
 def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb, radius, corner,
-               flutes, strips, chord, plane, box, kind, hit_min, hit, overflow, row0, probe, load):
+               flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo, row0, probe, load):
     t = tiles[cuda.blockIdx.x]
     tv = (nv + TILE - 1) // TILE
     i = (t // tv) * TILE + cuda.threadIdx.x // TILE
     j = (t % tv) * TILE + cuda.threadIdx.x % TILE
-    if i >= nu or j >= nv:
+    if i >= nu or j >= nv or (todo.shape[0] > 0 and not todo[(i - row0) * nv + j]):
         return
     u0 = lu + (i + 0.5) * step
     v0 = lv + (j + 0.5) * step
@@ -302,7 +302,7 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_mov
         removed, first, last = crv.cut_line(m, (i - row0) * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa,
                                             pb, xa, xb, radius, corner, flutes, strips, chord, plane, measure)
         if removed < 0.0:
-            overflow[t] = 1
+            redo[(i - row0) * nv + j] = 1
             return
         if removed > hit_min:  # a rapid that cuts, or a feed move in material
             hit[m] = 1
@@ -325,25 +325,25 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
 
 
 def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
-              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, overflow, row0,
-              probe, load):
+              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo,
+              row0, probe, load):
     """As :func:`meshmill.kernels.cpu_dexel.cut_tiles` (host arrays updated in place): one block per
     tile, one thread per line, each line cut by the tile's moves in path order. A line that runs out
-    of room stops and flags its tile; the others go on (removal is idempotent, so the rerun of
-    the tile after growing the line is exact)."""
+    of room stops and is flagged in ``redo``; the others go on (removal is idempotent, so cutting
+    it again after growing it is exact)."""
     if len(tiles) == 0:
         return
     d_iv, d_count = _d(iv), _d(count, np.int64)
-    d_hit, d_over = _d(hit, np.uint8), _d(overflow, np.uint8)
+    d_hit, d_redo = _d(hit, np.uint8), _d(redo, np.uint8)
     d_load = _d(load)
     _cut_tiles[len(tiles), TILE * TILE](float(lu), float(lv), float(step), int(nu), int(nv), d_iv,
                                         _d(off, np.int64), d_count, _d(tiles, np.int64), _d(tile_start, np.int64),
                                         _d(tile_moves, np.int64), _d(pa), _d(pb), _d(xa), _d(xb), _d(radius),
                                         _d(corner), _d(flutes), _d(strips, np.int64), _d(chord), _d(plane), _d(box),
-                                        _d(kind, np.uint8), float(hit_min), d_hit, d_over, int(row0), _d(probe),
+                                        _d(kind, np.uint8), float(hit_min), d_hit, _d(todo, np.uint8), d_redo, int(row0), _d(probe),
                                         d_load)
     load[...] = d_load.copy_to_host()
     iv[...] = d_iv.copy_to_host()
     count[...] = d_count.copy_to_host()
     hit[...] = d_hit.copy_to_host()
-    overflow[...] = d_over.copy_to_host()
+    redo[...] = d_redo.copy_to_host()

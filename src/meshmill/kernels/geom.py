@@ -408,7 +408,9 @@ def build(jit):
     def box_near_segment(node_lo, node_hi, n, ax, ay, az, bx, by, bz, ex, ey, ez, r):
         """False only when box n certainly lies farther than r from segment a-b: farther than
         (ex, ey, ez) along x, y or z from the segment's box (at most r each), or than r from the
-        segment by its bounding sphere."""
+        segment across the plane through the segment's point s nearest the box's centre c, square
+        to c - s (the segment lies on the far side of that plane, the box within its extent along
+        c - s of c)."""
         if node_lo[n, 0] > max(ax, bx) + ex or node_hi[n, 0] < min(ax, bx) - ex:
             return False
         if node_lo[n, 1] > max(ay, by) + ey or node_hi[n, 1] < min(ay, by) - ey:
@@ -421,8 +423,27 @@ def build(jit):
         hx = 0.5 * (node_hi[n, 0] - node_lo[n, 0])
         hy = 0.5 * (node_hi[n, 1] - node_lo[n, 1])
         hz = 0.5 * (node_hi[n, 2] - node_lo[n, 2])
-        reach = r + math.sqrt(hx * hx + hy * hy + hz * hz)
-        return point_segment_dist2(cx, cy, cz, ax, ay, az, bx, by, bz) <= reach * reach
+        dx = bx - ax
+        dy = by - ay
+        dz = bz - az
+        wx = cx - ax
+        wy = cy - ay
+        wz = cz - az
+        dd = dx * dx + dy * dy + dz * dz
+        s = 0.0
+        if dd > 0.0:
+            s = min(1.0, max(0.0, (wx * dx + wy * dy + wz * dz) / dd))
+        wx -= s * dx
+        wy -= s * dy
+        wz -= s * dz
+        dist = math.sqrt(wx * wx + wy * wy + wz * wz)
+        if dist <= r:
+            return True
+        extent = (hx * abs(wx) + hy * abs(wy) + hz * abs(wz)) / dist
+        # (rounding of coordinates this large)
+        slack = 1e-12 * (1.0 + abs(cx) + abs(cy) + abs(cz) + hx + hy + hz + abs(ax) + abs(ay) + abs(az) + abs(bx)
+                         + abs(by) + abs(bz))
+        return dist - extent <= r + slack
 
     @jit
     def cylinder_box(q, node_lo, node_hi, n, best, reach):

@@ -352,16 +352,17 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
     np.random.default_rng(0).shuffle(tiles)  # spread the busy tiles over the threads
     if probe is not None:
         probe = np.ascontiguousarray(probe[:, [u, v, a, 3 + u, 3 + v, 3 + a]])  # in the line frame
+    todo = np.zeros(0, np.uint8)  # every line of the tiles, then the lines that ran out of room
     while len(tiles):
-        overflow = np.zeros(len(tile_start) - 1, np.uint8)
+        redo = np.zeros(len(stock.count[a]), np.uint8)
         kern.cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, tile_start,
                        tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips, chord, plane,
-                       box, kind, RAPID_CUT, hit, overflow, row0, probe, load)
-        tiles = np.nonzero(overflow)[0]
-        if len(tiles):
-            full = np.nonzero(stock.count[a] == np.diff(stock.off[a]))[0]
-            ti, tj = (full // nv + row0) // TILE, (full % nv) // TILE
-            _grow(stock, a, full[overflow[ti * tv + tj] == 1])
+                       box, kind, RAPID_CUT, hit, todo, redo, row0, probe, load)
+        full = np.nonzero(redo)[0]
+        if len(full):
+            _grow(stock, a, full)
+        tiles = np.unique(((full // nv + row0) // TILE) * tv + (full % nv) // TILE)
+        todo = redo
 
 
 def hits(moves: Moves, hit) -> dict:
