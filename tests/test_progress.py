@@ -18,7 +18,8 @@ def test_pieces_tell_the_share_done_and_the_time_left(monkeypatch):
     assert out == [2, 3, 3, 2] and len(said) == 4
     shares = [int(s.split(": ")[1].split(" %")[0]) for s in said]
     assert shares == sorted(shares) and shares[-1] == 100 and shares[0] == round(100 * 4 / 26)
-    assert all("s left" in s for s in said[:-1]) and said[-1] == "stage: 100 %"
+    # the time left from the second piece on, at the pace since the first
+    assert "left" not in said[0] and all("s left" in s for s in said[1:-1]) and said[-1] == "stage: 100 %"
 
 
 def test_a_short_stage_is_not_told():

@@ -24,11 +24,14 @@ def ranges(n: int, pieces: int) -> list[tuple[int, int]]:
 class Meter:
     """Tells ``say`` how much of a stage ``what`` is done: ``done(amount)`` after each piece, out
     of ``total`` (moves, points, lines: what the time goes with); a stage shorter than
-    :data:`QUIET_S` is not told, a longer one every :data:`QUIET_S` and at its end."""
+    :data:`QUIET_S` is not told, a longer one every :data:`QUIET_S` and at its end. The time left
+    is told from the second piece on, at the pace since the first ended (a first piece pays for
+    what comes once: kernels loaded, caches filled, what the later pieces then skip)."""
 
     def __init__(self, say, what: str, total: float):
         self.say, self.what, self.total = say, what, float(total)
         self.done_so_far, self.t0, self.told = 0.0, time.perf_counter(), None
+        self.first = None  # (time, share) when the first piece ended
 
     def done(self, amount: float = 1.0) -> None:
         self.done_so_far += amount
@@ -36,10 +39,15 @@ class Meter:
             return
         share = min(1.0, self.done_so_far / self.total)
         now = time.perf_counter()
+        first = self.first
+        if first is None:
+            self.first = (now, share)
         if now - (self.told or self.t0) < QUIET_S and not (share >= 1.0 and self.told):
             return
         self.told = now
-        left = f", about {(now - self.t0) * (1.0 - share) / share:.0f} s left" if 0.0 < share < 1.0 else ""
+        left = ""
+        if first is not None and first[1] < share < 1.0:
+            left = f", about {(now - first[0]) * (1.0 - share) / (share - first[1]):.0f} s left"
         self.say(f"{self.what}: {100.0 * share:.0f} %{left}")
 
 

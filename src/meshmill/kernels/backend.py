@@ -181,19 +181,19 @@ class DexelKernels:
         """``(chord (k, 6), plane (k, 4))``: what every line a move crosses needs."""
         return self.impl.move_constants(pa, pb, xa, xb, corner, flutes)
 
-    def cut_tiles(self, lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb, radius,
-                  corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo, row0=0, probe=None,
-                  load=None):
-        """Cut the lines of ``tiles`` (those set in ``todo``, or all when it is empty) by their
-        moves, ``iv, count, hit, redo`` in place (see
+    def cut_tiles(self, lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves, pa, pb, xa,
+                  xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo, row0=0,
+                  probe=None, load=None):
+        """Cut the lines of the rows ``combs (mod split)`` of ``tiles`` (those set in ``todo``, or
+        all when it is empty) by their moves, ``iv, count, hit, redo`` in place (see
         :func:`meshmill.kernels.cpu_dexel.cut_tiles`); with ``probe (k, 6)`` each move's load
         gathered in ``load`` (:meth:`new_load`)."""
         if probe is None:
             import numpy as np
 
             probe, load = np.zeros((0, 6)), np.zeros((1, 0, 5))
-        self.impl.cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb,
-                            radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo,
+        self.impl.cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves, pa, pb,
+                            xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo,
                             row0, probe, load)
 
     def new_load(self, k: int) -> np.ndarray:

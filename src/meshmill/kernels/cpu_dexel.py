@@ -145,13 +145,15 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
     return chord, plane
 
 
-SPREAD = 16  # work items a thread is given at least: a call with fewer tiles cuts them in combs of rows
+SPREAD = 16  # work items a thread is given at least: a call with fewer cuts them in finer combs of rows
 
 
-def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
+def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves,
               pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit,
               todo, redo, row0, probe, load):
-    """Cut the lines of the given ``tiles`` with their moves, in move order within each line.
+    """Cut the lines of the given items, each the rows ``i = combs[q] (mod split)`` of tile
+    ``tiles[q]`` (``split`` a power of two up to :data:`~meshmill.kernels.carve.TILE`; 1: whole
+    tiles), with their moves, in move order within each line.
 
     Moves as in :mod:`meshmill.kernels.carve`, ``box (k, 6)`` their bounds, ``kind (k,)`` bits
     :data:`~meshmill.kernels.carve.RAPID` and :data:`~meshmill.kernels.carve.BODY`. Sets ``hit[m]``
@@ -160,35 +162,38 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
     material, and ``redo[line]`` when a line ran out of room: the line stops there (the others go
     on), so cutting it again after growing it is exact (removal is idempotent, and moves before
     the stop saw the material in path order). ``todo (lines,) uint8``: the lines to cut (those
-    set; empty: every line of the tiles). ``iv, off, count`` may hold the lines from row ``row0``
+    set; empty: every line of the items). ``iv, off, count`` may hold the lines from row ``row0``
     on only (a block of rows: the tiles given must lie in it; ``todo`` and ``redo`` are
     numbered as ``count``). With ``probe (k, 6)`` (each move's axis and unit vector across its
     feed in the line frame; ``(0, 6)``: not measured), ``load (T, k, 5)`` gathers per thread and
     move the length removed from these lines, the highest point along the axis, the extent
     across the feed and the lowest point along the axis of what it removed (see
-    :mod:`meshmill.simulation.load`). A few tiles are cut in combs of their rows (every ``split``-th row,
-    each line in one comb, its moves still in order), so that every thread has work to the end."""
-    split = 1
-    while split < TILE and len(tiles) * split < SPREAD * numba.get_num_threads():
-        split *= 2
-    _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb, radius, corner,
-               flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo, row0, probe, load, split)
+    :mod:`meshmill.simulation.load`). A few items are cut in finer combs (each line still in one,
+    its moves in order), so that every thread has work to the end."""
+    f = 1
+    while split * f < TILE and len(tiles) * f < SPREAD * numba.get_num_threads():
+        f *= 2
+    # item (t, c) of split s -> (t, c + s r) of split s f, r < f; the copies of an item apart in the range
+    tiles_f = np.tile(np.asarray(tiles, np.int64), f)
+    combs_f = np.tile(np.asarray(combs, np.int64), f) + split * np.repeat(np.arange(f, dtype=np.int64), len(tiles))
+    _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles_f, combs_f, split * f, tile_start, tile_moves, pa, pb, xa,
+               xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo, row0, probe,
+               load)
 
 
 @numba.njit(parallel=True, cache=True)
-def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
+def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves,
                pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit,
-               todo, redo, row0, probe, load, split):
+               todo, redo, row0, probe, load):
     tv = (nv + TILE - 1) // TILE
     measure = probe.shape[0] > 0
-    nt = tiles.shape[0]
     some = todo.shape[0] > 0
-    for q in prange(nt * split):
+    for q in prange(tiles.shape[0]):
         me = numba.get_thread_id() if measure else 0
-        t = tiles[q % nt]  # the combs of a tile apart in the range, so on different threads
+        t = tiles[q]
         ti = t // tv
         tj = t % tv
-        comb = q // nt  # the rows i = comb (mod split)
+        comb = combs[q]  # the rows i = comb (mod split)
         for s in range(tile_start[t], tile_start[t + 1]):
             m = tile_moves[s]
             i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)

@@ -278,13 +278,14 @@ def _move_constants(pa, pb, xa, xb, corner, flutes, chord, plane):
 
 
 @cuda.jit
-def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves, pa, pb, xa, xb, radius, corner,
-               flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo, row0, probe, load):
+def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves, pa, pb, xa, xb,
+               radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo, row0, probe, load):
     t = tiles[cuda.blockIdx.x]
     tv = (nv + TILE - 1) // TILE
     i = (t // tv) * TILE + cuda.threadIdx.x // TILE
     j = (t % tv) * TILE + cuda.threadIdx.x % TILE
-    if i >= nu or j >= nv or (todo.shape[0] > 0 and not todo[(i - row0) * nv + j]):
+    if i >= nu or j >= nv or i % split != combs[cuda.blockIdx.x] \
+            or (todo.shape[0] > 0 and not todo[(i - row0) * nv + j]):
         return
     u0 = lu + (i + 0.5) * step
     v0 = lv + (j + 0.5) * step
@@ -324,11 +325,12 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
     return chord.copy_to_host(), plane.copy_to_host()
 
 
-def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_moves,
+def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves,
               pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo,
               row0, probe, load):
     """As :func:`meshmill.kernels.cpu_dexel.cut_tiles` (host arrays updated in place): one block per
-    tile, one thread per line, each line cut by the tile's moves in path order. A line that runs out
+    item, one thread per line of its tile (those off its comb idle), each line cut by the tile's
+    moves in path order. A line that runs out
     of room stops and is flagged in ``redo``; the others go on (removal is idempotent, so cutting
     it again after growing it is exact)."""
     if len(tiles) == 0:
@@ -337,7 +339,8 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, tile_start, tile_move
     d_hit, d_redo = _d(hit, np.uint8), _d(redo, np.uint8)
     d_load = _d(load)
     _cut_tiles[len(tiles), TILE * TILE](float(lu), float(lv), float(step), int(nu), int(nv), d_iv,
-                                        _d(off, np.int64), d_count, _d(tiles, np.int64), _d(tile_start, np.int64),
+                                        _d(off, np.int64), d_count, _d(tiles, np.int64), _d(combs, np.int64),
+                                        int(split), _d(tile_start, np.int64),
                                         _d(tile_moves, np.int64), _d(pa), _d(pb), _d(xa), _d(xb), _d(radius),
                                         _d(corner), _d(flutes), _d(strips, np.int64), _d(chord), _d(plane), _d(box),
                                         _d(kind, np.uint8), float(hit_min), d_hit, _d(todo, np.uint8), d_redo, int(row0), _d(probe),

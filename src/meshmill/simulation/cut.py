@@ -30,7 +30,8 @@ SAME_AXIS = 1e-9  # rad: axes closer than this are one axis (the move is cut wit
 MAX_MOVE_TURN = 179.0  # degrees: a larger turn in one move has no interpolation (the axis passes 0)
 RAPID_CUT = 1e-3  # mm of a dexel a rapid move must remove (or a shank or holder meet) to count as cutting
 SLACK = 2  # spare interval slots a line starts with
-CUT_PIECES = 4  # blocks of tile rows a direction is cut in on one machine (each may regrow the whole direction)
+CUT_PIECES = 8  # pieces the tiles are cut in on one machine (each alike: a share of every direction's tiles)
+PIECE_COMBS = 4  # combs of rows a tile is dealt out to the pieces in (a power of two up to TILE)
 MOVE_BYTES = 1200  # a move on a worker of a cluster: its arrays, and per direction its frame, constants, box, tiles
 
 
@@ -330,10 +331,41 @@ def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern) -> tuple:
     return kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves
 
 
+def tile_lines(stock: Stock, a: int, prepared) -> np.ndarray:
+    """``(tiles,)``: the lines along ``a`` each tile's moves cover, added over its moves (what
+    cutting the tile costs, roughly; 0: a tile without moves), from :func:`_direction_moves`'s
+    ``prepared``."""
+    box, tile_start, tile_moves = prepared[1], prepared[8], prepared[9]
+    u, v = (a + 1) % 3, (a + 2) % 3
+    nv = int(stock.n[v])
+    tv = (nv + TILE - 1) // TILE
+    tile = np.repeat(np.arange(len(tile_start) - 1), np.diff(tile_start))
+    b = box[tile_moves]
+    span = []
+    for k, (lo, n, first) in enumerate(((stock.lo[u], stock.n[u], tile // tv), (stock.lo[v], nv, tile % tv))):
+        i0 = np.maximum(np.ceil((b[:, 2 * k] - lo) / stock.step - 0.5), first * TILE)
+        i1 = np.minimum(np.floor((b[:, 2 * k + 1] - lo) / stock.step - 0.5), np.minimum(first * TILE + TILE, n) - 1)
+        span.append(np.maximum(0.0, i1 - i0 + 1))
+    return np.bincount(tile, weights=span[0] * span[1], minlength=len(tile_start) - 1)
+
+
+def dealt(work, pieces: int) -> np.ndarray:
+    """``(tiles,)``: the piece of each tile (-1: no work), dealt from the most ``work`` to the
+    least, back and forth over the ``pieces``."""
+    out = np.full(len(work), -1)
+    busy = np.nonzero(work > 0)[0]
+    order = busy[np.argsort(-work[busy], kind="stable")]
+    pos = np.arange(len(order))
+    turn, at = pos // pieces, pos % pieces
+    out[order] = np.where(turn % 2 == 0, at, pieces - 1 - at)
+    return out
+
+
 def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=None, prepared=None,
-                   alone: bool = True, probe=None, load=None) -> None:
+                   alone: bool = True, probe=None, load=None, tiles=None) -> None:
     """Cut the lines along ``a`` (those of the tile rows ``rows = (first, stop)`` along the axis
     after ``a``, which ``stock`` then holds ``alone`` for that direction, else among all its lines;
+    or those of ``tiles = (tiles, combs, split)``, the rows ``combs (mod split)`` of each tile;
     default all) by the moves, in place; ``hit (k,)`` marks the moves that hit; ``prepared``: what
     :func:`_direction_moves` gives (else made here); with ``probe (k, 6)`` (world frame,
     :func:`~meshmill.simulation.load.move_probe`) each move's load gathered in ``load``
@@ -343,26 +375,29 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
     lu, lv = float(stock.lo[u]), float(stock.lo[v])
     kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves = (
         prepared or _direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern))
-    tiles = np.nonzero(np.diff(tile_start))[0]
+    tiles, combs, split = (np.nonzero(np.diff(tile_start))[0], None, 1) if tiles is None else tiles
+    combs = np.zeros(len(tiles), np.int64) if combs is None else combs
     tv = (nv + TILE - 1) // TILE
     row0 = 0
     if rows is not None:
-        tiles = tiles[(tiles // tv >= rows[0]) & (tiles // tv < rows[1])]
+        inside = (tiles // tv >= rows[0]) & (tiles // tv < rows[1])
+        tiles, combs = tiles[inside], combs[inside]
         row0 = rows[0] * TILE if alone else 0
-    np.random.default_rng(0).shuffle(tiles)  # spread the busy tiles over the threads
+    spread = np.random.default_rng(0).permutation(len(tiles))  # the busy tiles over the threads
+    tiles, combs = tiles[spread], combs[spread]
     if probe is not None:
         probe = np.ascontiguousarray(probe[:, [u, v, a, 3 + u, 3 + v, 3 + a]])  # in the line frame
     todo = np.zeros(0, np.uint8)  # every line of the tiles, then the lines that ran out of room
     while len(tiles):
         redo = np.zeros(len(stock.count[a]), np.uint8)
-        kern.cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, tile_start,
-                       tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips, chord, plane,
-                       box, kind, RAPID_CUT, hit, todo, redo, row0, probe, load)
+        kern.cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, combs, split,
+                       tile_start, tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips,
+                       chord, plane, box, kind, RAPID_CUT, hit, todo, redo, row0, probe, load)
         full = np.nonzero(redo)[0]
         if len(full):
             _grow(stock, a, full)
         tiles = np.unique(((full // nv + row0) // TILE) * tv + (full % nv) // TILE)
-        todo = redo
+        combs, split, todo = np.zeros(len(tiles), np.int64), 1, redo
 
 
 def hits(moves: Moves, hit) -> dict:
@@ -396,19 +431,23 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None, l
     else:
         kern = DexelKernels(device)
         prepared = [_direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern) for a in range(3)]
-        # the work of each tile row: the moves binned in its tiles
-        work = [np.diff(p[8]).reshape(-(-int(stock.n[(a + 1) % 3]) // TILE), -1).sum(axis=1)
-                for a, p in enumerate(prepared)]
-        # the three directions in blocks of tile rows (tiles are independent), the share done and
-        # the time left told over all of them
-        meter = Meter(progress, "cutting lines along X, Y and Z", sum(1.0 + w.sum() for w in work))
-        for a in range(3):
-            per = kern.new_load(len(moves)) if load else None
-            for r0, r1 in ranges(len(work[a]), CUT_PIECES):
-                _cut_direction(stock, a, moves, boxes, kern, hit, (r0, r1), prepared[a], False, probe, per)
-                meter.done(float(work[a][r0:r1].sum()) + (r1 == len(work[a])))
-            if load:
-                gathered.append(reduce_load(per))
+        # the tiles (independent) in CUT_PIECES pieces alike, so that the time the first pieces
+        # take tells the time left: each tile in PIECE_COMBS combs of its rows, dealt out from the
+        # most lines their moves cover to the least, back and forth (a heavy tile's combs go to
+        # pieces one after the other); the share done by those lines
+        work = [np.repeat(tile_lines(stock, a, p), PIECE_COMBS) / PIECE_COMBS for a, p in enumerate(prepared)]
+        piece = [dealt(w, CUT_PIECES) for w in work]
+        meter = Meter(progress, "cutting lines along X, Y and Z", sum(float(w.sum()) for w in work))
+        per = [kern.new_load(len(moves)) if load else None for _ in range(3)]
+        for k in range(CUT_PIECES):
+            for a in range(3):
+                some = np.nonzero(piece[a] == k)[0]  # (tile, comb) = divmod(unit, PIECE_COMBS)
+                if len(some):
+                    _cut_direction(stock, a, moves, boxes, kern, hit, None, prepared[a], False, probe, per[a],
+                                   (some // PIECE_COMBS, some % PIECE_COMBS, PIECE_COMBS))
+            meter.done(sum(float(work[a][piece[a] == k].sum()) for a in range(3)))
+        if load:
+            gathered = [reduce_load(p) for p in per]
     out = {**hits(moves, hit), "seconds": round(time.perf_counter() - t0, 4)}
     if load:
         out["load"] = RemovedByMove.of(moves, gathered, stock.step, load, probe)
