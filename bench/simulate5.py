@@ -4,6 +4,7 @@ measured, at two lattice steps, by this tree and by another revision in the same
     .venv/bin/python bench/simulate5.py                          # blade, dolphin, vase at 0.5 and 0.3 mm
     .venv/bin/python bench/simulate5.py --before 59a515b         # and that revision, side by side
     .venv/bin/python bench/simulate5.py --parts blade --steps 0.5
+    .venv/bin/python bench/simulate5.py --steps 0.5 --cutters ball,bull,flat  # the same paths, other ends
 
 Per part the finish (``finish --scallop 0.01`` with the balls of bench/realparts.py, the part's
 step-down there) is made once with this tree and written to bench/out/simulate5/<part>.cl; then
@@ -41,6 +42,21 @@ def _tools(work):
     with open(path, "w") as fh:
         fh.write(TOOLS)
     return path, api.load_tools(path)
+
+
+def cutter_tools(work, kind: str) -> str:
+    """The tool table with every ball made a ``kind`` ("ball", "bull": corner radius a quarter of
+    the diameter, "flat") of the same diameter and lengths: the same path cut by other ends."""
+    blocks = TOOLS.split("[[tools]]")
+    out = [blocks[0]]
+    for b in blocks[1:]:
+        d = float(b.split("diameter = ")[1].split("\n")[0])
+        end = {"ball": 'type = "ball"', "bull": f'type = "bull"\ncorner_radius = {d / 4:g}', "flat": 'type = "flat"'}[kind]
+        out.append(b.replace('type = "ball"', end))
+    path = os.path.join(work, f"tools-{kind}.toml")
+    with open(path, "w") as fh:
+        fh.write("[[tools]]".join(out))
+    return path
 
 
 def make_path(name, tools) -> str:
@@ -96,6 +112,7 @@ def main():
     ap.add_argument("--parts", default="blade,dolphin,vase")
     ap.add_argument("--steps", default="0.5,0.3")
     ap.add_argument("--before", help="a git revision simulated beside this tree")
+    ap.add_argument("--cutters", default="ball", help="the ends the same path is cut with: ball,bull,flat")
     a = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as work:
@@ -110,10 +127,13 @@ def main():
             for name in a.parts.split(","):
                 cl = make_path(name, tools)
                 for step in (float(x) for x in a.steps.split(",")):
-                    for label, src in trees:
-                        row = {"part": name, "step": step, "tree": label, **run_in(src, name, cl, tools_file, step)}
-                        rows.append(row)
-                        print(table([row]), flush=True)
+                    for kind in a.cutters.split(","):
+                        table_file = tools_file if kind == "ball" else cutter_tools(work, kind)
+                        for label, src in trees:
+                            row = {"part": name, "step": step, "cutter": kind, "tree": label,
+                                   **run_in(src, name, cl, table_file, step)}
+                            rows.append(row)
+                            print(table([row]), flush=True)
         finally:
             if a.before:
                 subprocess.run(["git", "-C", ROOT, "worktree", "remove", "--force", wt], capture_output=True)

@@ -565,6 +565,52 @@ def test_blocks_of_lines_measure_and_mesh_as_the_whole_model():
     assert np.array_equal(verts, whole_v) and len(faces) == len(whole_f)
 
 
+def _turning_move(rng, max_turn):
+    """A random move: tips ``pa, pb`` (still, short or long) and unit axes ``xa, xb`` near +Z, the
+    second turned from the first by up to ``max_turn`` rad about a random direction."""
+    pa = rng.uniform(-3, 3, 3)
+    pb = pa + rng.normal(size=3) * rng.choice([0.0, 0.5, 3.0])
+    xa = rng.normal(size=3) + [0.0, 0.0, 2.0]
+    xa /= np.linalg.norm(xa)
+    k = np.cross(xa, rng.normal(size=3))
+    k /= np.linalg.norm(k)
+    turn = rng.uniform(0.0, max_turn)
+    return pa, pb, xa, xa * math.cos(turn) + k * math.sin(turn)
+
+
+def test_a_turning_flat_or_bull_nose_cuts_what_its_exact_sweep_holds():
+    """A turning flat end or bull-nose cutting a line: the closed-form bound that spares the search
+    over its poses (balls about its axis swept along the move at the first axis, grown by what the
+    turn moves) never hides material its exact sweep holds: the length removed is the exact
+    sweep's, on lines through material in random pieces."""
+    from meshmill.kernels.cpu_dexel import crv
+
+    rng = np.random.default_rng(5)
+    checked = cut_some = 0
+    for case in range(400):
+        R, F = rng.uniform(1.0, 8.0), rng.uniform(8.0, 60.0)
+        cm = R * rng.choice([0.0, 0.25, 0.5])  # flat or bull-nose
+        pa, pb, xa, xb = _turning_move(rng, 0.3)
+        # lines near the tool's top at the end of the move, where the turn moves it the most
+        top = pb + (F - cm) * xb
+        u0, v0 = top[:2] + rng.uniform(-R - 2, R + 2, 2)
+        ends = np.sort(rng.uniform(-60, 60, 2 * rng.integers(1, 4)))
+        iv = np.zeros((8, 2))
+        iv[:len(ends) // 2] = ends.reshape(-1, 2)
+        off, count = np.array([0, 8]), np.array([len(ends) // 2])
+        chord = np.concatenate([pa + cm * xa, pb + cm * xb])[None]
+        arrays = [a[None] for a in (pa, pb, xa, xb)] + [np.array([R]), np.array([cm]), np.array([F]),
+                                                         np.array([1], np.int64), chord, np.zeros((1, 4))]
+        before = iv[:count[0]].copy()
+        got, _, _ = crv.cut_line(0, 0, u0, v0, -100.0, 100.0, iv, off, count, *arrays, False)
+        lo, hi = swp.tool_move(u0, v0, pa, pb, xa, xb, R, cm, F, 1)
+        exact = sum(max(0.0, min(b, hi) - max(a, lo)) for a, b in before) if lo < hi else 0.0
+        assert got == pytest.approx(exact, abs=1e-9), (case, got, exact)
+        checked += 1
+        cut_some += exact > 0
+    assert cut_some > 50 and checked - cut_some > 50  # both kinds of lines were tried
+
+
 def test_a_turning_shank_is_found_in_material_wherever_its_exact_sweep_is():
     """A turning cylinder (a shank or holder: flat, on its tip) against a line: the closed-form
     bound that spares the search over its poses (the cylinder held at its first axis, grown by
@@ -576,14 +622,7 @@ def test_a_turning_shank_is_found_in_material_wherever_its_exact_sweep_is():
     checked = found = 0
     for _ in range(400):
         R, F = rng.uniform(2.0, 16.0), rng.uniform(10.0, 40.0)
-        pa = rng.uniform(-3, 3, 3)
-        pb = pa + rng.normal(size=3) * rng.choice([0.0, 0.5, 3.0])
-        xa = rng.normal(size=3) + [0.0, 0.0, 2.0]
-        xa /= np.linalg.norm(xa)
-        k = np.cross(xa, rng.normal(size=3))
-        k /= np.linalg.norm(k)
-        turn = rng.uniform(0.0, 0.2)
-        xb = xa * math.cos(turn) + k * math.sin(turn)
+        pa, pb, xa, xb = _turning_move(rng, 0.2)
         # one line along w at (u0, v0) near the cylinder, material in a few random pieces
         u0, v0 = pa[:2] + rng.uniform(-R - 8, R + 8, 2)
         ends = np.sort(rng.uniform(-60, 60, 2 * rng.integers(1, 4)))

@@ -174,15 +174,24 @@ def build(jit, inline=None):
             if material_outside(iv, base, n, max(flo, wlo), min(fhi, whi), lo, hi):
                 lo, hi = swp.tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
         else:
-            if xa[m, 0] == xb[m, 0] and xa[m, 1] == xb[m, 1] and xa[m, 2] == xb[m, 2]:
-                # nothing to cut unless material lies in the sweep of the ball of radius R about
-                # the axis segment (it holds the whole tool's)
-                H = max(0.0, flutes[m] - 2.0 * cm)
-                lo, hi = swp.pgram_ball(u0, v0, chord[m, 0], chord[m, 1], chord[m, 2], chord[m, 3] - chord[m, 0],
-                                        chord[m, 4] - chord[m, 1], chord[m, 5] - chord[m, 2], H * xa[m, 0],
-                                        H * xa[m, 1], H * xa[m, 2], radius[m])
-                if lo >= hi or not material_outside(iv, base, n, max(lo, wlo), min(hi, whi), 1.0, 0.0):
-                    return 0.0, 1.0, 0.0
+            # nothing to cut unless material lies in the sweep of the ball of radius R about the
+            # axis segment (it holds the whole tool's), swept as the parallelogram of its first
+            # axis along the move; a turning axis moves a point h up it off that parallelogram
+            # by at most h |xb - xa|, and the normalised interpolation by (cm + h)(1 - cos(theta/2))
+            H = max(0.0, flutes[m] - 2.0 * cm)
+            dx = xb[m, 0] - xa[m, 0]
+            dy = xb[m, 1] - xa[m, 1]
+            dz = xb[m, 2] - xa[m, 2]
+            grow = 0.0
+            if dx != 0.0 or dy != 0.0 or dz != 0.0:
+                c = min(1.0, max(-1.0, xa[m, 0] * xb[m, 0] + xa[m, 1] * xb[m, 1] + xa[m, 2] * xb[m, 2]))
+                grow = H * math.sqrt(dx * dx + dy * dy + dz * dz) + (cm + H) * (1.0 - math.sqrt(0.5 * (1.0 + c)))
+                grow = grow * (1.0 + 1e-9) + 1e-9
+            lo, hi = swp.pgram_ball(u0, v0, chord[m, 0], chord[m, 1], chord[m, 2], chord[m, 3] - chord[m, 0],
+                                    chord[m, 4] - chord[m, 1], chord[m, 5] - chord[m, 2], H * xa[m, 0],
+                                    H * xa[m, 1], H * xa[m, 2], radius[m] + grow)
+            if lo >= hi or not material_outside(iv, base, n, max(lo, wlo), min(hi, whi), 1.0, 0.0):
+                return 0.0, 1.0, 0.0
             lo, hi = swp.tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
         if lo >= hi:
             return 0.0, 1.0, 0.0

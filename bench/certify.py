@@ -1,0 +1,149 @@
+"""Certified verification against generation (issue 39): for each operation, the seconds its
+path takes to make and the seconds its certificate takes, in one run on this machine.
+
+    .venv/bin/python bench/certify.py                       # about 3 minutes
+    .venv/bin/python bench/certify.py --only finish         # finish, raster, waterline, verify
+
+Rows (each operation run twice in this process, the second timed, so numba's cache is loaded):
+- ``finish``: the 5-axis finish (``scallop 0.01``, the balls and set-ups of bench/realparts.py) of
+  the blade, the dolphin mould and the vase: the summary's stage seconds, generation = every
+  stage but ``verify`` (index, contours, tools, axes, shallow fill, path).
+- ``raster``: mount_rush, B4, stepover and sample 0.1 mm (bench/whole_ops.py's row): ``drop``
+  against ``verify``.
+- ``waterline``: sphere_on_plate, B6, step-down 1 mm, sample 0.1 mm (whole_ops's row).
+- ``verify``: ``api.verify`` of the CL files those wrote, read back as any CL file is, against
+  the generation of the path.
+
+Prints a markdown table and writes bench/out/certify.json (with the machine).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+PARTS = os.path.join(os.path.dirname(ROOT), "shared", "parts")
+
+from finished import table  # noqa: E402
+from links import _setup  # noqa: E402
+from realparts import PARTS as REAL_PARTS, TOOLS  # noqa: E402
+from whole_ops import B6_TABLE  # noqa: E402
+
+
+def _twice(run):
+    run()
+    return run()
+
+
+def finish_rows(work, verify_too):
+    from meshmill import api
+    from meshmill.toolpath.cldata import write_apt
+
+    tools_file = os.path.join(work, "balls.toml")
+    with open(tools_file, "w") as fh:
+        fh.write(TOOLS)
+    tools = api.load_tools(tools_file)
+    rows = []
+    for name in ("blade", "dolphin", "vase"):
+        path, options, step_down = REAL_PARTS[name]
+        part = api.load_part(path, **_setup(options))
+        res = _twice(lambda: api.finish(part, tools, step_down=step_down, scallop=0.01))
+        sec = res.summary["seconds"]
+        gen = sec["total"] - sec["verify"]
+        rows.append({"operation": f"finish {name}", "moves": len(res.toolpath), "generation_s": round(gen, 2),
+                     "verify_s": round(sec["verify"], 2), "verify/generation": round(sec["verify"] / gen, 2),
+                     "stages_s": {k: round(v, 2) for k, v in sec.items() if k not in ("total", "load")}})
+        if verify_too:
+            cl = os.path.join(work, f"{name}.cl")
+            write_apt(cl, res.toolpath, tools)
+            rows.append(verify_row(f"verify {name} finish CL", part, cl, tools, gen))
+    return rows
+
+
+def verify_row(label, part, cl, tools, generation_s):
+    from meshmill import api
+
+    t = {}
+
+    def run():
+        t0 = time.perf_counter()
+        r = api.verify(part, cl, tools)
+        t["s"] = time.perf_counter() - t0
+        return r
+
+    r = _twice(run)
+    return {"operation": label, "moves": r.report["moves"], "generation_s": round(generation_s, 2),
+            "verify_s": round(t["s"], 2), "verify/generation": round(t["s"] / generation_s, 2),
+            "ok": r.report["ok"]}
+
+
+def raster_rows(work, verify_too):
+    from meshmill import api
+
+    part = api.load_part(os.path.join(PARTS, "mount_rush.stl"))
+    tools = api.load_tools(os.path.join(ROOT, "src", "meshmill", "data", "tools.toml"))
+    res = _twice(lambda: api.raster(part, tools, tool="B4", stepover=0.1, sample=0.1))
+    sec = res.summary["seconds"]
+    gen = sec["total"] - sec["verify"]
+    rows = [{"operation": "raster mount_rush B4 0.1/0.1", "moves": len(res.toolpath), "generation_s": round(gen, 2),
+             "verify_s": round(sec["verify"], 2), "verify/generation": round(sec["verify"] / gen, 2),
+             "stages_s": {k: round(v, 2) for k, v in sec.items() if k != "total"}}]
+    if verify_too:
+        from meshmill.toolpath.cldata import write_apt
+
+        cl = os.path.join(work, "raster.cl")
+        write_apt(cl, res.toolpath, tools)
+        rows.append(verify_row("verify mount_rush raster CL", part, cl, tools, gen))
+    return rows
+
+
+def waterline_rows(work, verify_too):
+    from meshmill import api
+
+    table_file = os.path.join(work, "b6.toml")
+    with open(table_file, "w") as fh:
+        fh.write(B6_TABLE)
+    part = api.load_part(os.path.join(PARTS, "sphere_on_plate.stl"))
+    tools = api.load_tools(table_file)
+    res = _twice(lambda: api.waterline(part, tools, tool="B6", step_down=1.0, sample=0.1))
+    sec = res.summary["seconds"]
+    gen = sec["total"] - sec["verify"]
+    return [{"operation": "waterline sphere_on_plate B6 1/0.1", "moves": len(res.toolpath),
+             "generation_s": round(gen, 2), "verify_s": round(sec["verify"], 2),
+             "verify/generation": round(sec["verify"] / gen, 2),
+             "stages_s": {k: round(v, 2) for k, v in sec.items() if k != "total"}}]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", default="finish,raster,waterline,verify")
+    ap.add_argument("--out", default=os.path.join(HERE, "out", "certify.json"))
+    a = ap.parse_args()
+    only = a.only.split(",")
+    rows = []
+    with tempfile.TemporaryDirectory() as work:
+        for name, rows_of in (("finish", finish_rows), ("raster", raster_rows), ("waterline", waterline_rows)):
+            if name in only:
+                got = rows_of(work, "verify" in only)
+                rows += got
+                print(table([{k: v for k, v in r.items() if k != "stages_s"} for r in got]), flush=True)
+    print()
+    print(table([{k: v for k, v in r.items() if k != "stages_s"} for r in rows]))
+    import numba
+
+    machine = {"platform": platform.platform(), "cpus": os.cpu_count(), "numba_threads": numba.get_num_threads(),
+               "python": platform.python_version()}
+    os.makedirs(os.path.dirname(a.out), exist_ok=True)
+    with open(a.out, "w") as fh:
+        json.dump({"machine": machine, "date": time.strftime("%Y-%m-%d %H:%M"), "rows": rows}, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
