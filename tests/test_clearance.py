@@ -11,8 +11,6 @@ from meshmill.pathing.verify import move_poses
 from meshmill.toolpath.model import Toolpath
 from meshmill.tools.table import pack_cylinders, pack_rings, tool_from_entry
 
-from conftest import brute_point_triangle_dist
-
 
 def _tri_samples(tri, n=40):
     a, b = np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1), indexing="ij")

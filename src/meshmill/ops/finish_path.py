@@ -298,7 +298,7 @@ def _unmerged(ps, cuts):
     """``(pass, cuts)``: pass ``ps`` with the points :func:`merged_points` dropped from its failing
     moves ``cuts`` (j: the move from point j-1 to j) put back, and the failing moves that dropped
     none (to split at, renumbered)."""
-    at, idx, full = ps["at"], ps["idx"], ps["full"]
+    at, full = ps["at"], ps["full"]
     back = [j for j in cuts if at[j] - at[j - 1] > 1]
     if not back:
         return ps, cuts

@@ -203,7 +203,6 @@ def body_moves(toolpath, tools, shrink: float = 0.0) -> Moves:
     it than ``shrink``, as verification counts a collision beyond its tolerance)."""
     tip = np.asarray(toolpath.tip, float)
     axis = np.asarray(toolpath.axis, float)
-    k = len(tip)
     pa = np.vstack([tip[:1], tip[:-1]])
     xa = np.vstack([axis[:1], axis[:-1]])
     out = []
