@@ -808,16 +808,17 @@ def build(jit):
         g_i = grow[i]
         lim = limit[i]
         first = 0
-        cth = min(1.0, max(-1.0, axis_a[i, 0] * axis_b[i, 0] + axis_a[i, 1] * axis_b[i, 1]
-                           + axis_a[i, 2] * axis_b[i, 2]))
-        if g_i == 0.0 and cth < 1.0 and ring_rho[t] <= 0.0 and ring_r[t] > 0.0 and seg_r[t, 0] > 0.0 \
+        if g_i == 0.0 and ring_rho[t] <= 0.0 and ring_r[t] > 0.0 and seg_r[t, 0] > 0.0 \
                 and seg_t0[t, 0] == ring_t[t] and seg_r[t, 0] <= ring_r[t]:
             # a turning ball and its flutes: within the ball's radius of the axis from its centre to
             # the flutes' top, swept (its points off the bilinear patch by at most t1 (1 -
             # cos(theta/2))); a fixed axis is decided exactly by the capsule and the prism below
+            cth = min(1.0, max(-1.0, axis_a[i, 0] * axis_b[i, 0] + axis_a[i, 1] * axis_b[i, 1]
+                               + axis_a[i, 2] * axis_b[i, 2]))
             dev = seg_t1[t, 0] * (1.0 - math.sqrt(0.5 * (1.0 + cth)))
-            if patch_clear(w, tip_a[i], axis_a[i], tip_b[i], axis_b[i], ring_t[t], seg_t1[t, 0],
-                           ring_r[t] + dev - lim, node_lo, node_hi, node_child, node_range, tris, stack):
+            if cth < 1.0 and patch_clear(w, tip_a[i], axis_a[i], tip_b[i], axis_b[i], ring_t[t], seg_t1[t, 0],
+                                         ring_r[t] + dev - lim, node_lo, node_hi, node_child, node_range, tris,
+                                         stack):
                 first = 1
         if first == 0 and ring_r[t] > 0.0:
             if not ring_clear(tip_a[i], axis_a[i], tip_b[i], axis_b[i], ring_t[t], ring_rho[t], ring_r[t] + g_i, lim,

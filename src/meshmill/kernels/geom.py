@@ -138,8 +138,8 @@ def build(jit):
     """Compile the device functions with ``jit`` and return them in a namespace."""
 
     @jit
-    def point_segment_dist2(px, py, pz, ax, ay, az, bx, by, bz):
-        """Squared distance from point p to segment a-b."""
+    def point_segment_offset(px, py, pz, ax, ay, az, bx, by, bz):
+        """``(wx, wy, wz)``: point p less the point of segment a-b nearest it."""
         dx = bx - ax
         dy = by - ay
         dz = bz - az
@@ -151,9 +151,12 @@ def build(jit):
         if dd > 0.0:
             s = (wx * dx + wy * dy + wz * dz) / dd
             s = min(1.0, max(0.0, s))
-        wx -= s * dx
-        wy -= s * dy
-        wz -= s * dz
+        return wx - s * dx, wy - s * dy, wz - s * dz
+
+    @jit
+    def point_segment_dist2(px, py, pz, ax, ay, az, bx, by, bz):
+        """Squared distance from point p to segment a-b."""
+        wx, wy, wz = point_segment_offset(px, py, pz, ax, ay, az, bx, by, bz)
         return wx * wx + wy * wy + wz * wz
 
     @jit
@@ -423,19 +426,7 @@ def build(jit):
         hx = 0.5 * (node_hi[n, 0] - node_lo[n, 0])
         hy = 0.5 * (node_hi[n, 1] - node_lo[n, 1])
         hz = 0.5 * (node_hi[n, 2] - node_lo[n, 2])
-        dx = bx - ax
-        dy = by - ay
-        dz = bz - az
-        wx = cx - ax
-        wy = cy - ay
-        wz = cz - az
-        dd = dx * dx + dy * dy + dz * dz
-        s = 0.0
-        if dd > 0.0:
-            s = min(1.0, max(0.0, (wx * dx + wy * dy + wz * dz) / dd))
-        wx -= s * dx
-        wy -= s * dy
-        wz -= s * dz
+        wx, wy, wz = point_segment_offset(cx, cy, cz, ax, ay, az, bx, by, bz)
         dist = math.sqrt(wx * wx + wy * wy + wz * wz)
         if dist <= r:
             return True

@@ -374,8 +374,10 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
     lu, lv = float(stock.lo[u]), float(stock.lo[v])
     kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves = (
         prepared or _direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern))
-    tiles, combs, split = (np.nonzero(np.diff(tile_start))[0], None, 1) if tiles is None else tiles
-    combs = np.zeros(len(tiles), np.int64) if combs is None else combs
+    if tiles is None:
+        busy = np.nonzero(np.diff(tile_start))[0]
+        tiles = busy, np.zeros(len(busy), np.int64), 1
+    tiles, combs, split = tiles
     tv = (nv + TILE - 1) // TILE
     row0 = 0
     if rows is not None:
