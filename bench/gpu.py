@@ -331,6 +331,81 @@ def goals(rows, krows, ref_note, mode):
     return out
 
 
+def report(result):
+    """Print the markdown tables of a run (or of runs merged by ``--tables``)."""
+    rows, mach, gpu, cfg = result["rows"], result["machine"], result["gpu"], result["config"]
+    krows, goal = result["kernel_ratios"], result["goals"]
+    sections = [x for x in SECTIONS if any(r["section"] == x for r in rows)]
+    tri = {x: next((r["info"]["triangles"] for r in rows if r["section"] == x), 0) for x in ("t7", "t8")}
+    print(f"{result['date']}, mode {result['mode']}; CPU {mach['cpu_model'] or mach['processor']}, {mach['cpu_count']} "
+          f"CPUs, {mach['numba_threads']} numba threads, numba {mach['numba']}"
+          + (f"; GPU {gpu['name']}, numba-cuda {gpu['numba_cuda']}" if gpu else "; no GPU in this run")
+          + f"; {result['repeat']} timed run(s) a row after an untimed warm-up; seconds are min / median.")
+    if "t7" in sections:
+        print(f"\n### Tableau 7: vase ({tri['t7']} triangles), sample {cfg['t7_sample']:g} mm, end to end\n")
+        print(finish_table(rows, "t7", SEED_T7))
+    if "t8" in sections:
+        print(f"\n### Tableau 8: mould ({tri['t8']} triangles, 400 x 400 x 180 mm), "
+              f"sample {cfg['t8_sample']:g} mm, end to end\n")
+        print(finish_table(rows, "t8", SEED_T8))
+    for section, what in (("dexel", "dexel generation"), ("sim", "simulation")):
+        if section not in sections:
+            continue
+        print(f"\n### {what.capitalize()}, end to end\n")
+        counts = ("lines", "dexels") if section == "dexel" else ("moves", "pieces", "dexels")
+        print(f"| part | triangles | step mm | {' | '.join(counts)} | CPU s min / median | CUDA s min / median "
+              f"| CPU/CUDA |\n|---|" + "---:|" * (len(counts) + 5))
+        for row, d in by_device(rows, section).items():
+            info = (d.get("cuda") or d["cpu"])["info"]
+            name = info.get("part", f"wavy {info.get('part_mm', 0):g} mm")
+            med = [d[x]["wall_s"]["median"] if x in d else None for x in DEVICES]
+            print(f"| {name} | {info['triangles']} | {row:g} | {' | '.join(count(d, c) for c in counts)} "
+                  f"| {fmt(d.get('cpu') and d['cpu']['wall_s'])} | {fmt(d.get('cuda') and d['cuda']['wall_s'])} "
+                  f"| {rfmt(ratio(*med))} |")
+    print("\n### Kernels (median seconds of a row)\n")
+    print(kernel_table(krows))
+    if goal:
+        print("\nGoals of the issue (on an H100):")
+        for g in goal:
+            state = "not run" if g["met"] is None else ("MET" if g["met"] else "NOT MET")
+            val = f"{g['seconds']:.3f} s " if g.get("seconds") is not None else ""
+            val += f"{g['ratio']:.1f}x " if "ratio" in g else ""
+            print(f"- {g['goal']}: {val}{state}")
+    else:
+        print("\nNo CUDA device in this run: the GPU figures and goals need a machine with an NVIDIA GPU.")
+
+
+def merged_tables(files) -> int:
+    """Print the tables of earlier runs' JSON files merged: the CUDA rows of one machine beside the
+    CPU rows of another (the CPU rows are the reference of every ratio)."""
+    try:
+        runs = []
+        for f in files:
+            with open(f) as fh:
+                runs.append(json.load(fh))
+    except (OSError, ValueError) as e:
+        print(f"gpu.py: error: --tables: {e}", file=sys.stderr)
+        return 2
+    rows = [r for run in runs for r in run["rows"]]
+    for f, run in zip(files, runs):
+        m = run["machine"]
+        print(f"- {f}: {run['date']}, commit {run.get('commit')}, devices {','.join(run['devices'])}; "
+              f"{m['cpu_model']}, {m['cpu_count']} CPUs, numba {m['numba']}"
+              + (f"; GPU {run['gpu']['name']}, numba-cuda {run['gpu']['numba_cuda']}" if run.get("gpu") else ""))
+    cpu_run = next((run for run in runs if "cuda" not in run["devices"]), None)
+    ref = {(r["section"], r["row"]): r for r in rows if r["device"] == "cpu"}
+    note = None
+    if cpu_run:
+        m = cpu_run["machine"]
+        note = f"{m.get('cpu_model')}, {m.get('cpu_count')} CPUs, {cpu_run.get('date')}"
+    merged = dict(next((run for run in runs if run.get("gpu")), runs[0]), rows=rows)
+    merged["kernel_ratios"] = kernel_rows(rows, ref)
+    merged["goals"] = goals(rows, merged["kernel_ratios"], note, merged["mode"]) if merged.get("gpu") else []
+    print()
+    report(merged)
+    return 0
+
+
 # ---- main ----------------------------------------------------------------------------------------------------
 
 def main(argv=None):
@@ -347,7 +422,11 @@ def main(argv=None):
     ap.add_argument("--tiny", action="store_true", help="smallest inputs, for the CUDA simulator")
     ap.add_argument("--cpu-reference", help="gpu.json of an earlier --devices cpu run (the 2-core machine)")
     ap.add_argument("--out", default=DEFAULT_OUT, help="JSON output path (default: %(default)s)")
+    ap.add_argument("--tables", nargs="+", metavar="JSON", help="run nothing: print the tables of earlier runs "
+                    "merged (a GPU machine's --devices cuda run beside the 2-core --devices cpu run)")
     args = ap.parse_args(argv)
+    if args.tables:
+        return merged_tables(args.tables)
     mode = "tiny" if args.tiny else "quick" if args.quick else "full"
     cfg = CONFIGS[mode]
     try:
@@ -469,44 +548,7 @@ def main(argv=None):
                 {"part_mm": cfg["sim_size"], "triangles": int(len(design.faces))})
 
     save()
-    krows, goal = result["kernel_ratios"], result["goals"]
-    print(f"{date}, mode {mode}; CPU {mach['cpu_model'] or mach['processor']}, {mach['cpu_count']} CPUs, "
-          f"{mach['numba_threads']} numba threads, numba {mach['numba']}"
-          + (f"; GPU {gpu['name']}, numba-cuda {gpu['numba_cuda']}" if gpu else "; no GPU in this run")
-          + f"; {args.repeat} timed run(s) a row after an untimed warm-up; seconds are min / median.")
-    if "t7" in sections:
-        print(f"\n### Tableau 7: vase ({len(parts['vase'].faces)} triangles), sample {cfg['t7_sample']:g} mm, "
-              "end to end\n")
-        print(finish_table(rows, "t7", SEED_T7))
-    if "t8" in sections:
-        print(f"\n### Tableau 8: mould ({len(parts['mould'].faces)} triangles, 400 x 400 x 180 mm), "
-              f"sample {cfg['t8_sample']:g} mm, end to end\n")
-        print(finish_table(rows, "t8", SEED_T8))
-    for section, what in (("dexel", "dexel generation"), ("sim", "simulation")):
-        if section not in sections:
-            continue
-        print(f"\n### {what.capitalize()}, end to end\n")
-        counts = ("lines", "dexels") if section == "dexel" else ("moves", "pieces", "dexels")
-        print(f"| part | triangles | step mm | {' | '.join(counts)} | CPU s min / median | CUDA s min / median "
-              f"| CPU/CUDA |\n|---|" + "---:|" * (len(counts) + 5))
-        for row, d in by_device(rows, section).items():
-            info = (d.get("cuda") or d["cpu"])["info"]
-            name = info.get("part", f"wavy {info.get('part_mm', 0):g} mm")
-            med = [d[x]["wall_s"]["median"] if x in d else None for x in DEVICES]
-            print(f"| {name} | {info['triangles']} | {row:g} | {' | '.join(count(d, c) for c in counts)} "
-                  f"| {fmt(d.get('cpu') and d['cpu']['wall_s'])} | {fmt(d.get('cuda') and d['cuda']['wall_s'])} "
-                  f"| {rfmt(ratio(*med))} |")
-    print("\n### Kernels (median seconds of a row)\n")
-    print(kernel_table(krows))
-    if goal:
-        print("\nGoals of the issue (on an H100):")
-        for g in goal:
-            state = "not run" if g["met"] is None else ("MET" if g["met"] else "NOT MET")
-            val = f"{g['seconds']:.3f} s " if g.get("seconds") is not None else ""
-            val += f"{g['ratio']:.1f}x " if "ratio" in g else ""
-            print(f"- {g['goal']}: {val}{state}")
-    else:
-        print("\nNo CUDA device in this run: the GPU figures and goals need a machine with an NVIDIA GPU.")
+    report(result)
     print(f"\nJSON written to {args.out}")
     return 0
 

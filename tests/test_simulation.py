@@ -91,6 +91,50 @@ def test_swept_interval_matches_dense_sampling(tool, turn):
             assert (gap <= SWEEP_TOL + np.linalg.norm(pb - pa) / 4000 + 1e-6).all()
 
 
+def test_a_pose_of_a_flat_or_bull_nose_meets_a_line_where_its_points_are():
+    """One pose of a flat end or bull-nose against a line (:func:`sweep.stand`, closed form but
+    for the rims): the interval holds every point of the line inside the tool and its ends lie on
+    the tool's boundary; axes along the line and across it, and lines exactly on the side, the
+    rim and the end face's edge, included."""
+    rng = np.random.default_rng(11)
+    w = np.linspace(-30.0, 30.0, 60001)
+    met = 0
+    for case in range(400):
+        R = float(rng.choice([2.0, 3.0, 5.0]))
+        r = float(rng.choice([0.0, 0.5, 1.0, R / 2]))
+        F = float(rng.choice([10.0, 16.0]))
+        x = np.zeros(3)
+        if case % 4 == 0:
+            x[2] = rng.choice([-1.0, 1.0])
+        elif case % 4 == 1:
+            x[rng.integers(0, 2)] = rng.choice([-1.0, 1.0])
+        else:
+            x = rng.normal(size=3)
+            x /= np.linalg.norm(x)
+        tip = np.round(rng.uniform(-2, 2, 3), 1)
+        if case % 4 == 0:  # on the side (R), the rim's start (R - r) or the axis, exactly
+            off = float(rng.choice([R, R - r, 0.0, R + 0.5]))
+            u0, v0 = tip[0] + off, tip[1]
+        else:
+            u0, v0 = tip[:2] + rng.uniform(-R - 1, R + 1, 2)
+        H = max(0.0, F - 2 * r)
+        c = tip + r * x
+        lo, hi = swp.stand(u0, v0, *c, *x, H, R - r, r, 3)
+        pts = np.column_stack([np.full_like(w, u0), np.full_like(w, v0), w])
+        gap = tool_gap(pts, tip, x, R, r, F)
+        inside = gap <= 0.0
+        if lo > hi:
+            assert not (gap < -1e-6).any(), case
+            continue
+        met += 1
+        assert (w[gap < -1e-9] >= lo - 1e-6).all() and (w[gap < -1e-9] <= hi + 1e-6).all(), case
+        if inside.any():
+            assert w[inside].min() <= lo + 1e-3 + 1e-6 and w[inside].max() >= hi - 1e-3 - 1e-6, case
+        ends = tool_gap(np.array([[u0, v0, lo], [u0, v0, hi]]), tip, x, R, r, F)
+        assert (np.abs(ends) <= 1e-8).all(), (case, ends)
+    assert met > 150
+
+
 @pytest.mark.parametrize("k", [0, 1, 2])
 def test_aligned_sweep_matches_the_bisection_and_the_poses(k):
     """A flat or bull-nose tool whose axis lies along a line-frame axis (3-axis against every dexel
@@ -579,10 +623,12 @@ def _turning_move(rng, max_turn):
 
 
 def test_a_turning_flat_or_bull_nose_cuts_what_its_exact_sweep_holds():
-    """A turning flat end or bull-nose cutting a line: the closed-form bound that spares the search
+    """A turning flat end or bull-nose cutting a line: the closed-form bounds that spare the search
     over its poses (balls about its axis swept along the move at the first axis, grown by what the
-    turn moves) never hides material its exact sweep holds: the length removed is the exact
-    sweep's, on lines through material in random pieces."""
+    turn moves, above the first tip's plane lowered by what the move and turn take the tool below
+    it) and the poses at the ends that spare it where no material lies beyond them never hide
+    material its exact sweep holds: the length removed is the exact sweep's, on lines through
+    material in random pieces near the tool's top and near its tip."""
     from meshmill.kernels.cpu_dexel import crv
 
     rng = np.random.default_rng(5)
@@ -591,9 +637,10 @@ def test_a_turning_flat_or_bull_nose_cuts_what_its_exact_sweep_holds():
         R, F = rng.uniform(1.0, 8.0), rng.uniform(8.0, 60.0)
         cm = R * rng.choice([0.0, 0.25, 0.5])  # flat or bull-nose
         pa, pb, xa, xb = _turning_move(rng, 0.3)
-        # lines near the tool's top at the end of the move, where the turn moves it the most
-        top = pb + (F - cm) * xb
-        u0, v0 = top[:2] + rng.uniform(-R - 2, R + 2, 2)
+        # lines near the tool's top at the end of the move, where the turn moves it the most, or
+        # near its tip, where the tip's plane bounds it
+        near = pb + (F - cm) * xb if case % 2 else (pa if case % 4 == 0 else pb)
+        u0, v0 = near[:2] + rng.uniform(-R - 2, R + 2, 2)
         ends = np.sort(rng.uniform(-60, 60, 2 * rng.integers(1, 4)))
         iv = np.zeros((8, 2))
         iv[:len(ends) // 2] = ends.reshape(-1, 2)

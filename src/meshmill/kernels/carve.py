@@ -166,33 +166,77 @@ def build(jit, inline=None):
         n = count[line]
         base = off[line]
         cm = corner[m]
+        A = (pa[m, 0], pa[m, 1], pa[m, 2])
+        B = (pb[m, 0], pb[m, 1], pb[m, 2])
+        XA = (xa[m, 0], xa[m, 1], xa[m, 2])
+        XB = (xb[m, 0], xb[m, 1], xb[m, 2])
+        turning = XA[0] != XB[0] or XA[1] != XB[1] or XA[2] != XB[2]
         if cm >= radius[m]:
             # the ball alone, unless material lies where only the flutes reach
             lo, hi = swp.capsule(u0, v0, chord[m, 0], chord[m, 1], chord[m, 2], chord[m, 3], chord[m, 4], chord[m, 5],
                                  cm)
             flo, fhi = swp.flute_range(u0, v0, plane[m, 0], plane[m, 1], plane[m, 2], plane[m, 3])
-            if material_outside(iv, base, n, max(flo, wlo), min(fhi, whi), lo, hi):
-                lo, hi = swp.tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
+            search = material_outside(iv, base, n, max(flo, wlo), min(fhi, whi), lo, hi)
         else:
             # nothing to cut unless material lies in the sweep of the ball of radius R about the
             # axis segment (it holds the whole tool's), swept as the parallelogram of its first
             # axis along the move; a turning axis moves a point h up it off that parallelogram
             # by at most h |xb - xa|, and the normalised interpolation by (cm + h)(1 - cos(theta/2))
             H = max(0.0, flutes[m] - 2.0 * cm)
-            dx = xb[m, 0] - xa[m, 0]
-            dy = xb[m, 1] - xa[m, 1]
-            dz = xb[m, 2] - xa[m, 2]
+            dx = XB[0] - XA[0]
+            dy = XB[1] - XA[1]
+            dz = XB[2] - XA[2]
+            turn = math.sqrt(dx * dx + dy * dy + dz * dz)
             grow = 0.0
-            if dx != 0.0 or dy != 0.0 or dz != 0.0:
-                c = min(1.0, max(-1.0, xa[m, 0] * xb[m, 0] + xa[m, 1] * xb[m, 1] + xa[m, 2] * xb[m, 2]))
-                grow = H * math.sqrt(dx * dx + dy * dy + dz * dz) + (cm + H) * (1.0 - math.sqrt(0.5 * (1.0 + c)))
+            if turning:
+                c = min(1.0, max(-1.0, XA[0] * XB[0] + XA[1] * XB[1] + XA[2] * XB[2]))
+                grow = H * turn + (cm + H) * (1.0 - math.sqrt(0.5 * (1.0 + c)))
                 grow = grow * (1.0 + 1e-9) + 1e-9
             lo, hi = swp.pgram_ball(u0, v0, chord[m, 0], chord[m, 1], chord[m, 2], chord[m, 3] - chord[m, 0],
-                                    chord[m, 4] - chord[m, 1], chord[m, 5] - chord[m, 2], H * xa[m, 0],
-                                    H * xa[m, 1], H * xa[m, 2], radius[m] + grow)
+                                    chord[m, 4] - chord[m, 1], chord[m, 5] - chord[m, 2], H * XA[0],
+                                    H * XA[1], H * XA[2], radius[m] + grow)
+            # and above the plane of the first tip normal to the first axis, lowered by what the
+            # move takes the tip below it and the turn tilts the tool's end (a point at radius
+            # R <= R |xb - xa|): every pose stands on its own tip's plane
+            drop = max(0.0, -((B[0] - A[0]) * XA[0] + (B[1] - A[1]) * XA[1] + (B[2] - A[2]) * XA[2])) \
+                + radius[m] * turn
+            drop = drop * (1.0 + 1e-9) + 1e-9
+            flo, fhi = swp.flute_range(u0, v0, XA[0], XA[1], XA[2], drop - (A[0] * XA[0] + A[1] * XA[1] + A[2] * XA[2]))
+            lo = max(lo, flo)
+            hi = min(hi, fhi)
             if lo >= hi or not material_outside(iv, base, n, max(lo, wlo), min(hi, whi), 1.0, 0.0):
                 return 0.0, 1.0, 0.0
-            lo, hi = swp.tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], cm, flutes[m], strips[m])
+            search = True
+        if search and turning and cm < radius[m]:
+            # a turning flat or bull-nose: its poses at the piece's ends bound the interval from
+            # inside; an end is searched over the poses only where material lies between it and
+            # the bound (elsewhere both remove the same)
+            ilo = sweep.INF
+            ihi = -sweep.INF
+            for e in range(2):
+                l, h = swp.pose_at(u0, v0, A, B, XA, XB, float(e), radius[m], cm, flutes[m], 3)
+                if l <= h:
+                    ilo = min(ilo, l)
+                    ihi = max(ihi, h)
+            olo = lo
+            ohi = hi
+            lo = ilo
+            hi = ihi
+            for side in range(2):
+                if side == 0:
+                    need = ilo > ihi or material_outside(iv, base, n, max(olo, wlo), min(ilo, whi), 1.0, 0.0)
+                else:
+                    need = ilo > ihi or material_outside(iv, base, n, max(ihi, wlo), min(ohi, whi), 1.0, 0.0)
+                if need:
+                    e = swp.turning_search(u0, v0, A, B, XA, XB, radius[m], cm, flutes[m], side == 1)
+                    if side == 0:
+                        lo = e
+                    else:
+                        hi = e
+                if lo >= sweep.INF:
+                    return 0.0, 1.0, 0.0
+        elif search:
+            lo, hi = swp.tool_move(u0, v0, A, B, XA, XB, radius[m], cm, flutes[m], strips[m])
         if lo >= hi:
             return 0.0, 1.0, 0.0
         first, last = 1.0, 0.0
@@ -210,31 +254,51 @@ def build(jit, inline=None):
         base = off[line]
         if not material_outside(iv, base, n, wlo, whi, 1.0, 0.0):
             return 0.0
-        # first the capsule about the cylinder's axis (a ball-end of its radius standing R lower,
-        # swept in closed form): most lines near a shank or holder hold no material in it
-        # (grown by a quarter of its ruled surface's twist, which its strips may miss)
         R = radius[m]
-        twist = 0.25 * (flutes[m] + 2.0 * R) * math.sqrt((xa[m, 0] - xb[m, 0]) ** 2 + (xa[m, 1] - xb[m, 1]) ** 2
-                                                           + (xa[m, 2] - xb[m, 2]) ** 2) / strips[m]
-        g = R + twist + 1e-9
-        qa = (pa[m, 0] - g * xa[m, 0], pa[m, 1] - g * xa[m, 1], pa[m, 2] - g * xa[m, 2])
-        qb = (pb[m, 0] - g * xb[m, 0], pb[m, 1] - g * xb[m, 1], pb[m, 2] - g * xb[m, 2])
-        lo, hi = swp.tool_move(u0, v0, qa, qb, xa[m], xb[m], g, g, flutes[m] + 2.0 * g, strips[m])
-        if lo >= hi or not material_outside(iv, base, n, lo, hi, 1.0, 0.0):
-            return 0.0
+        F = flutes[m]
         turn = math.sqrt((xa[m, 0] - xb[m, 0]) ** 2 + (xa[m, 1] - xb[m, 1]) ** 2 + (xa[m, 2] - xb[m, 2]) ** 2)
-        if turn > 0.0:
-            # a turning cylinder's sweep is searched over its poses; it lies within the cylinder
-            # held at the first axis along the move (exact in closed form), grown by how far the
-            # turn moves any of its points from there: 2 asin(turn / 2) (F + R), the angle times
-            # the farthest point's distance from the tip
-            d = 2.0 * math.asin(min(1.0, 0.5 * turn)) * (flutes[m] + R) + 1e-9
-            qa = (pa[m, 0] - d * xa[m, 0], pa[m, 1] - d * xa[m, 1], pa[m, 2] - d * xa[m, 2])
-            qb = (pb[m, 0] - d * xa[m, 0], pb[m, 1] - d * xa[m, 1], pb[m, 2] - d * xa[m, 2])
-            lo, hi = swp.tool_move(u0, v0, qa, qb, xa[m], xa[m], R + d, corner[m], flutes[m] + 2.0 * d, 1)
-            if lo >= hi or not material_outside(iv, base, n, lo, hi, 1.0, 0.0):
+        XA = (xa[m, 0], xa[m, 1], xa[m, 2])
+        XB = (xb[m, 0], xb[m, 1], xb[m, 2])
+        lo = 1.0
+        hi = 0.0
+        for stage in range(3):
+            if stage == 0:
+                # first the capsule about the cylinder's axis (a ball-end of its radius standing R
+                # lower, swept in closed form): most lines near a shank or holder hold no material
+                # in it (grown by a quarter of its ruled surface's twist, which its strips may miss)
+                g = R + 0.25 * (F + 2.0 * R) * turn / strips[m] + 1e-9
+                lower = g
+                X1 = XB
+                Rs = g
+                rs = g
+                Fs = F + 2.0 * g
+                sub = strips[m]
+            elif stage == 1:
+                if turn == 0.0:
+                    continue
+                # a turning cylinder's sweep is searched over its poses; it lies within the
+                # cylinder held at the first axis along the move (exact in closed form), grown by
+                # how far the turn moves any of its points from there: 2 asin(turn / 2) (F + R),
+                # the angle times the farthest point's distance from the tip
+                d = 2.0 * math.asin(min(1.0, 0.5 * turn)) * (F + R) + 1e-9
+                lower = d
+                X1 = XA
+                Rs = R + d
+                rs = corner[m]
+                Fs = F + 2.0 * d
+                sub = 1
+            else:
+                lower = 0.0
+                X1 = XB
+                Rs = R
+                rs = corner[m]
+                Fs = F
+                sub = strips[m]
+            qa = (pa[m, 0] - lower * XA[0], pa[m, 1] - lower * XA[1], pa[m, 2] - lower * XA[2])
+            qb = (pb[m, 0] - lower * X1[0], pb[m, 1] - lower * X1[1], pb[m, 2] - lower * X1[2])
+            lo, hi = swp.tool_move(u0, v0, qa, qb, XA, X1, Rs, rs, Fs, sub)
+            if stage < 2 and (lo >= hi or not material_outside(iv, base, n, lo, hi, 1.0, 0.0)):
                 return 0.0
-        lo, hi = swp.tool_move(u0, v0, pa[m], pb[m], xa[m], xb[m], radius[m], corner[m], flutes[m], strips[m])
         best = 0.0
         for k in range(base, base + n):
             s = max(iv[k, 0], lo)

@@ -23,7 +23,9 @@ cuts more than the real tool. Swept along a move with a fixed axis it becomes
   and found by bisection to ``BISECT_TOL`` (:func:`rounded_sweep`).
 
 When the axis turns during a move (5-axis), see :func:`tool_move`: the callers split such moves
-into pieces short enough for the stated sweep tolerance.
+into pieces short enough for the stated sweep tolerance. A flat or bull-nose cutter's turning sweep
+is searched over its poses, each in closed form but where the line passes through a rounded rim
+(:func:`stand`).
 """
 from __future__ import annotations
 
@@ -36,6 +38,8 @@ INF = 1.0e300
 BISECT_TOL = 1e-9  # mm along the line
 GOLDEN = 0.6180339887498949
 SEARCH_SAMPLES = 16  # poses sampled along a turning piece before the golden-section search
+SEARCH_TOL = 1e-6  # mm: the golden-section search stops when its poses differ by this at most
+SEARCH_STEPS = 60  # poses the golden-section search evaluates at most (0.618^60 of the bracket)
 
 
 def build(jit):
@@ -443,59 +447,210 @@ def build(jit):
         return rounded_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r)
 
     @jit
-    def pose(u0, v0, tu, tv, tw, xu, xv, xw, R, r, F):
-        """Line against the cutter standing at tip t with unit axis x."""
+    def cylinder_line(pu, pv, pw, xu, xv, xw, a_lo, a_hi, R):
+        """``(lo, hi)`` of the line through ``(pu, pv, 0)`` along w (coordinates relative to a
+        point c on the axis, unit axis x) inside the solid cylinder ``a_lo <= (p - c).x <= a_hi``,
+        radius R (empty: lo > hi); ``pw`` is c's w, added back."""
+        e = pu * xu + pv * xv  # the axial coordinate at w = pw is e, and grows by xw along w
+        lo = -INF
+        hi = INF
+        if xw == 0.0:
+            if e < a_lo or e > a_hi:
+                return INF, -INF
+        else:
+            z0 = (a_lo - e) / xw
+            z1 = (a_hi - e) / xw
+            lo = min(z0, z1)
+            hi = max(z0, z1)
+        # radial distance squared: A z^2 + 2 B z + C0 (z = w - pw)
+        A = xu * xu + xv * xv
+        B = -e * xw
+        C = pu * pu + pv * pv - e * e - R * R
+        if A <= 1e-24:
+            if C > 0.0:
+                return INF, -INF
+        else:
+            disc = B * B - A * C
+            if disc < 0.0:
+                return INF, -INF
+            q = -(B + math.copysign(math.sqrt(disc), B))
+            if q == 0.0:  # B = 0 and disc = 0: the line grazes the cylinder at z = 0
+                z0 = 0.0
+                z1 = 0.0
+            else:
+                z0 = q / A
+                z1 = C / q
+            lo = max(lo, min(z0, z1))
+            hi = min(hi, max(z0, z1))
+        if lo > hi:
+            return INF, -INF
+        return pw + lo, pw + hi
+
+    @jit
+    def stand_dist2(w, pu, pv, pw, xu, xv, xw, H, rho):
+        """Squared distance from the line point at w to ``Disk(rho) + Segment(c, c + H x)``."""
+        z = w - pw
+        a = pu * xu + pv * xv + z * xw
+        s2 = pu * pu + pv * pv + z * z - a * a
+        radial = max(0.0, math.sqrt(max(0.0, s2)) - rho)
+        gap = max(0.0, max(-a, a - H))
+        return radial * radial + gap * gap
+
+    @jit
+    def stand(u0, v0, cu, cv, cw, xu, xv, xw, H, rho, r, ends):
+        """Line against ``Disk(rho) + Segment(c, c + H x) + Ball(r)`` (one pose, rho > 0): the
+        union of the cylinders of radius rho + r over the segment and of radius rho over it
+        lengthened by r, in closed form, and where the line passes through the rounded rims
+        (r > 0), root-finding between that and the cylinder of radius rho + r that holds them.
+        ``ends``: 1 finds the lower end only, 2 the upper only, 3 both (the other is then any
+        point of the line in the tool)."""
+        pu = u0 - cu
+        pv = v0 - cv
+        olo, ohi = cylinder_line(pu, pv, cw, xu, xv, xw, -r, H + r, rho + r)
+        if olo > ohi or r <= 0.0:
+            return olo, ohi
+        l1, h1 = cylinder_line(pu, pv, cw, xu, xv, xw, 0.0, H, rho + r)
+        l2, h2 = cylinder_line(pu, pv, cw, xu, xv, xw, -r, H + r, rho)
+        ilo = min(l1, l2)
+        ihi = max(h1, h2)
+        r2 = r * r + 1e-18
+        if ilo > ihi:
+            # only the rims, if anything: the distance is convex along the line; its minimum
+            a = olo
+            b = ohi
+            inside = INF
+            w1 = b - GOLDEN * (b - a)
+            w2 = a + GOLDEN * (b - a)
+            f1 = stand_dist2(w1, pu, pv, cw, xu, xv, xw, H, rho)
+            f2 = stand_dist2(w2, pu, pv, cw, xu, xv, xw, H, rho)
+            for _ in range(90):
+                if f1 <= r2:
+                    inside = w1
+                    break
+                if f2 <= r2:
+                    inside = w2
+                    break
+                if b - a < BISECT_TOL:
+                    break
+                a, b, w1, w2, f1, f2, left = golden_step(a, b, w1, w2, f1, f2)
+                if left:
+                    f1 = stand_dist2(w1, pu, pv, cw, xu, xv, xw, H, rho)
+                else:
+                    f2 = stand_dist2(w2, pu, pv, cw, xu, xv, xw, H, rho)
+            if inside == INF:
+                return INF, -INF
+            ilo = inside
+            ihi = inside
+        lo = ilo
+        hi = ihi
+        for side in range(2):
+            if not ends & (1 << side):
+                continue
+            # each end between the outer cylinder's (outside) and the inner one's (inside), where
+            # the distance minus r changes sign: regula falsi, Illinois' variant, to BISECT_TOL
+            w_out = olo if side == 0 else ohi
+            w_in = ilo if side == 0 else ihi
+            f_out = math.sqrt(stand_dist2(w_out, pu, pv, cw, xu, xv, xw, H, rho)) - r
+            f_in = math.sqrt(stand_dist2(w_in, pu, pv, cw, xu, xv, xw, H, rho)) - r
+            kept = 0
+            for _ in range(200):
+                if abs(w_in - w_out) <= BISECT_TOL or f_out <= 0.0:
+                    break
+                w = w_in + f_in * (w_out - w_in) / (f_in - f_out) if f_in < f_out else 0.5 * (w_in + w_out)
+                if not (min(w_in, w_out) < w < max(w_in, w_out)):
+                    w = 0.5 * (w_in + w_out)
+                f = math.sqrt(stand_dist2(w, pu, pv, cw, xu, xv, xw, H, rho)) - r
+                if f <= 0.0:
+                    w_in = w
+                    f_in = f
+                    if kept == -1:
+                        f_out *= 0.5
+                    kept = -1
+                else:
+                    w_out = w
+                    f_out = f
+                    if kept == 1:
+                        f_in *= 0.5
+                    kept = 1
+                if abs(f) <= 1e-13:  # on the boundary
+                    w_in = w
+                    break
+            if f_out <= 0.0:
+                w_in = w_out
+            if side == 0:
+                lo = w_in
+            else:
+                hi = w_in
+        return lo, hi
+
+    @jit
+    def pose(u0, v0, tu, tv, tw, xu, xv, xw, R, r, F, ends):
+        """Line against the cutter standing at tip t with unit axis x (``ends``: see :func:`stand`)."""
         H = max(0.0, F - 2.0 * r)
         cu = tu + r * xu
         cv = tv + r * xv
         cw = tw + r * xw
         if R - r <= 1e-12:
             return capsule(u0, v0, cu, cv, cw, cu + H * xu, cv + H * xv, cw + H * xw, r)
-        return fixed_sweep(u0, v0, cu, cv, cw, 0.0, 0.0, 0.0, xu, xv, xw, H, R - r, r)
+        return stand(u0, v0, cu, cv, cw, xu, xv, xw, H, R - r, r, ends)
 
     @jit
-    def pose_at(u0, v0, pa, pb, xa, xb, t, R, r, F):
+    def pose_at(u0, v0, pa, pb, xa, xb, t, R, r, F, ends):
         """:func:`pose` at fraction t of a move (tip linear, axis normalised linear)."""
         xu = xa[0] + t * (xb[0] - xa[0])
         xv = xa[1] + t * (xb[1] - xa[1])
         xw = xa[2] + t * (xb[2] - xa[2])
         n = math.sqrt(xu * xu + xv * xv + xw * xw)
         return pose(u0, v0, pa[0] + t * (pb[0] - pa[0]), pa[1] + t * (pb[1] - pa[1]), pa[2] + t * (pb[2] - pa[2]),
-                    xu / n, xv / n, xw / n, R, r, F)
+                    xu / n, xv / n, xw / n, R, r, F, ends)
 
     @jit
     def turning_search(u0, v0, pa, pb, xa, xb, R, r, F, upper):
         """Lowest start (``upper`` False) or highest end of the pose intervals over the move: the
-        best of ``SEARCH_SAMPLES + 1`` poses, then golden-section search around it (the pieces
-        moves are split into turn little, so the extreme is unimodal there)."""
+        best of ``SEARCH_SAMPLES + 1`` poses, then a golden-section search around it (the pieces
+        moves are split into turn little, so the extreme is unimodal there), one pose a step, until
+        the poses left differ by ``SEARCH_TOL`` at any point of the tool."""
+        # how fast any point of the tool moves with t (the normalised axis turns at most
+        # |xb - xa| / cos(turn / 2), under 1.01 |xb - xa| for the turns of a piece)
+        speed = math.sqrt((pb[0] - pa[0]) ** 2 + (pb[1] - pa[1]) ** 2 + (pb[2] - pa[2]) ** 2) + 1.01 * (F + R) * \
+            math.sqrt((xb[0] - xa[0]) ** 2 + (xb[1] - xa[1]) ** 2 + (xb[2] - xa[2]) ** 2)
+        width = SEARCH_TOL / max(speed, SEARCH_TOL)
         best = INF
         tbest = -1.0
-        for k in range(SEARCH_SAMPLES + 1):
-            t = k / SEARCH_SAMPLES
-            lo, hi = pose_at(u0, v0, pa, pb, xa, xb, t, R, r, F)
-            if lo <= hi:
-                f = -hi if upper else lo
-                if f < best:
-                    best = f
-                    tbest = t
-        if tbest < 0.0:
-            return -INF if upper else INF
-        a = max(0.0, tbest - 1.0 / SEARCH_SAMPLES)
-        b = min(1.0, tbest + 1.0 / SEARCH_SAMPLES)
-        for _ in range(40):
-            t1 = b - GOLDEN * (b - a)
-            t2 = a + GOLDEN * (b - a)
-            l1, h1 = pose_at(u0, v0, pa, pb, xa, xb, t1, R, r, F)
-            l2, h2 = pose_at(u0, v0, pa, pb, xa, xb, t2, R, r, F)
-            f1 = (-h1 if upper else l1) if l1 <= h1 else INF
-            f2 = (-h2 if upper else l2) if l2 <= h2 else INF
-            best = min(best, min(f1, f2))
-            if f1 <= f2:
-                b = t2
+        a = 0.0
+        b = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        f1 = 0.0
+        f2 = 0.0
+        left = True
+        for k in range(SEARCH_SAMPLES + 1 + SEARCH_STEPS):
+            t = k / SEARCH_SAMPLES if k <= SEARCH_SAMPLES else (s1 if left else s2)
+            lo, hi = pose_at(u0, v0, pa, pb, xa, xb, t, R, r, F, 2 if upper else 1)
+            f = (-hi if upper else lo) if lo <= hi else INF
+            if f < best:
+                best = f
+                tbest = t
+            if k < SEARCH_SAMPLES:
+                continue
+            if k == SEARCH_SAMPLES:  # the bracket about the best sample; s1 is evaluated next, then s2
+                if tbest < 0.0:
+                    return -INF if upper else INF
+                a = max(0.0, tbest - 1.0 / SEARCH_SAMPLES)
+                b = min(1.0, tbest + 1.0 / SEARCH_SAMPLES)
+                s1 = b - GOLDEN * (b - a)
+                s2 = a + GOLDEN * (b - a)
+                continue
+            if left:
+                f1 = f
             else:
-                a = t1
-            if b - a < 1e-9:
+                f2 = f
+            if k == SEARCH_SAMPLES + 1:
+                left = False
+                continue
+            if b - a < width:
                 break
+            a, b, s1, s2, f1, f2, left = golden_step(a, b, s1, s2, f1, f2)
         return -best if upper else best
 
     @jit
@@ -542,10 +697,17 @@ def build(jit):
                 return pgram_ball(u0, v0, cu, cv, cw, Du, Dv, Dw, H * xa[0], H * xa[1], H * xa[2], r)
             return fixed_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xa[0], xa[1], xa[2], H, rho, r)
         if rho > 1e-12:  # other cutters: the extreme ends over the poses
-            lo = turning_search(u0, v0, pa, pb, xa, xb, R, r, F, False)
-            if lo >= INF:
-                return INF, -INF
-            return lo, turning_search(u0, v0, pa, pb, xa, xb, R, r, F, True)
+            lo = INF
+            hi = -INF
+            for side in range(2):
+                e = turning_search(u0, v0, pa, pb, xa, xb, R, r, F, side == 1)
+                if side == 0:
+                    if e >= INF:
+                        break
+                    lo = e
+                else:
+                    hi = e
+            return lo, hi
         # ball: per strip, the quad c_a, c_b, c_b + H x_b, c_a + H x_a split along its diagonal
         lo = INF
         hi = -INF
@@ -571,4 +733,5 @@ def build(jit):
     return namespace(sphere=sphere, capsule=capsule, pgram_ball=pgram_ball, core_dist2=core_dist2,
                      rounded_sweep=rounded_sweep, aligned_sweep=aligned_sweep, aligned_poses=aligned_poses,
                      aligned_at=aligned_at, fixed_sweep=fixed_sweep, pose=pose, flute_plane=flute_plane,
-                     flute_range=flute_range, tool_move=tool_move)
+                     flute_range=flute_range, pose_at=pose_at, stand=stand,
+                     turning_search=turning_search, tool_move=tool_move)
