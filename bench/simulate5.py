@@ -5,6 +5,7 @@ measured, at two lattice steps, by this tree and by another revision in the same
     .venv/bin/python bench/simulate5.py --before 59a515b         # and that revision, side by side
     .venv/bin/python bench/simulate5.py --parts blade --steps 0.5
     .venv/bin/python bench/simulate5.py --steps 0.5 --cutters ball,bull,flat  # the same paths, other ends
+    .venv/bin/python bench/simulate5.py --parts blade --steps 0.5 --cutters ball,bull,flat --points 400 --before 621bd62
 
 Per part the finish (``finish --scallop 0.01`` with the balls of bench/realparts.py, the part's
 step-down there) is made once with this tree and written to bench/out/simulate5/<part>.cl; then
@@ -74,6 +75,22 @@ def make_path(name, tools) -> str:
     return cl
 
 
+def head(cl, points: int, work: str) -> str:
+    """A copy of the CL file ``cl`` cut after its first ``points`` GOTO points."""
+    out, n = [], 0
+    with open(cl) as fh:
+        for line in fh:
+            if line.startswith("GOTO"):
+                n += 1
+                if n > points:
+                    break
+            out.append(line)
+    path = os.path.join(work, f"{os.path.basename(cl)[:-3]}-{points}.cl")
+    with open(path, "w") as fh:
+        fh.writelines(out + ["FINI\n"])
+    return path
+
+
 def simulate_one(name, cl, tools_file, step) -> dict:
     """(In the child process.) The figures of one simulation of ``cl``."""
     import time
@@ -113,6 +130,7 @@ def main():
     ap.add_argument("--steps", default="0.5,0.3")
     ap.add_argument("--before", help="a git revision simulated beside this tree")
     ap.add_argument("--cutters", default="ball", help="the ends the same path is cut with: ball,bull,flat")
+    ap.add_argument("--points", type=int, help="only the first points of each path")
     a = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as work:
@@ -126,6 +144,8 @@ def main():
         try:
             for name in a.parts.split(","):
                 cl = make_path(name, tools)
+                if a.points:
+                    cl = head(cl, a.points, work)
                 for step in (float(x) for x in a.steps.split(",")):
                     for kind in a.cutters.split(","):
                         table_file = tools_file if kind == "ball" else cutter_tools(work, kind)

@@ -13,6 +13,9 @@ from meshmill.geometry.shapes import post_with_fillet
 from meshmill.kernels.bvh import build_bvh
 
 
+MAX_PTX = 1_500_000  # bytes of PTX a kernel may take (the largest, the cut kernel, takes about 0.9 MB)
+
+
 class Host(np.ndarray):
     """Stands in for a device array."""
 
@@ -33,7 +36,10 @@ class Compile:
         def run(*args):
             sig = tuple(numba.typeof(np.asarray(a) if isinstance(a, np.ndarray) else a) for a in args)
             if self.name not in self.compiled:
-                cuda.compile_ptx(self.fn, sig, cc=(9, 0))
+                ptx, _ = cuda.compile_ptx(self.fn, sig, cc=(9, 0))
+                # the driver compiles the PTX at the first launch: 3.9 MB of it (every call of the
+                # large device functions inlined anew) took NVIDIA's ptxas over 2 minutes and 5 GB
+                assert len(ptx) < MAX_PTX, f"{self.name}: {len(ptx)} bytes of PTX"
                 self.compiled.append(self.name)
         return run
 

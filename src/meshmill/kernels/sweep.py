@@ -39,6 +39,7 @@ BISECT_TOL = 1e-9  # mm along the line
 GOLDEN = 0.6180339887498949
 SEARCH_SAMPLES = 16  # poses sampled along a turning piece before the golden-section search
 SEARCH_TOL = 1e-6  # mm: the golden-section search stops when its poses differ by this at most
+NEWTON_STEPS = 12  # Newton's steps to a rounded rim before regula falsi takes over
 SEARCH_STEPS = 60  # poses the golden-section search evaluates at most (0.618^60 of the bracket)
 
 
@@ -497,27 +498,84 @@ def build(jit):
         return radial * radial + gap * gap
 
     @jit
+    def stand_slope(w, pu, pv, pw, xu, xv, xw, H, rho):
+        """The distance of :func:`stand_dist2` (unsquared) and its derivative along the line."""
+        z = w - pw
+        a = pu * xu + pv * xv + z * xw
+        s2 = max(0.0, pu * pu + pv * pv + z * z - a * a)
+        rad = math.sqrt(s2)
+        radial = max(0.0, rad - rho)
+        gap = max(0.0, max(-a, a - H))
+        d = math.sqrt(radial * radial + gap * gap)
+        if d <= 0.0:
+            return 0.0, 0.0
+        slope = 0.0
+        if radial > 0.0:
+            slope += radial * (z - a * xw) / rad
+        if gap > 0.0:
+            slope += gap * (-xw if a < 0.0 else xw)
+        return d, slope / d
+
+    @jit
     def stand(u0, v0, cu, cv, cw, xu, xv, xw, H, rho, r, ends):
         """Line against ``Disk(rho) + Segment(c, c + H x) + Ball(r)`` (one pose, rho > 0): the
-        union of the cylinders of radius rho + r over the segment and of radius rho over it
-        lengthened by r, in closed form, and where the line passes through the rounded rims
-        (r > 0), root-finding between that and the cylinder of radius rho + r that holds them.
-        ``ends``: 1 finds the lower end only, 2 the upper only, 3 both (the other is then any
-        point of the line in the tool)."""
+        cylinder of radius rho + r that holds it in closed form, which is exact where the line
+        meets that beside the segment or within rho of the axis; where it meets it by a rounded
+        rim (r > 0), root-finding on the distance to the core.
+        ``ends``: 1 finds the lower end only, 2 the upper only, 3 both (the other is then only
+        a bound: the line meets the tool when lo <= hi all the same)."""
         pu = u0 - cu
         pv = v0 - cv
         olo, ohi = cylinder_line(pu, pv, cw, xu, xv, xw, -r, H + r, rho + r)
         if olo > ohi or r <= 0.0:
             return olo, ohi
+        # an end of the outer cylinder beside the segment or within rho of the axis is the tool's
+        rims = 0
+        for side in range(2):
+            if ends & (1 << side):
+                z = (olo if side == 0 else ohi) - cw
+                a = pu * xu + pv * xv + z * xw
+                if (a < 0.0 or a > H) and pu * pu + pv * pv + z * z - a * a > rho * rho:
+                    rims |= 1 << side
+        if rims == 0:
+            return olo, ohi
+        # Newton's steps from outside: the distance is convex along the line, so they stay
+        # outside and converge, or pass the line's closest point (the line misses the tool)
+        lo = olo
+        hi = ohi
+        slow = 0
+        for side in range(2):
+            if not rims & (1 << side):
+                continue
+            w = olo if side == 0 else ohi
+            inward = 1.0 if side == 0 else -1.0
+            d, slope = stand_slope(w, pu, pv, cw, xu, xv, xw, H, rho)
+            for _ in range(NEWTON_STEPS):
+                if d - r <= 1e-13:
+                    break
+                if slope * inward >= 0.0:
+                    return INF, -INF
+                w -= (d - r) / slope
+                d, slope = stand_slope(w, pu, pv, cw, xu, xv, xw, H, rho)
+            if d - r > 1e-13:
+                slow |= 1 << side  # slow: a line grazing a rim
+            if side == 0:
+                lo = w
+            else:
+                hi = w
+        if slow == 0:
+            return lo, hi
+        # where Newton is slow: regula falsi (Illinois' variant) to BISECT_TOL between that point
+        # and one inside the tool (on the cylinders of radius rho + r over the segment or rho
+        # over it lengthened by r, or else the line's point closest to the rims)
         l1, h1 = cylinder_line(pu, pv, cw, xu, xv, xw, 0.0, H, rho + r)
         l2, h2 = cylinder_line(pu, pv, cw, xu, xv, xw, -r, H + r, rho)
         ilo = min(l1, l2)
         ihi = max(h1, h2)
         r2 = r * r + 1e-18
         if ilo > ihi:
-            # only the rims, if anything: the distance is convex along the line; its minimum
-            a = olo
-            b = ohi
+            a = lo
+            b = hi
             inside = INF
             w1 = b - GOLDEN * (b - a)
             w2 = a + GOLDEN * (b - a)
@@ -541,20 +599,16 @@ def build(jit):
                 return INF, -INF
             ilo = inside
             ihi = inside
-        lo = ilo
-        hi = ihi
         for side in range(2):
-            if not ends & (1 << side):
+            if not slow & (1 << side):
                 continue
-            # each end between the outer cylinder's (outside) and the inner one's (inside), where
-            # the distance minus r changes sign: regula falsi, Illinois' variant, to BISECT_TOL
-            w_out = olo if side == 0 else ohi
+            w_out = lo if side == 0 else hi
             w_in = ilo if side == 0 else ihi
             f_out = math.sqrt(stand_dist2(w_out, pu, pv, cw, xu, xv, xw, H, rho)) - r
             f_in = math.sqrt(stand_dist2(w_in, pu, pv, cw, xu, xv, xw, H, rho)) - r
             kept = 0
             for _ in range(200):
-                if abs(w_in - w_out) <= BISECT_TOL or f_out <= 0.0:
+                if abs(w_in - w_out) <= BISECT_TOL or f_out <= 1e-13:
                     break
                 w = w_in + f_in * (w_out - w_in) / (f_in - f_out) if f_in < f_out else 0.5 * (w_in + w_out)
                 if not (min(w_in, w_out) < w < max(w_in, w_out)):
@@ -575,7 +629,7 @@ def build(jit):
                 if abs(f) <= 1e-13:  # on the boundary
                     w_in = w
                     break
-            if f_out <= 0.0:
+            if f_out <= 1e-13:
                 w_in = w_out
             if side == 0:
                 lo = w_in
