@@ -169,13 +169,13 @@ class PathBuilder:
         return p + min(self.approach, max(0.0, (self.safe_z - p[2]) / d[2])) * d
 
     def build(self, passes):
-        tips, axes, rapid, tools, owner, role = [], [], [], [], [], []
+        tips, axes, rapid, tools, owner, role = [], [], [], [], [], []  # tips, axes: blocks (n, 3)
 
         def add(p, u, is_rapid, tool, k, r):
-            tips.append(p)
-            axes.append(u)
-            rapid.append(is_rapid)
-            tools.append(tool)
+            tips.append(np.reshape(p, (1, 3)))
+            axes.append(np.reshape(u, (1, 3)))
+            rapid.append(np.array([is_rapid]))
+            tools.append(np.array([tool], np.int64))
             owner.append(k)
             role.append(r)
 
@@ -194,10 +194,10 @@ class PathBuilder:
             if k in directs:  # from where the pass before left off: straight, or lifted over what lies between
                 way = directs[k]
                 for j, p in enumerate(way[1:]):
-                    add(p, u0 if j >= (len(way) - 1) // 2 else axes[-1], True, tool, k, "direct_in")
+                    add(p, u0 if j >= (len(way) - 1) // 2 else axes[-1][-1], True, tool, k, "direct_in")
             else:
-                if tips and float(np.dot(axes[-1], u0)) < 1.0 - 1e-12:  # turn in place, then travel
-                    add(tips[-1], u0, True, tool, k, "link_in")
+                if tips and float(np.dot(axes[-1][-1], u0)) < 1.0 - 1e-12:  # turn in place, then travel
+                    add(tips[-1][-1], u0, True, tool, k, "link_in")
                 add(self._up(start, u0, vertical_in), u0, True, tool, k, "link_in")
                 if not feed_in:
                     add(self._above(start, u0, vertical_in), u0, True, tool, k, "link_in")
@@ -206,8 +206,13 @@ class PathBuilder:
             add(start, u0, False, tool, k, "approach_in")
             if lead_in:
                 add(t0, u0, False, tool, k, "lead_in")
-            for j in range(1, len(idx)):
-                add(self.tip[idx[j]], self.axis[idx[j]], False, tool, k, j)
+            if len(idx) > 1:  # the pass's points, fed
+                tips.append(self.tip[idx[1:]])
+                axes.append(self.axis[idx[1:]])
+                rapid.append(np.zeros(len(idx) - 1, bool))
+                tools.append(np.full(len(idx) - 1, tool, np.int64))
+                owner.extend([k] * (len(idx) - 1))
+                role.extend(range(1, len(idx)))
             if lead_out:
                 add(end, u1, False, tool, k, "lead_out")
             if not feed_out:
@@ -220,8 +225,9 @@ class PathBuilder:
                     add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
             else:
                 add(self._up(end, u1, vertical_out), u1, False, tool, k, "approach_out")
-        tp = Toolpath(np.array(tips).reshape(-1, 3), np.array(axes).reshape(-1, 3), np.array(rapid, bool),
-                      np.array(tools, np.int64))
+        cat = lambda blocks, empty: np.concatenate(blocks) if blocks else empty  # noqa: E731
+        tp = Toolpath(cat(tips, np.zeros((0, 3))), cat(axes, np.zeros((0, 3))), cat(rapid, np.zeros(0, bool)),
+                      cat(tools, np.zeros(0, np.int64)))
         self.added = 0
         if self.gentle is not None:
             n = len(tp)
