@@ -207,10 +207,13 @@ def build(jit, inline=None):
             if lo >= hi or not material_outside(iv, base, n, max(lo, wlo), min(hi, whi), 1.0, 0.0):
                 return 0.0, 1.0, 0.0
             search = True
-        if search and turning and cm < radius[m]:
-            # a turning flat or bull-nose: its poses at the piece's ends bound the interval from
-            # inside; an end is searched over the poses only where material lies between it and
-            # the bound (elsewhere both remove the same)
+        exact = search
+        need_lo = True
+        need_hi = True
+        if search and cm < radius[m]:
+            # a flat or bull-nose: its poses at the piece's ends bound the interval from inside;
+            # an end is searched only where material lies between it and the bound (elsewhere
+            # both remove the same): over the poses when the axis turns, else the exact sweep
             ilo = sweep.INF
             ihi = -sweep.INF
             for e in range(2):
@@ -218,25 +221,31 @@ def build(jit, inline=None):
                 if l <= h:
                     ilo = min(ilo, l)
                     ihi = max(ihi, h)
-            olo = lo
-            ohi = hi
+            need_lo = ilo > ihi or material_outside(iv, base, n, max(lo, wlo), min(ilo, whi), 1.0, 0.0)
+            need_hi = ilo > ihi or material_outside(iv, base, n, max(ihi, wlo), min(hi, whi), 1.0, 0.0)
             lo = ilo
             hi = ihi
-            for side in range(2):
-                if side == 0:
-                    need = ilo > ihi or material_outside(iv, base, n, max(olo, wlo), min(ilo, whi), 1.0, 0.0)
-                else:
-                    need = ilo > ihi or material_outside(iv, base, n, max(ihi, wlo), min(ohi, whi), 1.0, 0.0)
-                if need:
-                    e = swp.turning_search(u0, v0, A, B, XA, XB, radius[m], cm, flutes[m], side == 1)
-                    if side == 0:
-                        lo = e
-                    else:
-                        hi = e
-                if lo >= sweep.INF:
-                    return 0.0, 1.0, 0.0
-        elif search:
-            lo, hi = swp.tool_move(u0, v0, A, B, XA, XB, radius[m], cm, flutes[m], strips[m])
+            exact = not turning and (need_lo or need_hi)
+            if turning:
+                for side in range(2):
+                    if need_lo if side == 0 else need_hi:
+                        e = swp.turning_search(u0, v0, A, B, XA, XB, radius[m], cm, flutes[m], side == 1)
+                        if side == 0:
+                            lo = e
+                        else:
+                            hi = e
+                    if lo >= sweep.INF:
+                        return 0.0, 1.0, 0.0
+        if exact:
+            elo, ehi = swp.tool_move(u0, v0, A, B, XA, XB, radius[m], cm, flutes[m], strips[m])
+            if cm >= radius[m]:
+                lo = elo
+                hi = ehi
+            else:  # the sweep holds its end poses
+                if need_lo:
+                    lo = min(lo, elo)
+                if need_hi:
+                    hi = max(hi, ehi)
         if lo >= hi:
             return 0.0, 1.0, 0.0
         first, last = 1.0, 0.0
