@@ -526,6 +526,12 @@ def build(jit):
         a bound: the line meets the tool when lo <= hi all the same)."""
         pu = u0 - cu
         pv = v0 - cv
+        if xu == 0.0 and xv == 0.0:  # the axis along the line: the radial distance is the line's
+            t = max(0.0, math.sqrt(pu * pu + pv * pv) - rho)
+            if t > r:
+                return INF, -INF
+            g = math.sqrt(max(0.0, r * r - t * t))
+            return (cw - g, cw + H + g) if xw > 0.0 else (cw - H - g, cw + g)
         olo, ohi = cylinder_line(pu, pv, cw, xu, xv, xw, -r, H + r, rho + r)
         if olo > ohi or r <= 0.0:
             return olo, ohi
@@ -557,8 +563,10 @@ def build(jit):
                     return INF, -INF
                 w -= (d - r) / slope
                 d, slope = stand_slope(w, pu, pv, cw, xu, xv, xw, H, rho)
-            if d - r > 1e-13:
-                slow |= 1 << side  # slow: a line grazing a rim
+            # done where a point BISECT_TOL further in is inside (a line grazing a rim meets it
+            # where the distance is flat: within 1e-13 of r there may still be far along it)
+            if d - r > 0.0 and math.sqrt(stand_dist2(w + inward * BISECT_TOL, pu, pv, cw, xu, xv, xw, H, rho)) > r:
+                slow |= 1 << side
             if side == 0:
                 lo = w
             else:
@@ -608,7 +616,7 @@ def build(jit):
             f_in = math.sqrt(stand_dist2(w_in, pu, pv, cw, xu, xv, xw, H, rho)) - r
             kept = 0
             for _ in range(200):
-                if abs(w_in - w_out) <= BISECT_TOL or f_out <= 1e-13:
+                if abs(w_in - w_out) <= BISECT_TOL or f_out <= 0.0:
                     break
                 w = w_in + f_in * (w_out - w_in) / (f_in - f_out) if f_in < f_out else 0.5 * (w_in + w_out)
                 if not (min(w_in, w_out) < w < max(w_in, w_out)):
@@ -626,10 +634,7 @@ def build(jit):
                     if kept == 1:
                         f_in *= 0.5
                     kept = 1
-                if abs(f) <= 1e-13:  # on the boundary
-                    w_in = w
-                    break
-            if f_out <= 1e-13:
+            if f_out <= 0.0:
                 w_in = w_out
             if side == 0:
                 lo = w_in
@@ -704,7 +709,16 @@ def build(jit):
                 continue
             if b - a < width:
                 break
-            a, b, s1, s2, f1, f2, left = golden_step(a, b, s1, s2, f1, f2)
+            if f1 >= INF and f2 >= INF and tbest > s2:
+                # neither inner pose meets the line: keep the side of the best pose (the poses
+                # that meet it lie about it), which the step would drop
+                a = s1
+                s1 = s2
+                f1 = f2
+                s2 = a + GOLDEN * (b - a)
+                left = False
+            else:
+                a, b, s1, s2, f1, f2, left = golden_step(a, b, s1, s2, f1, f2)
         return -best if upper else best
 
     @jit
