@@ -488,33 +488,24 @@ def build(jit):
         return pw + lo, pw + hi
 
     @jit
-    def stand_dist2(w, pu, pv, pw, xu, xv, xw, H, rho):
-        """Squared distance from the line point at w to ``Disk(rho) + Segment(c, c + H x)``."""
-        z = w - pw
-        a = pu * xu + pv * xv + z * xw
-        s2 = pu * pu + pv * pv + z * z - a * a
-        radial = max(0.0, math.sqrt(max(0.0, s2)) - rho)
-        gap = max(0.0, max(-a, a - H))
-        return radial * radial + gap * gap
-
-    @jit
-    def stand_slope(w, pu, pv, pw, xu, xv, xw, H, rho):
-        """The distance of :func:`stand_dist2` (unsquared) and its derivative along the line."""
+    def stand_distance(w, pu, pv, pw, xu, xv, xw, H, rho):
+        """``(d2, slope)``: the squared distance from the line point at w to
+        ``Disk(rho) + Segment(c, c + H x)`` and the derivative of the distance along the line."""
         z = w - pw
         a = pu * xu + pv * xv + z * xw
         s2 = max(0.0, pu * pu + pv * pv + z * z - a * a)
         rad = math.sqrt(s2)
         radial = max(0.0, rad - rho)
         gap = max(0.0, max(-a, a - H))
-        d = math.sqrt(radial * radial + gap * gap)
-        if d <= 0.0:
+        d2 = radial * radial + gap * gap
+        if d2 <= 0.0:
             return 0.0, 0.0
         slope = 0.0
         if radial > 0.0:
             slope += radial * (z - a * xw) / rad
         if gap > 0.0:
             slope += gap * (-xw if a < 0.0 else xw)
-        return d, slope / d
+        return d2, slope / math.sqrt(d2)
 
     @jit
     def stand(u0, v0, cu, cv, cw, xu, xv, xw, H, rho, r, ends):
@@ -555,17 +546,20 @@ def build(jit):
                 continue
             w = olo if side == 0 else ohi
             inward = 1.0 if side == 0 else -1.0
-            d, slope = stand_slope(w, pu, pv, cw, xu, xv, xw, H, rho)
+            d2, slope = stand_distance(w, pu, pv, cw, xu, xv, xw, H, rho)
+            d = math.sqrt(d2)
             for _ in range(NEWTON_STEPS):
                 if d - r <= 1e-13:
                     break
                 if slope * inward >= 0.0:
                     return INF, -INF
                 w -= (d - r) / slope
-                d, slope = stand_slope(w, pu, pv, cw, xu, xv, xw, H, rho)
+                d2, slope = stand_distance(w, pu, pv, cw, xu, xv, xw, H, rho)
+                d = math.sqrt(d2)
             # done where a point BISECT_TOL further in is inside (a line grazing a rim meets it
             # where the distance is flat: within 1e-13 of r there may still be far along it)
-            if d - r > 0.0 and math.sqrt(stand_dist2(w + inward * BISECT_TOL, pu, pv, cw, xu, xv, xw, H, rho)) > r:
+            further = stand_distance(w + inward * BISECT_TOL, pu, pv, cw, xu, xv, xw, H, rho)[0]
+            if d - r > 0.0 and math.sqrt(further) > r:
                 slow |= 1 << side
             if side == 0:
                 lo = w
@@ -587,8 +581,8 @@ def build(jit):
             inside = INF
             w1 = b - GOLDEN * (b - a)
             w2 = a + GOLDEN * (b - a)
-            f1 = stand_dist2(w1, pu, pv, cw, xu, xv, xw, H, rho)
-            f2 = stand_dist2(w2, pu, pv, cw, xu, xv, xw, H, rho)
+            f1 = stand_distance(w1, pu, pv, cw, xu, xv, xw, H, rho)[0]
+            f2 = stand_distance(w2, pu, pv, cw, xu, xv, xw, H, rho)[0]
             for _ in range(90):
                 if f1 <= r2:
                     inside = w1
@@ -600,9 +594,9 @@ def build(jit):
                     break
                 a, b, w1, w2, f1, f2, left = golden_step(a, b, w1, w2, f1, f2)
                 if left:
-                    f1 = stand_dist2(w1, pu, pv, cw, xu, xv, xw, H, rho)
+                    f1 = stand_distance(w1, pu, pv, cw, xu, xv, xw, H, rho)[0]
                 else:
-                    f2 = stand_dist2(w2, pu, pv, cw, xu, xv, xw, H, rho)
+                    f2 = stand_distance(w2, pu, pv, cw, xu, xv, xw, H, rho)[0]
             if inside == INF:
                 return INF, -INF
             ilo = inside
@@ -612,8 +606,8 @@ def build(jit):
                 continue
             w_out = lo if side == 0 else hi
             w_in = ilo if side == 0 else ihi
-            f_out = math.sqrt(stand_dist2(w_out, pu, pv, cw, xu, xv, xw, H, rho)) - r
-            f_in = math.sqrt(stand_dist2(w_in, pu, pv, cw, xu, xv, xw, H, rho)) - r
+            f_out = math.sqrt(stand_distance(w_out, pu, pv, cw, xu, xv, xw, H, rho)[0]) - r
+            f_in = math.sqrt(stand_distance(w_in, pu, pv, cw, xu, xv, xw, H, rho)[0]) - r
             kept = 0
             for _ in range(200):
                 if abs(w_in - w_out) <= BISECT_TOL or f_out <= 0.0:
@@ -621,7 +615,7 @@ def build(jit):
                 w = w_in + f_in * (w_out - w_in) / (f_in - f_out) if f_in < f_out else 0.5 * (w_in + w_out)
                 if not (min(w_in, w_out) < w < max(w_in, w_out)):
                     w = 0.5 * (w_in + w_out)
-                f = math.sqrt(stand_dist2(w, pu, pv, cw, xu, xv, xw, H, rho)) - r
+                f = math.sqrt(stand_distance(w, pu, pv, cw, xu, xv, xw, H, rho)[0]) - r
                 if f <= 0.0:
                     w_in = w
                     f_in = f
