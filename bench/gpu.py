@@ -170,6 +170,25 @@ def repeat(fn, n):
     return stats(walls), kernels, out
 
 
+def profile(fn, path):
+    """One more run of ``fn()`` under cProfile; its top 45 functions by own time and by total time in ``path``."""
+    import cProfile
+    import io
+    import pstats
+    prof = cProfile.Profile()
+    t = time.perf_counter()
+    prof.runcall(fn)
+    wall = time.perf_counter() - t
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    buf = io.StringIO()
+    buf.write(f"wall under cProfile: {wall:.3f} s\n")
+    for key in ("tottime", "cumulative"):
+        pstats.Stats(prof, stream=buf).sort_stats(key).print_stats(45)
+    with open(path, "w") as fh:
+        fh.write(buf.getvalue())
+    say(f"  profile: {path}")
+
+
 def gpu_info():
     info = {"name": None, "numba_cuda": None, "simulator": os.environ.get("NUMBA_ENABLE_CUDASIM") == "1"}
     try:
@@ -422,6 +441,8 @@ def main(argv=None):
     ap.add_argument("--tiny", action="store_true", help="smallest inputs, for the CUDA simulator")
     ap.add_argument("--cpu-reference", help="gpu.json of an earlier --devices cpu run (the 2-core machine)")
     ap.add_argument("--out", default=DEFAULT_OUT, help="JSON output path (default: %(default)s)")
+    ap.add_argument("--profile", metavar="DIR", help="after each section's last row, one more (untimed) run of it "
+                    "under cProfile: DIR/<section>_<row>_<device>.txt, the top functions by own and by total time")
     ap.add_argument("--tables", nargs="+", metavar="JSON", help="run nothing: print the tables of earlier runs "
                     "merged (a GPU machine's --devices cuda run beside the 2-core --devices cpu run)")
     args = ap.parse_args(argv)
@@ -505,6 +526,8 @@ def main(argv=None):
         save()
         say(f"  min {wall['min']:.3f} s, median {wall['median']:.3f} s; "
             + ", ".join(f"{k} {v['median']:.3f}" for k, v in sorted(kernels.items())))
+        if args.profile and row == last_row[section]:
+            profile(fn, os.path.join(args.profile, f"{section}_{row:g}_{device}.txt"))
 
     def warm(key, device, fn):
         if f"{key}/{device}" not in result["warmup"]["seconds"]:
@@ -514,6 +537,7 @@ def main(argv=None):
             result["warmup"]["seconds"][f"{key}/{device}"] = round(time.perf_counter() - t, 3)
             say(f"  {time.perf_counter() - t:.2f} s")
 
+    last_row = {"t7": t7_rows[-1], "t8": t8_rows[-1], "dexel": cfg["dexel_step"], "sim": cfg["sim_step"]}
     parts = {}
     if "t7" in sections or "t8" in sections:
         parts["vase"] = vase(steps=cfg["vase"][0], segments=cfg["vase"][1])
