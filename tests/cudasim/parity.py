@@ -26,3 +26,24 @@ def close(a, b):
     if a.dtype.kind in "biu" or not EXACT:
         return same(a, b)
     return a.shape == b.shape and np.allclose(a, b, rtol=0.0, atol=1e-12, equal_nan=True)
+
+
+def polyline_gap(a, b):
+    """The largest distance (mm) from a point of ``a (n, 3)`` to the polyline through ``b (m, 3)``."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    p, q = b[:-1], b[1:]
+    d = q - p
+    t = np.einsum("ijk,jk->ij", a[:, None, :] - p[None], d) / np.maximum(np.einsum("jk,jk->j", d, d), 1e-300)
+    foot = p[None] + np.clip(t, 0.0, 1.0)[..., None] * d[None]
+    return float(np.linalg.norm(a[:, None, :] - foot, axis=2).min(axis=1).max())
+
+
+def same_tips(a, b, tol):
+    """The tips of two paths agree: as :func:`close` in the simulator; on a GPU, where a last-bit
+    difference may break a tie of the host's refinement otherwise (other vertices on the same
+    curve: seen on a real H200 in a waterline, 2.6e-3 mm apart), each path's tips lie within
+    ``tol`` mm (the operation's tolerance) of the other's polyline. The kernels themselves are
+    compared within 1e-6 mm (test_parity_kernels)."""
+    if close(a, b):
+        return True
+    return not EXACT and max(polyline_gap(a, b), polyline_gap(b, a)) <= tol
