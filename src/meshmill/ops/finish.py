@@ -37,6 +37,7 @@ import math
 import time
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ..progress import PIECES, Meter, StageClock, ranges
@@ -499,27 +500,57 @@ def short_order(passes: list, tip, axis, reach) -> list:
             pts.append(idx)
             owner.append(np.full(len(idx), g))
         pts, owner = np.concatenate(pts), np.concatenate(owner)
-        at_tip, at_axis, r = tip[pts], axis[pts], float(reach[group[0]["tool"]])
-
-        def costs(g):  # (points,): from the end of pass g to each point
-            end = group[g]["idx"][-1]
-            return np.linalg.norm(at_tip - tip[end], axis=1) + r * np.arccos(np.clip(at_axis @ axis[end], -1.0, 1.0))
-
-        left = np.ones(len(group), bool)
-        order, g, total = [0], 0, 0.0
-        left[0] = False
-        while left.any():
-            cost = costs(g)
-            cost[~left[owner]] = np.inf
-            best = int(np.argmin(cost))
-            total += cost[best]
-            g = int(owner[best])
-            left[g] = False
-            order.append(g)
+        ends = np.array([ps["idx"][-1] for ps in group])
+        order, total, before = _greedy_walk(tip[pts], axis[pts], owner, tip[ends], axis[ends],
+                                            float(reach[group[0]["tool"]]))
         # the contour order where it is as short (the greedy walk is not always shorter)
-        before = sum(float(costs(g)[owner == g + 1].min()) for g in range(len(group) - 1))
         out += [group[g] for g in order] if total < before else group
     return out
+
+
+@numba.njit(cache=True)
+def _greedy_walk(at_tip, at_axis, owner, end_tip, end_axis, r):
+    """The walk of :func:`short_order` over one tool's passes: ``(order (G,), its cost, the cost of
+    the contour order)``. ``at_tip``, ``at_axis (P, 3)``: the points a pass may start at, of pass
+    ``owner (P,)``; ``end_tip``, ``end_axis (G, 3)``: each pass's last point; the cost of a link is
+    the tip's distance plus ``r`` times the axis's turn (rad). The turn is worked out only where the
+    distance alone is below the best so far (it only adds)."""
+    n = len(end_tip)
+    left = np.ones(n, np.bool_)
+    left[0] = False
+    order = np.zeros(n, np.int64)
+    g, total = 0, 0.0
+    for step in range(1, n):
+        best, at = np.inf, -1
+        for p in range(len(owner)):
+            if not left[owner[p]]:
+                continue
+            cost = _link_cost(at_tip[p], at_axis[p], end_tip[g], end_axis[g], r, best)
+            if cost < best:
+                best, at = cost, p
+        total += best
+        g = owner[at]
+        left[g] = False
+        order[step] = g
+    before = 0.0
+    for g in range(n - 1):
+        best = np.inf
+        for p in range(len(owner)):
+            if owner[p] == g + 1:
+                best = min(best, _link_cost(at_tip[p], at_axis[p], end_tip[g], end_axis[g], r, best))
+        before += best
+    return order, total, before
+
+
+@numba.njit(cache=True, inline="always")
+def _link_cost(p, a, q, b, r, best):
+    """The distance from tip ``q`` to ``p`` plus ``r`` times the angle between axes ``a`` and ``b``;
+    any value at or above ``best`` once the distance alone reaches it."""
+    d = math.sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
+    if d >= best:
+        return d
+    c = min(1.0, max(-1.0, a[0] * b[0] + a[1] * b[1] + a[2] * b[2]))
+    return d + r * math.acos(c)
 
 
 def near_starts(passes: list, tip) -> None:
