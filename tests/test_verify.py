@@ -274,8 +274,9 @@ def test_the_first_point_is_proven_and_never_taken_for_a_move_of_length_zero():
 
 
 def test_a_move_is_certified_in_one_test_and_still_halved_where_it_must():
-    """A straight move with a fixed axis is proven whole (one certified interval over 100 poses);
-    a ridge under it that none of its poses see is found all the same (the whole test fails and is
+    """A straight move with a fixed axis is proven whole (one certified interval, its last pose
+    alone measured: the proof bounds the 100 poses between); a ridge under it that none of its
+    poses see is found all the same (the whole test fails, its poses are measured and it is
     halved); a move whose axis turns is proven whole too."""
     from meshmill.kernels.backend import solid_kernels
     from meshmill.pathing.verify import StockCheck, verify_moves
@@ -284,11 +285,12 @@ def test_a_move_is_certified_in_one_test_and_still_halved_where_it_must():
     kern = solid_kernels(_ridge())
     high = _path([[-5, 0, 10.5], [5, 0, 10.5]])
     fig = verify_moves(kern, high, [ball], 0.001, 0.1, StockCheck())["figures"]
-    assert fig["certified"][list(fig["move"]).index(1)] == 1 and fig["poses"].sum() > 100
+    assert fig["certified"][list(fig["move"]).index(1)] == 1 and fig["poses"][list(fig["move"]).index(1)] == 1
     # poses 0.1 mm apart at x = +-0.05, +-0.15, ... : the ball 0.001 mm into the apex at x = 0
     low = _path([[-5.05, 0, 10 - 0.001 * np.sqrt(2) - 0.0004], [4.95, 0, 10 - 0.001 * np.sqrt(2) - 0.0004]])
     r = verify_toolpath(_ridge(), low, [ball], tol=0.0005, step=0.1)
     assert not r["ok"] and r["gouging_moves"] == 1 and r["poses_refined"] > 0
+    assert verify_moves(kern, low, [ball], 0.0005, 0.1, StockCheck())["figures"]["poses"][1] > 100
     # a turning axis too: proven whole where that holds, and between its poses where it does not
     turn = np.array([0.0, np.sin(0.01), np.cos(0.01)])
     tilted = _path([[-5, 0, 10.5], [5, 0, 10.5]], axes=[UP, turn])

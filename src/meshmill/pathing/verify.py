@@ -364,16 +364,28 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
         return {"poses": 0, "certified": 0, "refined": 0, "max_gouge": 0.0, "max_collision": 0.0, "problems": [],
                 "unresolved": [], "figures": _figures(first, np.zeros(0, np.int64), *[np.zeros(0)] * 5)}
     meas = _Measure(kern, tools, tol, stock)
-    end, body, ring, segs, in_stock = meas.depths(tip, axis, tool, rapid)
-    poses = [(tip, tool, move, rapid, end, body, ring, segs, in_stock)]
+    n = len(tip)
+    end, body, ring, in_stock = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    segs = np.zeros((n, meas.segs[0].shape[1]))
+    measured = np.zeros(n, bool)
     bad_move = np.zeros(len(tp), bool)
-    bad_move[move[(end > tol) | (body > tol)]] = True
-    # Every move is first proven whole, from the last pose of the move before to its own last (a
-    # proof holds at any length; the poses between are measured all the same, for the depths
-    # reported), unless it already failed or is not checked; the path's first point, a move of
+
+    def measure(sel):  # the depths of poses ``sel``; a move with a pose beyond the tolerance is bad
+        if len(sel):
+            end[sel], body[sel], ring[sel], segs[sel], in_stock[sel] = meas.depths(tip[sel], axis[sel], tool[sel],
+                                                                                   rapid[sel])
+            measured[sel] = True
+            bad_move[move[sel[(end[sel] > tol) | (body[sel] > tol)]]] = True
+
+    # Each move's last pose is measured first. Every move is then proven whole, from the last pose
+    # of the move before to its own last (a proof holds at any length: it bounds every pose
+    # between), unless it already failed or is not checked; the path's first point, a move of
     # length zero, is proven at its pose as one too (its measure samples a rounded end's circle,
-    # the proof covers it). A move whose axis turns and whose whole proof fails is then proven
-    # between its neighbouring poses (its first pose from the move before's last); the rest halve.
+    # the proof covers it). The poses between a move's ends are measured only where its proof or
+    # its last pose fails, for the depths reported. A move whose axis turns and whose whole proof
+    # fails is then proven between its neighbouring poses (its first pose from the move before's
+    # last); the rest halve.
+    measure(np.nonzero(frac == 1.0)[0])
     ib = np.arange(1, len(tip))
     if move[0] == 0 and checked[0]:
         ib = np.r_[0, ib]
@@ -386,6 +398,8 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     fixed = _fixed_axis(tp)
     fail = np.zeros(len(tp), bool)
     fail[move[last[~ok]]] = True
+    measure(np.nonzero((fail | bad_move)[move] & checked[move] & ~measured)[0])
+    poses = [tuple(a[measured] for a in (tip, tool, move, rapid, end, body, ring, segs, in_stock))]
     apart = fail & ~fixed & (np.bincount(move, minlength=len(tp)) > 1)  # proven between its poses
     ib = ib[fail[move[ib]] & (apart[move[ib]] | (frac[ib] == 1.0))]
     ia = np.maximum(np.where(apart[move[ib]], ib - 1, run_start[ib] - 1), 0)
