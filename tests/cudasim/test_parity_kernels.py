@@ -128,3 +128,17 @@ def test_points_inside(solids, samples):
     sc, sg = solids
     ta = samples[1][0]
     assert np.array_equal(sc.points_inside(ta), sg.points_inside(ta))
+
+
+def test_staged_buffers_are_reused_and_hold_each_call_alone(kernels, samples):
+    # calls of one kernel, larger then smaller then larger again: each gives the CPU's answers
+    # (no values left from the call before), and the second and third reuse the first's buffers
+    a, b = kernels
+    p = samples[0]
+    for k, n in enumerate((len(p), len(p) // 3, len(p))):
+        assert same(a.mesh_distances(p[:n]), b.mesh_distances(p[:n]))
+        if k == 0:
+            held = dict(cuda.STAGE.bufs)
+    assert all(cuda.STAGE.bufs[key] is buf for key, buf in held.items())
+    small = cuda.STAGE.put("test", np.arange(4.0))
+    assert same(small.copy_to_host(), np.arange(4.0)) and same(cuda.STAGE.put("test", [7.0]).copy_to_host(), [7.0])

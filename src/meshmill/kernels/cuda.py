@@ -38,17 +38,13 @@ def _blocks(n, threads=THREADS):
     return max(1, (n + threads - 1) // threads)
 
 
-def _d(a, dtype=np.float64):
-    """A host array on the device (contiguous, of ``dtype``), in memory of its own."""
-    return cuda.to_device(np.ascontiguousarray(a, dtype))
-
-
 class Staging:
-    """Device buffers kept from call to call, one per kernel argument (``key``): a call copies its
-    host arrays into them and reads its results back from them, with no allocation or free on the
-    GPU (numba-cuda's frees wait for the device: 1.4 s of a 7 s finish on an H200, its allocations
-    1.0 s). A buffer grows to twice what it must hold. Results are copied to the host before a
-    call returns, so the next call may reuse them; one host thread drives the kernels."""
+    """Device buffers kept from call to call, one per kernel argument (``key``), dtype and shape
+    past the first axis: a call copies its host arrays into them and reads its results back from
+    them, with no allocation or free on the GPU (numba-cuda's frees wait for the device: 1.4 s of a
+    7 s finish on an H200, its allocations 1.0 s). A buffer grows to 1.25 times what it must hold.
+    Results are copied to the host before a call returns, so the next call may reuse them; one
+    host thread drives the kernels."""
 
     def __init__(self):
         self.bufs = {}
@@ -58,9 +54,10 @@ class Staging:
         shape = tuple(int(n) for n in shape)
         if not shape or shape[0] == 0:
             return cuda.device_array(shape, dtype)
+        key = (key, np.dtype(dtype).str, shape[1:])
         buf = self.bufs.get(key)
-        if buf is None or buf.dtype != np.dtype(dtype) or buf.shape[1:] != shape[1:] or buf.shape[0] < shape[0]:
-            buf = cuda.device_array((2 * shape[0],) + shape[1:], dtype)
+        if buf is None or buf.shape[0] < shape[0]:
+            buf = cuda.device_array((shape[0] + shape[0] // 4,) + shape[1:], dtype)
             self.bufs[key] = buf
         return buf[:shape[0]]
 
@@ -362,9 +359,9 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_s
 def move_constants(pa, pb, xa, xb, corner, flutes):
     """As :func:`meshmill.kernels.cpu_dexel.move_constants` (host arrays in and out)."""
     k = len(pa)
-    chord = cuda.device_array((k, 6), np.float64)
-    plane = cuda.device_array((k, 4), np.float64)
-    _move_constants[_blocks(k), THREADS](_d(pa), _d(pb), _d(xa), _d(xb), _d(corner), _d(flutes), chord, plane)
+    chord = STAGE.empty("mc.chord", (k, 6))
+    plane = STAGE.empty("mc.plane", (k, 4))
+    _move_constants[_blocks(k), THREADS](*_s("mc", pa, pb, xa, xb, corner, flutes), chord, plane)
     return chord.copy_to_host(), plane.copy_to_host()
 
 
@@ -378,16 +375,15 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_st
     it again after growing it is exact)."""
     if len(tiles) == 0:
         return
-    d_iv, d_count = _d(iv), _d(count, np.int64)
-    d_hit, d_redo = _d(hit, np.uint8), _d(redo, np.uint8)
-    d_load = _d(load)
-    _cut_tiles[len(tiles), TILE * TILE](float(lu), float(lv), float(step), int(nu), int(nv), d_iv,
-                                        _d(off, np.int64), d_count, _d(tiles, np.int64), _d(combs, np.int64),
-                                        int(split), _d(tile_start, np.int64),
-                                        _d(tile_moves, np.int64), _d(pa), _d(pb), _d(xa), _d(xb), _d(radius),
-                                        _d(corner), _d(flutes), _d(strips, np.int64), _d(chord), _d(plane), _d(box),
-                                        _d(kind, np.uint8), float(hit_min), d_hit, _d(todo, np.uint8), d_redo, int(row0), _d(probe),
-                                        d_load)
+    d_iv, d_load = _s("ct.f", iv, load)
+    d_count, d_off, d_tiles, d_combs, d_start, d_moves, d_strips = _s("ct.i", count, off, tiles, combs, tile_start,
+                                                                      tile_moves, strips, dtype=np.int64)
+    d_hit, d_redo, d_kind, d_todo = _s("ct.b", hit, redo, kind, todo, dtype=np.uint8)
+    _cut_tiles[len(tiles), TILE * TILE](float(lu), float(lv), float(step), int(nu), int(nv), d_iv, d_off, d_count,
+                                        d_tiles, d_combs, int(split), d_start, d_moves,
+                                        *_s("ct.m", pa, pb, xa, xb, radius, corner, flutes), d_strips,
+                                        *_s("ct.c", chord, plane, box), d_kind, float(hit_min), d_hit, d_todo, d_redo,
+                                        int(row0), STAGE.put("ct.probe", probe), d_load)
     load[...] = d_load.copy_to_host()
     iv[...] = d_iv.copy_to_host()
     count[...] = d_count.copy_to_host()
