@@ -18,15 +18,16 @@ EXTRA="${EXTRA:---repeat 2} --profile $OUT/prof"
 { nvidia-smi; nproc; $PY -c "import numpy, numba, trimesh; from numba import cuda; print(numpy.__version__,
 numba.__version__, trimesh.__version__, cuda.is_available())"; } > "$OUT/env.txt" 2>&1
 cat "$OUT/env.txt"; echo "setup $((SECONDS - t0)) s"
-timeout "${DS_S:-170}" $PY bench/gpu.py $EXTRA --devices cuda --sections dexel,sim --out "$OUT/gpu_ds.json" \
+DS=${DS-dexel,sim}  # DS= (empty) leaves these sections out
+[ -z "$DS" ] || timeout "${DS_S:-170}" $PY bench/gpu.py $EXTRA --devices cuda --sections $DS --out "$OUT/gpu_ds.json" \
     > "$OUT/gpu_ds.log" 2>&1
-echo "dexel,sim rc=$? at $((SECONDS - t0)) s"
+echo "$DS rc=$? at $((SECONDS - t0)) s"
 NUMBA_ENABLE_CUDASIM=${SIM:-0} timeout "${PAR_S:-170}" $PY -m pytest -q -p no:cacheprovider tests/cudasim \
     > "$OUT/parity.log" 2>&1
 echo "parity rc=$? at $((SECONDS - t0)) s"
 left=$(( ${TOTAL_S:-540} - (SECONDS - t0) )); [ $left -gt 5 ] || left=5
-timeout $left $PY bench/gpu.py $EXTRA --devices cuda --sections t7,t8 ${T8_ROWS:+--t8-rows $T8_ROWS} \
+timeout $left $PY bench/gpu.py $EXTRA --devices cuda --sections ${TS:-t7,t8} ${T8_ROWS:+--t8-rows $T8_ROWS} \
     --out "$OUT/gpu_t.json" > "$OUT/gpu_t.log" 2>&1
-echo "t7,t8 rc=$? at $((SECONDS - t0)) s"
+echo "${TS:-t7,t8} rc=$? at $((SECONDS - t0)) s"
 tar czf "$OUT/prof.tgz" -C "$OUT" prof && rm -r "$OUT/prof"  # the device tool brings back at most 8 files
 for f in "$OUT"/*.log; do echo "== $f"; tail -4 "$f"; done
