@@ -22,6 +22,9 @@ class Host(np.ndarray):
     def copy_to_host(self):
         return np.asarray(self).copy()
 
+    def copy_to_device(self, a):
+        self[...] = a
+
 
 class Compile:
     """Stands in for a kernel launch: compiles the kernel with the launch's argument types."""

@@ -540,6 +540,31 @@ def build(jit):
     def hull_leaf(q, tris, t, best, reach):
         w, ax, ay, az, bx, by, bz, ux, uy, uz, length, mx, my, mz, pad, spread = q
         r = reach[0]
+        # the gap along the direction from the segment's point nearest the triangle's centroid to
+        # the centroid, between the hull's corners and the triangle's (any direction bounds the
+        # distance of two convex sets from below; this one is near the closest points' where the
+        # tool moves along the surface, its corners then spread across it)
+        gx = (tris[t, 0] + tris[t, 3] + tris[t, 6]) / 3.0 - mx
+        gy = (tris[t, 1] + tris[t, 4] + tris[t, 7]) / 3.0 - my
+        gz = (tris[t, 2] + tris[t, 5] + tris[t, 8]) / 3.0 - mz
+        s = min(0.5 * length, max(-0.5 * length, gx * ux + gy * uy + gz * uz))
+        vx = gx - s * ux
+        vy = gy - s * uy
+        vz = gz - s * uz
+        vn = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if vn > 0.0:
+            low = INF  # the triangle's least reach along v, the hull's greatest
+            for k in range(3):
+                low = min(low, ((tris[t, 3 * k] - mx) * vx + (tris[t, 3 * k + 1] - my) * vy
+                                + (tris[t, 3 * k + 2] - mz) * vz) / vn)
+            top = -INF
+            for k in range(4):
+                o = _HULL + 36 + 3 * k
+                top = max(top, ((w[o] - mx) * vx + (w[o + 1] - my) * vy + (w[o + 2] - mz) * vz) / vn)
+            slack = 1e-12 * (1.0 + abs(tris[t, 0]) + abs(tris[t, 1]) + abs(tris[t, 2]) + abs(mx) + abs(my)
+                             + abs(mz) + pad)
+            if low - top >= r + slack:
+                return best
         # the hull wholly beyond r on one side of the triangle's plane (a facet along the tool)
         e1x = tris[t, 3] - tris[t, 0]
         e1y = tris[t, 4] - tris[t, 1]
