@@ -25,7 +25,6 @@ from __future__ import annotations
 import functools
 import inspect
 import os
-import time
 
 from .errors import InputError, NothingToCut
 from .options import Params
