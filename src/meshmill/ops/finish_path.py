@@ -169,15 +169,25 @@ class PathBuilder:
         return p + min(self.approach, max(0.0, (self.safe_z - p[2]) / d[2])) * d
 
     def build(self, passes):
-        tips, axes, rapid, tools, owner, role = [], [], [], [], [], []  # tips, axes: blocks (n, 3)
+        # each point of the path: a row of the points (its tip and axis), of ``self.tip`` and
+        # ``self.axis`` first, then of those added here (``extra``)
+        rows, extra_tip, extra_axis, rapid, tools, owner, role = [], [], [], [], [], [], []
+        n_own = len(self.tip)
 
         def add(p, u, is_rapid, tool, k, r):
-            tips.append(np.reshape(p, (1, 3)))
-            axes.append(np.reshape(u, (1, 3)))
-            rapid.append(np.array([is_rapid]))
-            tools.append(np.array([tool], np.int64))
+            rows.append(n_own + len(extra_tip))
+            extra_tip.append(p)
+            extra_axis.append(u)
+            rapid.append(is_rapid)
+            tools.append(tool)
             owner.append(k)
             role.append(r)
+
+        def last(i):  # the tip (0) or axis (1) of the last point so far
+            row = rows[-1]
+            if row >= n_own:
+                return (extra_tip, extra_axis)[i][row - n_own]
+            return (self.tip, self.axis)[i][row]
 
         reaches = self._reaches(passes)
         directs = self._directs(passes, reaches)
@@ -194,10 +204,10 @@ class PathBuilder:
             if k in directs:  # from where the pass before left off: straight, or lifted over what lies between
                 way = directs[k]
                 for j, p in enumerate(way[1:]):
-                    add(p, u0 if j >= (len(way) - 1) // 2 else axes[-1][-1], True, tool, k, "direct_in")
+                    add(p, u0 if j >= (len(way) - 1) // 2 else last(1), True, tool, k, "direct_in")
             else:
-                if tips and float(np.dot(axes[-1][-1], u0)) < 1.0 - 1e-12:  # turn in place, then travel
-                    add(tips[-1][-1], u0, True, tool, k, "link_in")
+                if rows and float(np.dot(last(1), u0)) < 1.0 - 1e-12:  # turn in place, then travel
+                    add(last(0), u0, True, tool, k, "link_in")
                 add(self._up(start, u0, vertical_in), u0, True, tool, k, "link_in")
                 if not feed_in:
                     add(self._above(start, u0, vertical_in), u0, True, tool, k, "link_in")
@@ -207,10 +217,9 @@ class PathBuilder:
             if lead_in:
                 add(t0, u0, False, tool, k, "lead_in")
             if len(idx) > 1:  # the pass's points, fed
-                tips.append(self.tip[idx[1:]])
-                axes.append(self.axis[idx[1:]])
-                rapid.append(np.zeros(len(idx) - 1, bool))
-                tools.append(np.full(len(idx) - 1, tool, np.int64))
+                rows.extend(idx[1:].tolist())
+                rapid.extend([False] * (len(idx) - 1))
+                tools.extend([tool] * (len(idx) - 1))
                 owner.extend([k] * (len(idx) - 1))
                 role.extend(range(1, len(idx)))
             if lead_out:
@@ -225,9 +234,10 @@ class PathBuilder:
                     add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
             else:
                 add(self._up(end, u1, vertical_out), u1, False, tool, k, "approach_out")
-        cat = lambda blocks, empty: np.concatenate(blocks) if blocks else empty  # noqa: E731
-        tp = Toolpath(cat(tips, np.zeros((0, 3))), cat(axes, np.zeros((0, 3))), cat(rapid, np.zeros(0, bool)),
-                      cat(tools, np.zeros(0, np.int64)))
+        rows = np.array(rows, np.int64)
+        tp = Toolpath(np.concatenate([self.tip, np.reshape(extra_tip, (-1, 3))])[rows],
+                      np.concatenate([self.axis, np.reshape(extra_axis, (-1, 3))])[rows], np.array(rapid, bool),
+                      np.array(tools, np.int64))
         self.added = 0
         if self.gentle is not None:
             n = len(tp)
