@@ -303,3 +303,18 @@ def test_a_move_is_certified_in_one_test_and_still_halved_where_it_must():
     near = _path([[-5.05, 0, 10.02], [4.95, 0, 10.02]], axes=[UP, turn])  # the ball 0.02 mm over the apex
     fig = verify_moves(kern, near, [ball], 0.001, 0.1, StockCheck())["figures"]
     assert fig["certified"][list(fig["move"]).index(1)] >= 1
+
+
+def test_a_tool_thinner_than_the_tolerance_through_the_material_is_found():
+    """A part whose radius is within the tolerance is proven of nothing (its sweep shrunk by the
+    tolerance is empty): a 0.016 mm ball fed through a block between two clean poses outside it
+    is found by its poses, all measured (a review found the lazy poses missing it)."""
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.pathing.verify import StockCheck, verify_moves
+
+    thin = tool_from_entry(dict(name="B0.016", type="ball", diameter=0.016, flute_length=0.1, gauge_length=30,
+                                shank_diameter=0.016), 1, "t")
+    kern = solid_kernels(box([-5, -5, 0], [5, 5, 10]))
+    r = verify_moves(kern, _path([[-20, 0, 1.0], [20, 0, 1.0]]), [thin], 0.01, 0.5, StockCheck())
+    assert [p.kind for p in r["problems"]] == ["gouge"] and r["problems"][0].depth > 1.0
+    assert r["figures"]["poses"][1] == 80

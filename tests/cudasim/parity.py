@@ -31,6 +31,8 @@ def close(a, b):
 def polyline_gap(a, b):
     """The largest distance (mm) from a point of ``a (n, 3)`` to the polyline through ``b (m, 3)``."""
     a, b = np.asarray(a, float), np.asarray(b, float)
+    if len(b) < 2:
+        b = np.concatenate([b, b])  # one point: a segment of length zero
     p, q = b[:-1], b[1:]
     d = q - p
     t = np.einsum("ijk,jk->ij", a[:, None, :] - p[None], d) / np.maximum(np.einsum("jk,jk->j", d, d), 1e-300)

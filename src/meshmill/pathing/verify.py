@@ -385,7 +385,11 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     # its last pose fails, for the depths reported. A move whose axis turns and whose whole proof
     # fails is then proven between its neighbouring poses (its first pose from the move before's
     # last); the rest halve.
-    measure(np.nonzero(frac == 1.0)[0])
+    # A part whose radius the tolerance swallows is proven of nothing (its sweep shrunk by the
+    # tolerance is empty): the moves of such a tool have every pose measured, as before proofs.
+    radii = np.column_stack([meas.rings[2][:meas.count], meas.segs[2][:meas.count]])
+    thin = ((radii > 0.0) & (radii <= tol)).any(axis=1)
+    measure(np.nonzero((frac == 1.0) | thin[tool])[0])
     ib = np.arange(1, len(tip))
     if move[0] == 0 and checked[0]:
         ib = np.r_[0, ib]
