@@ -53,6 +53,24 @@ def _ridge():
     return mesh_from_arrays(v, f[:, ::-1], "ridge")
 
 
+
+def test_the_gap_between_triangles_along_their_centroids_never_exceeds_their_distance():
+    # the cheap bound mesh_tris_dist2 prunes with: below the exact distance for any pair (near,
+    # far, long and thin, touching), and near it for a far pair (so it prunes)
+    rng = np.random.default_rng(5)
+    close = 0
+    for case in range(400):
+        A = rng.uniform(-1, 1, (3, 3)) * rng.uniform(0.01, 3, 3)
+        B = rng.uniform(-1, 1, (3, 3)) + rng.normal(size=3) * rng.uniform(0, 6)
+        q = np.zeros(cpu.WORK_SIZE)
+        q[9:18] = A.ravel()
+        tri = B.reshape(1, 9).copy()
+        exact = np.sqrt(cpu.clr.tri_tri_dist2(q, 9, tri, 0))
+        gap = cpu.clr.tri_gap(q, 9, tri, 0)
+        assert gap <= exact + 1e-12, (case, gap, exact)
+        close += exact > 3.0 and gap > 0.5 * exact
+    assert close > 20, close
+
 @pytest.mark.parametrize("part", ["box", "ridge", "sphere"])
 @pytest.mark.slow
 def test_every_clear_interval_is_clear_at_every_pose(part):

@@ -184,13 +184,36 @@ def build(jit):
         return box_box_dist2(node_lo, node_hi, n, box)
 
     @jit
+    def tri_gap(w, o, tris, t):
+        """A lower bound of the distance between the triangle ``w[o:o+9]`` and triangle t: their
+        gap along the direction between their centroids (any direction bounds two convex sets'
+        distance from below), less what rounding may take; -INF where the centroids meet."""
+        vx = (tris[t, 0] + tris[t, 3] + tris[t, 6] - w[o] - w[o + 3] - w[o + 6]) / 3.0
+        vy = (tris[t, 1] + tris[t, 4] + tris[t, 7] - w[o + 1] - w[o + 4] - w[o + 7]) / 3.0
+        vz = (tris[t, 2] + tris[t, 5] + tris[t, 8] - w[o + 2] - w[o + 5] - w[o + 8]) / 3.0
+        vn = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if vn <= 0.0:
+            return -INF
+        low = INF
+        top = -INF
+        for k in range(3):
+            low = min(low, ((tris[t, 3 * k] - w[o]) * vx + (tris[t, 3 * k + 1] - w[o + 1]) * vy
+                            + (tris[t, 3 * k + 2] - w[o + 2]) * vz) / vn)
+            top = max(top, ((w[o + 3 * k] - w[o]) * vx + (w[o + 3 * k + 1] - w[o + 1]) * vy
+                            + (w[o + 3 * k + 2] - w[o + 2]) * vz) / vn)
+        return low - top - 1e-12 * (1.0 + abs(tris[t, 0]) + abs(tris[t, 1]) + abs(tris[t, 2]) + abs(w[o])
+                                    + abs(w[o + 1]) + abs(w[o + 2]))
+
+    @jit
     def tris_leaf(q, tris, t, best, reach):
-        d = tri_tri_dist2(q[0], _TRI_A, tris, t)
-        if d < best:
-            best = d
-        d = tri_tri_dist2(q[0], _TRI_B, tris, t)
-        if d < best:
-            best = d
+        for k in range(2):  # each triangle: its gap first, then (where that does not settle it) exactly
+            o = _TRI_A + 9 * k
+            g = tri_gap(q[0], o, tris, t)
+            if g > 0.0 and g * g >= best:
+                continue
+            d = tri_tri_dist2(q[0], o, tris, t)
+            if d < best:
+                best = d
         return best
 
     tris_search = bvh_search(jit, tris_box, tris_leaf)
@@ -933,7 +956,8 @@ def build(jit):
                     hi = mid
             segs[i, k] = min(radial, hi - (seg_base[t, k] - g_i))
 
-    return namespace(seg_seg_dist2=seg_seg_dist2, tri_tri_dist2=tri_tri_dist2, mesh_tris_dist2=mesh_tris_dist2,
+    return namespace(seg_seg_dist2=seg_seg_dist2, tri_tri_dist2=tri_tri_dist2, tri_gap=tri_gap,
+                     mesh_tris_dist2=mesh_tris_dist2,
                      mesh_segment_dist2=mesh_segment_dist2, seg2d_dist2=seg2d_dist2, stadium_tri_dist2=stadium_tri_dist2,
                      mesh_stadium_dist2=mesh_stadium_dist2, inside=inside, ring_clear=ring_clear,
                      patch_clear=patch_clear, in_tetra=in_tetra,
