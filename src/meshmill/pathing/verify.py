@@ -226,6 +226,10 @@ class _Measure:
         # what the shank and holder of feed moves stay out of: (kernels, grown by) per solid
         self.body_stocks = [] if not stock.feed_body else (
             [(kern, float(stock.allowance))] * (stock.allowance > 0) + [(stock.kern, 0.0)] * (stock.kern is not None))
+        # (T,): a tool with a part whose radius the tolerance swallows is proven of nothing (its
+        # sweep shrunk by the tolerance is empty): every pose of its moves is measured
+        radii = np.column_stack([self.rings[2], r])
+        self.thin = ((radii > 0.0) & (radii <= tol)).any(axis=1)
         # tools T..2T-1: the cutting parts alone (a prefix of each tool's cylinders). Where the
         # shank and holder of a feed move keep out of the design grown by the allowance, they keep
         # out of the design (a part grown holds the part), so feed moves meet the design with these
@@ -385,11 +389,7 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     # its last pose fails, for the depths reported. A move whose axis turns and whose whole proof
     # fails is then proven between its neighbouring poses (its first pose from the move before's
     # last); the rest halve.
-    # A part whose radius the tolerance swallows is proven of nothing (its sweep shrunk by the
-    # tolerance is empty): the moves of such a tool have every pose measured, as before proofs.
-    radii = np.column_stack([meas.rings[2][:meas.count], meas.segs[2][:meas.count]])
-    thin = ((radii > 0.0) & (radii <= tol)).any(axis=1)
-    measure(np.nonzero((frac == 1.0) | thin[tool])[0])
+    measure(np.nonzero((frac == 1.0) | meas.thin[tool])[0])
     ib = np.arange(1, len(tip))
     if move[0] == 0 and checked[0]:
         ib = np.r_[0, ib]
