@@ -3,11 +3,14 @@ path takes to make and the seconds its certificate takes, in one run on this mac
 
     .venv/bin/python bench/certify.py                       # about 3 minutes
     .venv/bin/python bench/certify.py --only finish         # finish, raster, waterline, verify
+    .venv/bin/python bench/certify.py --only finish --finishes impeller
 
 Rows (each operation run twice in this process, the second timed, so numba's cache is loaded):
 - ``finish``: the 5-axis finish (``scallop 0.01``, the balls and set-ups of bench/realparts.py) of
   the blade, the dolphin mould and the vase: the summary's stage seconds, generation = every
-  stage but ``verify`` (index, contours, tools, axes, shallow fill, path).
+  stage but ``verify`` (index, contours, tools, axes, shallow fill, path). And issue 39's
+  impeller (bench/standin_parts.py's stand-in, written to bench/out/parts on first use) as the
+  issue ran it: ``--up +Y --scallop 0.01 --machine table-table-ac``, step-down 0.5 mm.
 - ``raster``: mount_rush, B4, stepover and sample 0.1 mm (bench/whole_ops.py's row): ``drop``
   against ``verify``.
 - ``waterline``: sphere_on_plate, B6, step-down 1 mm, sample 0.1 mm (whole_ops's row).
@@ -34,6 +37,11 @@ PARTS = os.path.join(os.path.dirname(ROOT), "shared", "parts")
 from finished import table  # noqa: E402
 from links import _setup  # noqa: E402
 from realparts import PARTS as REAL_PARTS, TOOLS  # noqa: E402
+from standin_parts import written  # noqa: E402
+
+# the finishes timed: (part file, set-up options, step-down mm, machine)
+FINISHES = {name: (*REAL_PARTS[name], None) for name in ("blade", "dolphin", "vase")}
+FINISHES["impeller"] = (None, ["--up", "+Y"], 0.5, "table-table-ac")
 from whole_ops import B6_TABLE  # noqa: E402
 
 
@@ -42,7 +50,7 @@ def _twice(run):
     return run()
 
 
-def finish_rows(work, verify_too):
+def finish_rows(work, verify_too, finishes=tuple(FINISHES)):
     from meshmill import api
     from meshmill.toolpath.cldata import write_apt
 
@@ -51,10 +59,10 @@ def finish_rows(work, verify_too):
         fh.write(TOOLS)
     tools = api.load_tools(tools_file)
     rows = []
-    for name in ("blade", "dolphin", "vase"):
-        path, options, step_down = REAL_PARTS[name]
-        part = api.load_part(path, **_setup(options))
-        res = _twice(lambda: api.finish(part, tools, step_down=step_down, scallop=0.01))
+    for name in finishes:
+        path, options, step_down, machine = FINISHES[name]
+        part = api.load_part(path or written(name), **_setup(options))
+        res = _twice(lambda: api.finish(part, tools, step_down=step_down, scallop=0.01, machine=machine))
         sec = res.summary["seconds"]
         gen = sec["total"] - sec["verify"]
         rows.append({"operation": f"finish {name}", "moves": len(res.toolpath), "generation_s": round(gen, 2),
@@ -124,6 +132,7 @@ def waterline_rows(work, verify_too):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default="finish,raster,waterline,verify")
+    ap.add_argument("--finishes", default=",".join(FINISHES), help="the parts finished (%(default)s)")
     ap.add_argument("--out", default=os.path.join(HERE, "out", "certify.json"))
     a = ap.parse_args()
     only = a.only.split(",")
@@ -131,7 +140,8 @@ def main():
     with tempfile.TemporaryDirectory() as work:
         for name, rows_of in (("finish", finish_rows), ("raster", raster_rows), ("waterline", waterline_rows)):
             if name in only:
-                got = rows_of(work, "verify" in only)
+                extra = {"finishes": a.finishes.split(",")} if name == "finish" else {}
+                got = rows_of(work, "verify" in only, **extra)
                 rows += got
                 print(table([{k: v for k, v in r.items() if k != "stages_s"} for r in got]), flush=True)
     print()

@@ -1,4 +1,5 @@
-"""Stand-ins for the three parts of the thesis benchmark (the original models are unavailable).
+"""Stand-ins for the three parts of the thesis benchmark (the original models are unavailable), the
+part of seed 004's Tableau 8, and the compressor impeller of issue 39.
 
 Each function returns ``(vertices (n, 3) float64, faces (m, 3) int64)`` in mm: a closed, watertight,
 outward-wound triangle mesh with no degenerate triangles, deterministic, its bounding box starting at
@@ -17,6 +18,10 @@ the origin and scaled to the thesis' size (X x Y x Z).
   field (a dome with two ridges on its flanks and a valley running out to one side, 60 to 180 mm
   high) over vertical walls and a flat bottom; every horizontal section is one closed contour, as
   the seed's counts (one contour per level) suggest.
+- :func:`impeller` issue 39's "real 25k-triangle compressor impeller" (not published): 80 x 33 x
+  80 mm, its axis along +Y as in the issue (``--up +Y``), 29 808 triangles. A trumpet hub on a
+  backplate with 8 full blades and 8 splitters, 1.2 mm thick, wrapped 45 degrees at the inlet and
+  radial at the exit; the union of the hub and the blades is manifold3d's (a bench dependency).
 
     .venv/bin/python bench/standin_parts.py [FOLDER]    # writes FOLDER/{name}.stl (default bench/out/parts)
 """
@@ -163,7 +168,61 @@ def mould(n=180):
     return v, np.vstack(faces).astype(np.int64)
 
 
-PARTS = {"double_wave": double_wave, "handle": handle, "blade": blade, "mould": mould}
+def impeller(blades=8, n_theta=120, n_prof=36, n_t=40, n_s=6, wrap=45.0, thick=1.2):
+    """80 x 33 x 80 mm compressor impeller, axis +Y (29 808 triangles; mm).
+
+    The hub is a revolved profile: a 40 mm radius backplate 3 mm thick, a trumpet (a quarter
+    ellipse) rising to a 10 mm radius at 30 mm, a nose to 33 mm. Each blade is a thin solid between
+    the hub (sunk 1 mm into it) and the shroud line, radial-element: at a meridional station t
+    (0 inlet, 1 exit) its section is a straight line at the angle ``wrap (1 - t)^2`` plus its place,
+    thickened ``thick`` along the circle. Splitters start at t = 0.35. The pieces overlap and are
+    united by manifold3d; the result is turned so that the axis (Z while built) is +Y.
+    """
+    import trimesh  # here only, with manifold3d: the bench scripts import the parts without them
+
+    phi = np.linspace(0.0, np.pi / 2, n_prof)
+    prof = np.vstack([[40.0, 0.0], np.c_[40 - 30 * np.cos(phi), 3 + 27 * (1 - np.sin(phi))][::-1], [10.0, 33.0]])
+    th = np.linspace(0.0, 2 * np.pi, n_theta, endpoint=False)
+    rings = [np.c_[r * np.cos(th), r * np.sin(th), np.full_like(th, z)] for r, z in prof]
+    pieces = [trimesh.Trimesh(*_loft(rings, None, fan=True), process=False)]
+
+    def one_blade(t0, place):
+        t = np.linspace(t0, 1.0, n_t)
+        p = t * np.pi / 2
+        inward = np.c_[27 * np.cos(p), 30 * np.sin(p)]
+        inward /= np.linalg.norm(inward, axis=1)[:, None]
+        hub = np.c_[40 - 30 * np.cos(p), 3 + 27 * (1 - np.sin(p))] - inward
+        shroud = np.c_[40 - 14 * np.cos(p), 10 + 20 * (1 - np.sin(p))]
+        angle = np.radians(wrap) * (1 - t) ** 2 + 2 * np.pi * place / blades
+        s = np.linspace(0.0, 1.0, n_s)[:, None]
+        sections = []
+        for i in range(n_t):
+            rz = (1 - s) * hub[i] + s * shroud[i]
+            a = np.r_[angle[i] + thick / 2 / rz[:, 0], angle[i] - thick / 2 / rz[::-1, 0]]
+            r, z = np.r_[rz[:, 0], rz[::-1, 0]], np.r_[rz[:, 1], rz[::-1, 1]]
+            sections.append(np.c_[r * np.cos(a), r * np.sin(a), z])
+        return trimesh.Trimesh(*_loft(sections, None, fan=True), process=False)
+
+    for k in range(blades):
+        pieces += [one_blade(0.0, k), one_blade(0.35, k + 0.5)]
+    whole = trimesh.boolean.union(pieces, engine="manifold")
+    v = np.asarray(whole.vertices, dtype=np.float64) @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    return v - v.min(0), np.asarray(whole.faces, dtype=np.int64)
+
+
+PARTS = {"double_wave": double_wave, "handle": handle, "blade": blade, "mould": mould, "impeller": impeller}
+
+
+def written(name: str, folder: str = DEFAULT_OUT) -> str:
+    """The path of ``folder/{name}.stl``, written first if it is not there (trimesh; the impeller
+    also needs manifold3d)."""
+    import trimesh
+
+    path = os.path.join(folder, f"{name}.stl")
+    if not os.path.exists(path):
+        os.makedirs(folder, exist_ok=True)
+        trimesh.Trimesh(*PARTS[name](), process=False).export(path)
+    return path
 
 
 def main(argv=None):
