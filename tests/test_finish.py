@@ -794,3 +794,39 @@ def test_passes_of_one_tool_on_both_sides_of_a_wall_are_taken_side_by_side():
     assert [p["contour"] for p in short_order(mixed, tip2, axis2, np.array([0.0]))] == [0, 9, 5]
     raster = [dict(p, shallow=True) for p in passes]
     assert short_order(raster, tip, axis, np.array([40.0])) == raster
+
+
+def test_gentle_turns_puts_each_moves_poses_in_its_place():
+    """On random paths about the pole (rapid and feed moves, four tools), the poses put into a move
+    from a tilted pose are :func:`around_pole`'s for that move alone, in the move's place, and turn
+    C by at most the step; the path's own poses are kept."""
+    from meshmill.ops.finish_pole import POLE_MARGIN, POLE_STEP, around_pole, gentle_turns
+    from meshmill.toolpath.model import Toolpath
+
+    rng = np.random.default_rng(7)
+    radius = np.array([5.0, 3.0, 1.0, 0.5])
+    singular = math.radians(0.05)
+    for _ in range(60):
+        n = int(rng.integers(2, 25))
+        tilt = np.abs(rng.normal(0.0, 0.3, n)) * (rng.random(n) < 0.8)
+        az = rng.uniform(-np.pi, np.pi, n)
+        axis = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
+        tp = Toolpath(rng.normal(0.0, 5.0, (n, 3)), axis, rng.random(n) < 0.3, rng.integers(0, 4, n))
+        out, source = gentle_turns(tp, radius, singular)
+        own = np.r_[source[1:] != source[:-1], True]  # the last of each move's rows is its own pose
+        assert (np.diff(source) >= 0).all() and (source[own] == np.arange(n)).all()
+        assert (out.tip[own] == tp.tip).all() and (out.axis[own] == tp.axis).all()
+        for i in range(1, n):
+            if tilt[i - 1] <= singular or tilt[i] <= singular:
+                continue
+            r = 0.0 if tp.rapid[i] else radius[tp.tool[i]]
+            c0, c1 = tp.tip[i - 1] + r * tp.axis[i - 1], tp.tip[i] + r * tp.axis[i]
+            axes, centres = around_pole(tp.axis[i - 1], tp.axis[i], c0, c1, r, POLE_MARGIN, POLE_STEP,
+                                        0.5 * singular)
+            put = (source == i) & ~own
+            assert np.allclose(out.axis[put], axes, atol=1e-12) and np.allclose(out.tip[put], centres - r * axes,
+                                                                                atol=1e-9)
+            if len(axes):  # C turns by at most the step along the move's poses
+                chain = np.vstack([tp.axis[i - 1], axes, tp.axis[i]])
+                turn = np.diff(np.degrees(np.arctan2(chain[:, 1], chain[:, 0])))
+                assert (np.abs((turn + 180) % 360 - 180) <= POLE_STEP + 1e-6).all()

@@ -44,23 +44,39 @@ def around_pole(a0, a1, c0, c1, radius, margin=POLE_MARGIN, step=POLE_STEP, thro
     would pass nearer the pole than that); the centre stays on its segment, so the ball cuts what it
     cut. None needed (``m = 0``) where the arc passes within ``through`` rad of the pole (the
     machine flips the tilt there: half its ``singular``) or starts or ends on it."""
-    a0, a1 = np.asarray(a0, float), np.asarray(a1, float)
-    dist, inside = _pole_distance(a0[None], a1[None])
-    t0, t1 = math.acos(min(1.0, a0[2])), math.acos(min(1.0, a1[2]))
-    m_rad = math.radians(margin)
-    z0, z1 = math.atan2(a0[1], a0[0]), math.atan2(a1[1], a1[0])
-    turn = (z1 - z0 + math.pi) % (2 * math.pi) - math.pi  # the shorter way round
-    past = bool(inside[0]) and dist[0] < m_rad
-    if min(t0, t1) <= max(through, dist[0] + 1e-12 if past else 0.0) or (past and dist[0] < through) or \
-            abs(turn) <= math.radians(step) + 1e-12:
-        return np.empty((0, 3)), np.empty((0, 3))
-    k = max(1, int(math.ceil(abs(math.degrees(turn)) / step)) - 1)
-    s = np.arange(1, k + 1) / (k + 1)
-    tilt = np.maximum(m_rad if past else 0.0, t0 + s * (t1 - t0))
-    az = z0 + s * turn
-    axes = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
-    centres = np.asarray(c0, float) + s[:, None] * (np.asarray(c1, float) - np.asarray(c0, float))
+    _, axes, centres = _around_poles(np.asarray(a0, float)[None], np.asarray(a1, float)[None],
+                                     np.asarray(c0, float)[None], np.asarray(c1, float)[None], margin, step, through)
     return axes, centres
+
+
+def _around_poles(a0, a1, c0, c1, margin, step, through):
+    """:func:`around_pole` of many moves (``(k, 3)`` each): ``(count (k,), axes (m, 3), centres
+    (m, 3))``, the poses of each move in turn."""
+    dist, inside = _pole_distance(a0, a1)
+    t0, t1 = np.arccos(np.minimum(1.0, a0[:, 2])), np.arccos(np.minimum(1.0, a1[:, 2]))
+    m_rad = math.radians(margin)
+    z0, z1 = np.arctan2(a0[:, 1], a0[:, 0]), np.arctan2(a1[:, 1], a1[:, 0])
+    turn = (z1 - z0 + math.pi) % (2 * math.pi) - math.pi  # the shorter way round
+    past = inside & (dist < m_rad)
+    none = (np.minimum(t0, t1) <= np.maximum(through, np.where(past, dist + 1e-12, 0.0))) | (past & (dist < through)) \
+        | (np.abs(turn) <= math.radians(step) + 1e-12)
+    # (steps of a turn that is a whole number of them, to the last bit, are counted the same whatever
+    # its rounding)
+    count = np.where(none, 0, np.maximum(1, np.ceil(np.abs(np.degrees(turn)) / step * (1.0 - 1e-12)).astype(np.int64)
+                                         - 1))
+    row, s = _steps(count)
+    s = s / (count[row] + 1)
+    tilt = np.maximum(np.where(past[row], m_rad, 0.0), t0[row] + s * (t1 - t0)[row])
+    az = z0[row] + s * turn[row]
+    axes = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
+    return count, axes, c0[row] + s[:, None] * (c1 - c0)[row]
+
+
+def _steps(count):
+    """``(row, j)`` (both ``(count.sum(),)``): each row of ``count (k,)`` repeated its count times,
+    and j = 1 .. count within it (float)."""
+    row = np.repeat(np.arange(len(count)), count)
+    return row, (np.arange(len(row)) - np.repeat(np.cumsum(count) - count, count) + 1).astype(float)
 
 
 def gentle_turns(tp: Toolpath, radius, singular, margin=POLE_MARGIN, step=POLE_STEP):
@@ -90,33 +106,48 @@ def gentle_turns(tp: Toolpath, radius, singular, margin=POLE_MARGIN, step=POLE_S
     turned = np.zeros(n, bool)
     turned[1:] = off[1:] & np.where(off[:-1], np.abs(wrap(az[1:] - az[:-1])) > step_rad + 1e-12,
                                     np.isfinite(held[1:]) & (np.abs(wrap(az[1:] - np.nan_to_num(held[1:]))) > 1e-9))
-    inserts = {}
-    for i in np.flatnonzero(turned):
-        r = 0.0 if tp.rapid[i] else float(radius[tp.tool[i]])
-        c0, c1 = tp.tip[i - 1] + r * tp.axis[i - 1], tp.tip[i] + r * tp.axis[i]
-        if off[i - 1]:
-            new_axes, centres = around_pole(tp.axis[i - 1], tp.axis[i], c0, c1, r, margin, step, through)
-        else:
-            turn = float(wrap(az[i] - held[i]))
-            k = max(1, int(math.ceil(abs(turn) / step_rad)))
-            t = min(m_rad, tilt[i])
-            zs = held[i] + turn * np.arange(0, k + 1) / k
-            new_axes = np.column_stack([np.sin(t) * np.cos(zs), np.sin(t) * np.sin(zs), np.full(k + 1, np.cos(t))])
-            if t >= tilt[i] - 1e-12:
-                new_axes = new_axes[:-1]  # the last is the move's own end
-            f = np.arange(1, len(new_axes) + 1) / (len(new_axes) + 1)
-            centres = c0 + f[:, None] * (c1 - c0)
-        if len(new_axes):
-            inserts[int(i)] = (centres - r * new_axes, new_axes)
-    if not inserts:
+    idx = np.flatnonzero(turned)
+    if not len(idx):
         return tp, np.arange(n)
-    at = sorted(inserts)
-    pieces = np.split(np.arange(n), at)
-    tips, axes, source = [tp.tip[pieces[0]]], [tp.axis[pieces[0]]], [pieces[0]]
-    for j, piece in zip(at, pieces[1:]):
-        t_new, a_new = inserts[j]
-        tips += [t_new, tp.tip[piece]]
-        axes += [a_new, tp.axis[piece]]
-        source += [np.full(len(t_new), j), piece]
-    source = np.concatenate(source)
-    return Toolpath(np.vstack(tips), np.vstack(axes), tp.rapid[source], tp.tool[source]), source
+    r = np.where(tp.rapid[idx], 0.0, np.asarray(radius, float)[tp.tool[idx]])
+    c0, c1 = tp.tip[idx - 1] + r[:, None] * tp.axis[idx - 1], tp.tip[idx] + r[:, None] * tp.axis[idx]
+    # from a tilted pose: round the pole
+    rnd = off[idx - 1]
+    n_round, ax_round, ce_round = _around_poles(tp.axis[idx - 1][rnd], tp.axis[idx][rnd], c0[rnd], c1[rnd], margin,
+                                                step, through)
+    # from the pole: out at the held azimuth, round at that tilt (the last pose dropped where it is
+    # the move's own end)
+    out = np.flatnonzero(~rnd)
+    i = idx[out]
+    turn = wrap(az[i] - held[i])
+    k = np.maximum(1, np.ceil(np.abs(turn) / step_rad * (1.0 - 1e-12)).astype(np.int64))
+    t = np.minimum(m_rad, tilt[i])
+    n_out = k + 1 - (t >= tilt[i] - 1e-12)
+    row, j = _steps(n_out)
+    zs = held[i][row] + turn[row] * (j - 1) / k[row]
+    ax_out = np.column_stack([np.sin(t[row]) * np.cos(zs), np.sin(t[row]) * np.sin(zs), np.cos(t[row])])
+    f = j / (n_out[row] + 1)
+    ce_out = c0[out][row] + f[:, None] * (c1 - c0)[out][row]
+    # each move's new poses, in the order of idx
+    count = np.zeros(len(idx), np.int64)
+    count[rnd], count[~rnd] = n_round, n_out
+    if not count.any():
+        return tp, np.arange(n)
+    new_axes, centres = np.empty((count.sum(), 3)), np.empty((count.sum(), 3))
+    first = np.cumsum(count) - count
+    for sel, n_sel, axes_sel, centres_sel in ((rnd, n_round, ax_round, ce_round), (~rnd, n_out, ax_out, ce_out)):
+        at = np.repeat(first[sel], n_sel) + _steps(n_sel)[1].astype(np.int64) - 1
+        new_axes[at], centres[at] = axes_sel, centres_sel
+    new_tips = centres - np.repeat(r, count)[:, None] * new_axes
+    # the moves of tp, each after the poses put into it
+    per = np.zeros(n, np.int64)
+    per[idx] = count
+    own = np.arange(n) + np.cumsum(per)
+    source = np.empty(n + count.sum(), np.int64)
+    source[own] = np.arange(n)
+    put = np.setdiff1d(np.arange(len(source)), own, assume_unique=True)
+    source[put] = np.repeat(idx, count)
+    tips, axes = np.empty((len(source), 3)), np.empty((len(source), 3))
+    tips[own], axes[own] = tp.tip, tp.axis
+    tips[put], axes[put] = new_tips, new_axes
+    return Toolpath(tips, axes, tp.rapid[source], tp.tool[source]), source
