@@ -318,3 +318,34 @@ def test_a_tool_thinner_than_the_tolerance_through_the_material_is_found():
     r = verify_moves(kern, _path([[-20, 0, 1.0], [20, 0, 1.0]]), [thin], 0.01, 0.5, StockCheck())
     assert [p.kind for p in r["problems"]] == ["gouge"] and r["problems"][0].depth > 1.0
     assert r["figures"]["poses"][1] == 80
+
+
+def test_without_bad_depths_the_same_moves_fail_at_no_more_than_their_depth():
+    """Repairs ask only which moves fail (``bad_depths=False``): on random moves over the ridge,
+    turning and not, feed and rapid, the problems are on the same moves, of the same kinds, no
+    deeper than the full measure says (a gouge deeper than the tolerance); fewer poses are
+    measured."""
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.pathing.verify import StockCheck, verify_moves
+
+    ball = tool_from_entry(dict(name="B1", type="ball", diameter=1, flute_length=4, gauge_length=30), 1, "t")
+    kern = solid_kernels(_ridge())
+    rng = np.random.default_rng(3)
+    n = 120
+    pts = np.column_stack([rng.uniform(-4, 4, n), rng.uniform(-4, 4, n), rng.uniform(9.3, 10.8, n)])
+    tilt, az = rng.uniform(0, 0.3, n) * (rng.random(n) < 0.5), rng.uniform(-np.pi, np.pi, n)
+    axes = np.column_stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
+    tp = _path(pts, axes, rng.random(n) < 0.2)
+    stock = StockCheck(allowance=0.2, clearance=0.1)
+    full = verify_moves(kern, tp, [ball], 0.01, 0.25, stock)
+    lazy = verify_moves(kern, tp, [ball], 0.01, 0.25, stock, bad_depths=False)
+    deepest = {}
+    for p in full["problems"]:
+        deepest[p.move, p.kind] = max(deepest.get((p.move, p.kind), 0.0), p.depth)
+    found = {}
+    for p in lazy["problems"]:
+        found[p.move, p.kind] = max(found.get((p.move, p.kind), 0.0), p.depth)
+    assert len(deepest) > 20 and set(found) == set(deepest)
+    assert all(d <= deepest[k] + 1e-12 for k, d in found.items())
+    assert all(d > 0.01 for (_, kind), d in found.items() if kind == "gouge")
+    assert lazy["figures"]["poses"].sum() < full["figures"]["poses"].sum()

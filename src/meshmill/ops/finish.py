@@ -152,7 +152,7 @@ class _ClusterCheck:
         self.tol, self.step = tol, step
         self.handle = share(client, dict(part=mesh, floor=None, stock=stock, allowance=check.allowance,
                                          clearance=check.clearance, tools=list(tools), tol=tol, step=step,
-                                         device=device))
+                                         device=device, bad_depths=False))
 
     def __call__(self, tp, only):
         from ..cluster import PIECES_PER_WORKER, submit, wait, workers
@@ -587,14 +587,17 @@ def path_check(mesh: Mesh, kern, setup: FinishSetup, tools, rapid_stock: StockCh
     a round of repairs checks only the moves it changed) within the kept tolerance, poses at most
     :data:`~meshmill.pathing.verify.DEFAULT_STEP` and ``sample`` apart, rapids against
     ``rapid_stock``: here through ``kern``, or in ranges of moves on the workers of ``cluster``
-    (the same reports)."""
+    (the same reports). A move found bad is not measured further (``bad_depths``): the repairs
+    need only which moves fail, and a path left with problems reports each at the depth that
+    found it, at least."""
     params = setup.params
     step = min(DEFAULT_STEP, params.sample)
     if cluster is not None:
         parts = _ClusterCheck(cluster, mesh, setup.stock, rapid_stock, tools, params.tolerance, step, device, say)
     else:
         def parts(path, only):
-            return check_parts(kern, path, tools, params.tolerance, step, rapid_stock, only, progress=say)
+            return check_parts(kern, path, tools, params.tolerance, step, rapid_stock, only, progress=say,
+                               bad_depths=False)
     return Reverify(parts, params.tolerance, step, rapid_stock.summary())
 
 

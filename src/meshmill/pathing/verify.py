@@ -324,15 +324,15 @@ def verify_toolpath(kern, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: flo
 
 
 def check_parts(kern, tp: Toolpath, tools, tol: float, step: float, stock: StockCheck, only=None,
-                progress=None) -> list[dict]:
+                progress=None, bad_depths: bool = True) -> list[dict]:
     """What :func:`verify_moves` finds on ``tp`` (its moves where ``only (k,) bool`` is set, else
     all), in :data:`~meshmill.progress.PIECES` ranges when ``progress`` is given (the share done
     and the time left told after each); :func:`merge_reports` makes the report."""
     if progress is None:
-        return [verify_moves(kern, tp, tools, tol, step, stock, only=only)]
+        return [verify_moves(kern, tp, tools, tol, step, stock, only=only, bad_depths=bad_depths)]
     meter, parts = Meter(progress, "certified check of every move", len(tp)), []
     for first, piece, piece_only in path_pieces(tp, PIECES, only):
-        parts.append(verify_moves(kern, piece, tools, tol, step, stock, first, piece_only))
+        parts.append(verify_moves(kern, piece, tools, tol, step, stock, first, piece_only, bad_depths))
         meter.done(len(piece))
     return parts
 
@@ -346,14 +346,16 @@ def path_pieces(tp: Toolpath, count: int, only=None) -> list[tuple]:
 
 
 def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: StockCheck, first: int = 0,
-                 only=None) -> dict:
+                 only=None, bad_depths: bool = True) -> dict:
     """What :func:`verify_toolpath` finds on the moves into points ``first + 1 ..`` of ``tp``, whose
     point 0 is the point ``first`` of a whole path (its pose is checked with the move into it, in
     the piece before), or on those where ``only (len(tp),) bool`` is set: counts, the deepest feed
     poses, and the problems with their moves numbered as the whole path's; ``figures``: the same
     per move checked (``move`` numbered as the whole path's, ``poses``, ``refined``, ``certified``,
     ``max_gouge``, ``max_collision``). Pieces of a path verified apart (:func:`merge_reports`) give
-    the whole path's report. A move's figures depend on its two points alone."""
+    the whole path's report. A move's figures depend on its two points alone. Without
+    ``bad_depths`` a move found bad is not measured further: its depth is that of the poses that
+    found it, at least (for repairs, which need only which moves fail)."""
     tip, axis, tool, move, frac, rapid = sample_moves(tp, tools, step)
     checked = np.ones(len(tp), bool) if only is None else np.asarray(only, bool).copy()
     if first > 0:
@@ -385,10 +387,10 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     # of the move before to its own last (a proof holds at any length: it bounds every pose
     # between), unless it already failed or is not checked; the path's first point, a move of
     # length zero, is proven at its pose as one too (its measure samples a rounded end's circle,
-    # the proof covers it). The poses between a move's ends are measured only where its proof or
-    # its last pose fails, for the depths reported. A move whose axis turns and whose whole proof
-    # fails is then proven between its neighbouring poses (its first pose from the move before's
-    # last); the rest halve.
+    # the proof covers it). A move whose proof fails is halved: each half's middle pose measured,
+    # each half proven, and so on where a proof fails, until a pose is found beyond the tolerance
+    # or the intervals left are too short to halve. The poses between a move's ends are measured
+    # only where the move is found bad, for the depths reported (``bad_depths``).
     measure(np.nonzero((frac == 1.0) | meas.thin[tool])[0])
     ib = np.arange(1, len(tip))
     if move[0] == 0 and checked[0]:
@@ -399,27 +401,15 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     certified = np.zeros(len(tp), np.int64)
     ok = meas.clear(tip[first_a], axis[first_a], tip[last], axis[last], tool[last], rapid[last])
     certified += np.bincount(move[last[ok]], minlength=len(tp))
-    fixed = _fixed_axis(tp)
-    fail = np.zeros(len(tp), bool)
-    fail[move[last[~ok]]] = True
-    measure(np.nonzero((fail | bad_move)[move] & checked[move] & ~measured)[0])
-    poses = [tuple(a[measured] for a in (tip, tool, move, rapid, end, body, ring, segs, in_stock))]
-    apart = fail & ~fixed & (np.bincount(move, minlength=len(tp)) > 1)  # proven between its poses
-    ib = ib[fail[move[ib]] & (apart[move[ib]] | (frac[ib] == 1.0))]
-    ia = np.maximum(np.where(apart[move[ib]], ib - 1, run_start[ib] - 1), 0)
+    ia, ib = first_a[~ok], last[~ok]
     ta, xa, fa = tip[ia], axis[ia], np.where(move[ia] == move[ib], frac[ia], 0.0)
     tb, xb, fb = tip[ib], axis[ib], frac[ib]
     im, it, ir = move[ib], tool[ib], rapid[ib]
+    poses = []
     unresolved = []  # (move, tip, bound) of intervals too short to halve that stay unproven
-    for _ in range(MAX_ROUNDS):
-        if len(im) == 0:
-            break
+    for _ in range(MAX_ROUNDS):  # the intervals here failed their proof
         alive = ~bad_move[im]
         ta, xa, fa, tb, xb, fb, im, it, ir = (a[alive] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
-        ok = meas.clear(ta, xa, tb, xb, it, ir)
-        certified += np.bincount(im[ok], minlength=len(tp))
-        todo = ~ok
-        ta, xa, fa, tb, xb, fb, im, it, ir = (a[todo] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
         if len(im) == 0:
             break
         turn = np.arccos(np.clip(np.einsum("ij,ij->i", xa, xb), -1.0, 1.0))
@@ -438,9 +428,18 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
         ta, xa, fa, tb, xb, fb, im, it, ir = (np.concatenate([a, b]) for a, b in
                                               ((ta, tm), (xa, xm), (fa, fm), (tm, tb), (xm, xb), (fm, fb),
                                                (im, im), (it, it), (ir, ir)))
+        alive = ~bad_move[im]
+        ta, xa, fa, tb, xb, fb, im, it, ir = (a[alive] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
+        ok = meas.clear(ta, xa, tb, xb, it, ir)
+        certified += np.bincount(im[ok], minlength=len(tp))
+        todo = ~ok
+        ta, xa, fa, tb, xb, fb, im, it, ir = (a[todo] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
     else:
         for k in range(len(im)):
             unresolved.append((int(im[k]), ta[k], float(np.linalg.norm(tb[k] - ta[k]))))
+    if bad_depths:
+        measure(np.nonzero(bad_move[move] & checked[move] & ~measured)[0])
+    poses.insert(0, tuple(a[measured] for a in (tip, tool, move, rapid, end, body, ring, segs, in_stock)))
     refined = np.bincount(np.concatenate([p[2] for p in poses[1:]] + [np.zeros(0, np.int64)]), minlength=len(tp))
     tip, tool, move, rapid, end, body, ring, segs, in_stock = (np.concatenate(a) for a in zip(*poses))
     own = checked[move]  # point 0's pose is the piece before's; the start of a checked move, its own move's
@@ -460,13 +459,6 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
             p.move += first
         part["unresolved"] = [m + first for m in part["unresolved"]]
     return part
-
-
-def _fixed_axis(tp: Toolpath) -> np.ndarray:
-    """``(k,) bool``: the moves whose axis is the point before's exactly (move 0: True)."""
-    fixed = np.ones(len(tp), bool)
-    fixed[1:] = (tp.axis[1:] == tp.axis[:-1]).all(axis=1)
-    return fixed
 
 
 def _figures(first, moves, poses, refined, certified, max_gouge, max_collision) -> dict:
@@ -536,7 +528,8 @@ def verify_piece(shared: dict, piece) -> dict:
     """:func:`verify_moves` of one piece ``(first, toolpath, only)`` of a path on a worker of a cluster
     (:func:`meshmill.cluster.run_pieces`); ``shared``: the part, its ``floor``, the ``stock`` mesh
     (or None), ``allowance`` and ``clearance`` (rapids keep it from both; default 0), the ``tools``,
-    ``tol``, ``step``, ``device``. The kernels are built once per worker."""
+    ``tol``, ``step``, ``device`` (and ``bad_depths``, default True). The kernels are built once
+    per worker."""
     from ..cluster import worker_cached
 
     first, tp, only = piece
@@ -545,7 +538,8 @@ def verify_piece(shared: dict, piece) -> dict:
     if shared["stock"] is not None:
         stock_kern = worker_cached(shared, "stock", lambda: solid_kernels(shared["stock"], shared["device"]))
     check = StockCheck(allowance=shared["allowance"], kern=stock_kern, clearance=shared.get("clearance", 0.0))
-    return verify_moves(kern, tp, shared["tools"], shared["tol"], shared["step"], check, first, only)
+    return verify_moves(kern, tp, shared["tools"], shared["tol"], shared["step"], check, first, only,
+                        shared.get("bad_depths", True))
 
 
 KINDS = ("gouge", "collision", "rapid")
