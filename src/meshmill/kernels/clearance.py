@@ -859,31 +859,16 @@ def build(jit):
         if g_i == 0.0 and ring_rho[t] <= 0.0 and ring_r[t] > 0.0 and seg_r[t, 0] > 0.0 \
                 and seg_t0[t, 0] == ring_t[t] and seg_r[t, 0] <= ring_r[t]:
             # a turning ball and its flutes: within the ball's radius of the axis from its centre to
-            # the flutes' top, swept (its points at h along the axis off the bilinear patch by at
-            # most h (1 - cos(theta/2))); a fixed axis is decided exactly by the capsule and the
-            # prism below. Where that fails the axis is halved (each piece's slack by its own top,
-            # so the piece at the ball's centre, near the contact, takes the least)
+            # the flutes' top, swept. The point h along the axis at a pose between is the bilinear
+            # patch's point at h / |(1 - s) ua + s ub|, that length at least cos(theta/2): the
+            # sweep lies in the patch of the axis from the centre to t1 / cos(theta/2), exactly. A
+            # fixed axis is decided exactly by the capsule and the prism below
             cth = min(1.0, max(-1.0, axis_a[i, 0] * axis_b[i, 0] + axis_a[i, 1] * axis_b[i, 1]
                                + axis_a[i, 2] * axis_b[i, 2]))
-            if cth < 1.0:
-                shorten = 1.0 - math.sqrt(0.5 * (1.0 + cth))
-                w[0] = ring_t[t]
-                w[1] = seg_t1[t, 0]
-                sp = 1
+            if cth < 1.0 and patch_clear(w, tip_a[i], axis_a[i], tip_b[i], axis_b[i], ring_t[t],
+                                         seg_t1[t, 0] / math.sqrt(0.5 * (1.0 + cth)), ring_r[t] - lim, node_lo,
+                                         node_hi, node_child, node_range, tris, stack):
                 first = 1
-                while sp > 0:
-                    sp -= 1
-                    h0 = w[2 * sp]
-                    h1 = w[2 * sp + 1]
-                    if patch_clear(w, tip_a[i], axis_a[i], tip_b[i], axis_b[i], h0, h1,
-                                   ring_r[t] + h1 * shorten - lim, node_lo, node_hi, node_child, node_range, tris,
-                                   stack):
-                        continue
-                    # halving helps while the piece is long against its height
-                    if 4.0 * (h1 - h0) <= h0 or sp + 2 > ARC_STACK:
-                        first = 0
-                        break
-                    sp = push_halves(w, sp, h0, h1)
         if first == 0 and ring_r[t] > 0.0:
             if not ring_clear(tip_a[i], axis_a[i], tip_b[i], axis_b[i], ring_t[t], ring_rho[t], ring_r[t] + g_i, lim,
                               node_lo, node_hi, node_child, node_range, tris, stack, w):
