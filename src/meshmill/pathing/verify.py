@@ -147,11 +147,12 @@ def body_in_stock(kern, tools, tol: float, stock: StockCheck, tips, axes, tool) 
                                   np.asarray(tool, np.int64).reshape(-1)).max(axis=1)
 
 
-def sample_moves(tp: Toolpath, tools, step: float):
-    """Poses along the path: ``tip, axis (s, 3)``, ``tool, move (s,)``, ``frac (s,)`` (the pose's
-    place along its move, 0 at the point before, 1 at the move's point), ``rapid (s,) bool``."""
+def sample_moves(tp: Toolpath, tools, step: float, moves=None):
+    """Poses along the path (of its ``moves``, indices in order, where given): ``tip, axis (s,
+    3)``, ``tool, move (s,)``, ``frac (s,)`` (the pose's place along its move, 0 at the point
+    before, 1 at the move's point), ``rapid (s,) bool``."""
     k = len(tp)
-    if k == 0:
+    if k == 0 or (moves is not None and len(moves) == 0):
         e3, e = np.empty((0, 3)), np.empty(0, np.int64)
         return e3, e3, e, e, np.empty(0), np.empty(0, bool)
     reach = np.array([t.reach for t in tools])[tp.tool]
@@ -162,10 +163,12 @@ def sample_moves(tp: Toolpath, tools, step: float):
         cosang = np.clip(np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1]), -1.0, 1.0)
         dang[1:] = np.arccos(cosang) * reach[1:]
     n = np.maximum(1, np.ceil(np.maximum(dtip, dang) / step))
+    n[0] = 1
+    which = np.arange(k) if moves is None else np.asarray(moves, np.int64)
+    n = n[which]
     memory.check(POSE_BYTES * float(n.sum()), f"{n.sum():,.0f} poses {step:g} mm apart", "use a larger step", ("step",))
     n = n.astype(np.int64)
-    n[0] = 1
-    move = np.repeat(np.arange(k), n)
+    move = np.repeat(which, n)
     first = np.cumsum(n) - n
     j = np.arange(n.sum()) - np.repeat(first, n) + 1
     frac = j / np.repeat(n, n)
@@ -356,57 +359,50 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     the whole path's report. A move's figures depend on its two points alone. Without
     ``bad_depths`` a move found bad is not measured further: its depth is that of the poses that
     found it, at least (for repairs, which need only which moves fail)."""
-    tip, axis, tool, move, frac, rapid = sample_moves(tp, tools, step)
     checked = np.ones(len(tp), bool) if only is None else np.asarray(only, bool).copy()
     if first > 0:
         checked[0] = False
-    if only is not None and len(tip):
-        # the poses of the moves checked, and the last pose of a move not checked before one that is
-        before = np.zeros(len(tp), bool)
-        before[:-1] = checked[1:] & ~checked[:-1]
-        sel = checked[move] | (before[move] & (frac == 1.0))
-        tip, axis, tool, move, frac, rapid = (a[sel] for a in (tip, axis, tool, move, frac, rapid))
-    if not checked.any() or len(tip) == 0:
+    if not checked.any():
         return {"poses": 0, "certified": 0, "refined": 0, "max_gouge": 0.0, "max_collision": 0.0, "problems": [],
                 "unresolved": [], "figures": _figures(first, np.zeros(0, np.int64), *[np.zeros(0)] * 5)}
     meas = _Measure(kern, tools, tol, stock)
-    n = len(tip)
-    end, body, ring, in_stock = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    segs = np.zeros((n, meas.segs[0].shape[1]))
-    measured = np.zeros(n, bool)
     bad_move = np.zeros(len(tp), bool)
+    poses = []  # (tip, tool, move, rapid, end, body, ring, segs, in_stock) of the poses measured
 
-    def measure(sel):  # the depths of poses ``sel``; a move with a pose beyond the tolerance is bad
-        if len(sel):
-            end[sel], body[sel], ring[sel], segs[sel], in_stock[sel] = meas.depths(tip[sel], axis[sel], tool[sel],
-                                                                                   rapid[sel])
-            measured[sel] = True
-            bad_move[move[sel[(end[sel] > tol) | (body[sel] > tol)]]] = True
+    def measure(tip, axis, tool, move, rapid):  # a move with a pose beyond the tolerance is bad
+        got = meas.depths(tip, axis, tool, rapid)
+        poses.append((tip, tool, move, rapid, *got))
+        bad_move[move[(got[0] > tol) | (got[1] > tol)]] = True
 
-    # Each move's last pose is measured first. Every move is then proven whole, from the last pose
-    # of the move before to its own last (a proof holds at any length: it bounds every pose
-    # between), unless it already failed or is not checked; the path's first point, a move of
-    # length zero, is proven at its pose as one too (its measure samples a rounded end's circle,
-    # the proof covers it). A move whose proof fails is halved: each half's middle pose measured,
-    # each half proven, and so on where a proof fails, until a pose is found beyond the tolerance
-    # or the intervals left are too short to halve. The poses between a move's ends are measured
-    # only where the move is found bad, for the depths reported (``bad_depths``).
-    measure(np.nonzero((frac == 1.0) | meas.thin[tool])[0])
-    ib = np.arange(1, len(tip))
-    if move[0] == 0 and checked[0]:
-        ib = np.r_[0, ib]
-    run_start = np.searchsorted(move, move)  # each pose's move's first pose (poses go in move order)
-    last = ib[(frac[ib] == 1.0) & ~bad_move[move[ib]] & checked[move[ib]]]
-    first_a = np.maximum(run_start[last] - 1, 0)
+    def measure_samples(moves):  # every pose ``step`` apart of ``moves``, but their last (measured first)
+        tip, axis, tool, move, frac, rapid = sample_moves(tp, tools, step, moves)
+        inner = frac < 1.0
+        if inner.any():
+            measure(tip[inner], axis[inner], tool[inner], move[inner], rapid[inner])
+
+    # Each move's last pose (its point) is measured first; a tool too thin to prove (``thin``) has
+    # every pose ``step`` apart measured. Every move is then proven whole, from the point before
+    # to its own (a proof holds at any length: it bounds every pose between), unless it already
+    # failed; the path's first point, a move of length zero, is proven at its pose as one too (its
+    # measure samples a rounded end's circle, the proof covers it). A move whose proof fails is
+    # halved: each half's middle pose measured, each half proven, and so on where a proof fails,
+    # until a pose is found beyond the tolerance or the intervals left are too short to halve.
+    # The poses between a move's ends are measured only where the move is found bad, for the
+    # depths reported (``bad_depths``).
+    mv = np.nonzero(checked)[0]
+    measure(tp.tip[mv], tp.axis[mv], tp.tool[mv], mv, tp.rapid[mv])
+    measure_samples(mv[meas.thin[tp.tool[mv]]])
+    last = mv[~bad_move[mv]]
+    before = np.maximum(last - 1, 0)
     certified = np.zeros(len(tp), np.int64)
-    ok = meas.clear(tip[first_a], axis[first_a], tip[last], axis[last], tool[last], rapid[last])
-    certified += np.bincount(move[last[ok]], minlength=len(tp))
-    ia, ib = first_a[~ok], last[~ok]
-    ta, xa, fa = tip[ia], axis[ia], np.where(move[ia] == move[ib], frac[ia], 0.0)
-    tb, xb, fb = tip[ib], axis[ib], frac[ib]
-    im, it, ir = move[ib], tool[ib], rapid[ib]
-    poses = []
+    ok = meas.clear(tp.tip[before], tp.axis[before], tp.tip[last], tp.axis[last], tp.tool[last], tp.rapid[last])
+    certified += np.bincount(last[ok], minlength=len(tp))
+    im = last[~ok]
+    ta, xa, fa = tp.tip[before[~ok]], tp.axis[before[~ok]], np.zeros(len(im))
+    tb, xb, fb = tp.tip[im], tp.axis[im], np.ones(len(im))
+    it, ir = tp.tool[im], tp.rapid[im]
     unresolved = []  # (move, tip, bound) of intervals too short to halve that stay unproven
+    refined = []  # the moves of the poses measured in halving
     for _ in range(MAX_ROUNDS):  # the intervals here failed their proof
         alive = ~bad_move[im]
         ta, xa, fa, tb, xb, fb, im, it, ir = (a[alive] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
@@ -422,9 +418,8 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
         ta, xa, fa, tb, xb, fb, im, it, ir = (a[live] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
         fm = 0.5 * (fa + fb)
         tm, xm = move_poses(tp, im, fm)
-        e2, b2, r2, s2, k2 = meas.depths(tm, xm, it, ir)
-        poses.append((tm, it, im, ir, e2, b2, r2, s2, k2))
-        bad_move[im[(e2 > tol) | (b2 > tol)]] = True
+        refined.append(im)
+        measure(tm, xm, it, im, ir)
         ta, xa, fa, tb, xb, fb, im, it, ir = (np.concatenate([a, b]) for a, b in
                                               ((ta, tm), (xa, xm), (fa, fm), (tm, tb), (xm, xb), (fm, fb),
                                                (im, im), (it, it), (ir, ir)))
@@ -438,21 +433,17 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
         for k in range(len(im)):
             unresolved.append((int(im[k]), ta[k], float(np.linalg.norm(tb[k] - ta[k]))))
     if bad_depths:
-        measure(np.nonzero(bad_move[move] & checked[move] & ~measured)[0])
-    poses.insert(0, tuple(a[measured] for a in (tip, tool, move, rapid, end, body, ring, segs, in_stock)))
-    refined = np.bincount(np.concatenate([p[2] for p in poses[1:]] + [np.zeros(0, np.int64)]), minlength=len(tp))
+        measure_samples(mv[bad_move[mv] & ~meas.thin[tp.tool[mv]]])
+    refined = np.bincount(np.concatenate(refined + [np.zeros(0, np.int64)]), minlength=len(tp))
     tip, tool, move, rapid, end, body, ring, segs, in_stock = (np.concatenate(a) for a in zip(*poses))
-    own = checked[move]  # point 0's pose is the piece before's; the start of a checked move, its own move's
-    part = _found(tp, tools, tip[own], tool[own], move[own], rapid[own], end[own], body[own], ring[own], segs[own],
-                  in_stock[own], meas, [u for u in unresolved if checked[u[0]]])
-    mv = np.nonzero(checked)[0]
-    feed = own & ~rapid
+    part = _found(tp, tools, tip, tool, move, rapid, end, body, ring, segs, in_stock, meas, unresolved)
+    feed = ~rapid
     gouge = np.zeros(len(tp))
     np.maximum.at(gouge, move[feed], end[feed])
     collision = np.zeros(len(tp))
     np.maximum.at(collision, move[feed], body[feed])
     part.update(certified=int(certified.sum()), refined=int(refined.sum()),
-                figures=_figures(first, mv, np.bincount(move[own], minlength=len(tp))[mv], refined[mv], certified[mv],
+                figures=_figures(first, mv, np.bincount(move, minlength=len(tp))[mv], refined[mv], certified[mv],
                                  gouge[mv], collision[mv]))
     if first:
         for p in part["problems"]:
