@@ -8,7 +8,8 @@ measured, at two lattice steps, by this tree and by another revision in the same
     .venv/bin/python bench/simulate5.py --parts blade --steps 0.5 --cutters ball,bull,flat --points 400 --before 621bd62
 
 Per part the finish (``finish --scallop 0.01`` with the balls of bench/realparts.py, the part's
-step-down there) is made once with this tree and written to bench/out/simulate5/<part>.cl; then
+step-down there; ``impeller``: bench/certify.py's, for table-table-ac) is made once with this
+tree and written to bench/out/simulate5/<part>.cl; then
 each tree simulates that file from the part's box (``api.simulate``, mode sweep: the cutters'
 exact swept volumes, the shanks and holders checked against what is left, the load of every
 move) in a fresh process. Reported: the moves cut, the wall time and the cut stage's, the CPU
@@ -31,7 +32,9 @@ sys.path.insert(0, os.path.join(ROOT, "src"))
 sys.path.insert(0, HERE)
 from finished import table  # noqa: E402
 from links import _setup  # noqa: E402
-from realparts import PARTS as REAL_PARTS, TOOLS  # noqa: E402
+from certify import FINISHES  # noqa: E402
+from realparts import TOOLS  # noqa: E402
+from standin_parts import written  # noqa: E402
 
 OUT = os.path.join(HERE, "out", "simulate5")
 
@@ -66,8 +69,9 @@ def make_path(name, tools) -> str:
 
     cl = os.path.join(OUT, f"{name}.cl")
     if not os.path.exists(cl):
-        path, options, step_down = REAL_PARTS[name]
-        res = api.finish(api.load_part(path, **_setup(options)), tools, step_down=step_down, scallop=0.01)
+        path, options, step_down, machine = FINISHES[name]
+        res = api.finish(api.load_part(path or written(name), **_setup(options)), tools, step_down=step_down,
+                         scallop=0.01, machine=machine)
         os.makedirs(OUT, exist_ok=True)
         from meshmill.toolpath.cldata import write_apt
 
@@ -97,8 +101,8 @@ def simulate_one(name, cl, tools_file, step) -> dict:
 
     from meshmill import api
 
-    path, options, _ = REAL_PARTS[name]
-    part = api.load_part(path, **_setup(options))
+    path, options, _, _ = FINISHES[name]
+    part = api.load_part(path or written(name), **_setup(options))
     tools = api.load_tools(tools_file)
     t0, c0 = time.perf_counter(), time.process_time()
     res = api.simulate(part, cl, tools, step=step)

@@ -35,10 +35,33 @@ def test_commands_refuse_runs_their_memory_cannot_hold(tmp_path, tools_file, cap
     part = tmp_path / "block.stl"
     trimesh.Trimesh(b.vertices, b.faces, process=False).export(part)
     cl = tmp_path / "p.cl"
-    tip = np.array([[0, 0, 200.0], [100_000, 0, 200]])  # 100 m: a billion poses 0.1 µm apart
+    # 100 m along the block's edge, in the material: the poses of a bad move are measured, a billion
+    # 0.1 µm apart
+    tip = np.array([[0, 0, 50.0], [100_000, 0, 50]])
     write_apt(cl, Toolpath(tip, np.tile([0, 0, 1.0], (2, 1)), np.array([True, False]), np.zeros(2, int)),
               load_tools(tools_file))
     fill = dict(part=part, cl=cl, tools=tools_file, out=tmp_path / "o")
     assert main([a.format(**fill) for a in argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "of memory" in err[0] and "is available" in err[0] and option in err[0]
+
+
+def test_a_clear_move_is_verified_whatever_its_length_and_the_step(tmp_path, tools_file, capsys):
+    """Poses are sampled only where they are measured: a 100 m move well over a block is proven
+    whole at a 0.1 µm step (a billion poses, were they sampled) and verified OK."""
+    import trimesh
+
+    from meshmill.cli import main
+    from meshmill.geometry.shapes import box
+    from meshmill.toolpath.cldata import write_apt
+    from meshmill.toolpath.model import Toolpath
+    from meshmill.tools.table import load_tools
+
+    b = box([0, 0, 0], [400, 400, 100])
+    part = tmp_path / "block.stl"
+    trimesh.Trimesh(b.vertices, b.faces, process=False).export(part)
+    cl = tmp_path / "p.cl"
+    tip = np.array([[0, 0, 200.0], [100_000, 0, 200]])
+    write_apt(cl, Toolpath(tip, np.tile([0, 0, 1.0], (2, 1)), np.array([True, False]), np.zeros(2, int)),
+              load_tools(tools_file))
+    assert main(["verify", str(part), str(cl), "--tools", str(tools_file), "--step", "0.0001"]) == 0
