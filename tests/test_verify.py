@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from meshmill.geometry.shapes import box
+from meshmill.geometry.shapes import box, sphere
 from meshmill.pathing.verify import verify_toolpath
 from meshmill.toolpath.model import Toolpath
 from meshmill.tools.table import tool_from_entry
@@ -349,3 +349,54 @@ def test_without_bad_depths_the_same_moves_fail_at_no_more_than_their_depth():
     assert all(d <= deepest[k] + 1e-12 for k, d in found.items())
     assert all(d > 0.01 for (_, kind), d in found.items() if kind == "gouge")
     assert lazy["figures"]["poses"].sum() < full["figures"]["poses"].sum()
+
+
+@pytest.mark.parametrize("move, ua, ub, q", [
+    # (tip move, axis at the start, at the end, a 0.01 mm cube's centre): a review's cases
+    ([14.510442788367692, -0.8939600422294134, -0.11099841928567467], [0.3916845491900154, 0.33428702566531193,
+     0.8572254069949475], [-0.6722213898033749, -0.4916938794155183, 0.5534939313453554],
+     [8.281367845811326, 1.3546558734108651, 10.273173443775432]),
+    ([4.439998360545827, 3.918481682041161, 5.175517773865839], [-0.3148246858979567, -0.008334144963559975,
+     0.9491132488681102], [0.8278191376654517, -0.43921470195267137, 0.3490070499337425],
+     [10.81930013257224, -4.411432610527445, 9.6366263360848]),
+])
+def test_a_turning_move_over_a_speck_is_found_where_its_halves_would_miss_it(move, ua, ub, q):
+    """A move turning 86-87 degrees past a 0.01 mm cube, 0.05 mm deep at its deepest (10^5 poses).
+    Its halves joined by the normalised interpolation of their own end axes are other poses than
+    the move's (the same tip, an axis off by millimetres at the flutes): proven so, the move
+    passed. It is found."""
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.pathing.verify import StockCheck, _Measure, move_poses
+
+    ball = tool_from_entry(dict(name="B6", type="ball", diameter=6, flute_length=12, gauge_length=30,
+                                shank_diameter=2), 1, "t")
+    ua, ub, q = (np.asarray(v) / (np.linalg.norm(v) if i < 2 else 1.0) for i, v in enumerate((ua, ub, q)))
+    kern = solid_kernels(box(q - 0.005, q + 0.005))
+    tp = Toolpath(np.array([np.zeros(3), move]), np.array([ua, ub]), np.zeros(2, bool), np.zeros(2, np.int64))
+    s = np.linspace(0.0, 1.0, 100001)
+    tip, axis = move_poses(tp, np.ones(len(s), np.int64), s)
+    deepest = _Measure(kern, [ball], 0.01, StockCheck()).depths(tip, axis, np.zeros(len(s), np.int64),
+                                                                np.zeros(len(s), bool))[0].max()
+    assert deepest > 0.05
+    r = verify_toolpath(kern, tp, [ball], tol=0.01, step=0.5)
+    assert not r["ok"] and r["gouging_moves"] == 1
+
+
+def test_a_ball_thinner_than_the_tolerance_turning_into_a_sphere_is_found():
+    """A 0.02 mm ball (its radius within the 0.01 mm tolerance: its proof shrunk by the tolerance
+    is of nothing) turning 1 degree on a move shorter than the step, 0.1 mm into a sphere between
+    its clean end and its start: the ring's proof still sees it (a review found the swept axis's
+    test claiming it, the ball's radius less the tolerance being 0)."""
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.pathing.verify import StockCheck, verify_moves
+
+    tool = tool_from_entry(dict(name="B002", type="ball", diameter=0.02, flute_length=1, gauge_length=30,
+                                shank_diameter=3), 1, "t")
+    kern = solid_kernels(sphere(20.0, rings=24, segments=48))
+    tip = np.array([[12.230503, -1.76482, 15.554818], [12.434104, -2.035544, 15.496109]])
+    ax = np.array([[0.5921832795249493, -0.0854500232396179, 0.8012597936870566],
+                   [0.5990393599197689, -0.0980666727349294, 0.7946916213007496]])
+    ax /= np.linalg.norm(ax, axis=1, keepdims=True)
+    tp = Toolpath(tip, ax, np.array([True, False]), np.zeros(2, np.int64))
+    r = verify_moves(kern, tp, [tool], 0.01, 0.5, StockCheck(), only=np.array([False, True]))
+    assert [p.kind for p in r["problems"]] == ["gouge"] and r["problems"][0].move == 1

@@ -865,9 +865,10 @@ def build(jit):
             # fixed axis is decided exactly by the capsule and the prism below
             cth = min(1.0, max(-1.0, axis_a[i, 0] * axis_b[i, 0] + axis_a[i, 1] * axis_b[i, 1]
                                + axis_a[i, 2] * axis_b[i, 2]))
-            if cth < 1.0 and patch_clear(w, tip_a[i], axis_a[i], tip_b[i], axis_b[i], ring_t[t],
-                                         seg_t1[t, 0] / math.sqrt(0.5 * (1.0 + cth)), ring_r[t] - lim, node_lo,
-                                         node_hi, node_child, node_range, tris, stack):
+            # (a ball within the tolerance's radius proves nothing so: the ring and flutes below)
+            if cth < 1.0 and ring_r[t] > lim and patch_clear(
+                    w, tip_a[i], axis_a[i], tip_b[i], axis_b[i], ring_t[t], seg_t1[t, 0] / math.sqrt(0.5 * (1.0 + cth)),
+                    ring_r[t] - lim, node_lo, node_hi, node_child, node_range, tris, stack):
                 first = 1
         if first == 0 and ring_r[t] > 0.0:
             if not ring_clear(tip_a[i], axis_a[i], tip_b[i], axis_b[i], ring_t[t], ring_rho[t], ring_r[t] + g_i, lim,

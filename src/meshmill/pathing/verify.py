@@ -385,7 +385,8 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     # to its own (a proof holds at any length: it bounds every pose between), unless it already
     # failed; the path's first point, a move of length zero, is proven at its pose as one too (its
     # measure samples a rounded end's circle, the proof covers it). A move whose proof fails is
-    # halved: each half's middle pose measured, each half proven, and so on where a proof fails,
+    # halved (a turning one first proven between its poses ``step`` apart, below): each half's
+    # middle pose measured, each half proven, and so on where a proof fails,
     # until a pose is found beyond the tolerance or the intervals left are too short to halve.
     # The poses between a move's ends are measured only where the move is found bad, for the
     # depths reported (``bad_depths``).
@@ -397,9 +398,29 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     certified = np.zeros(len(tp), np.int64)
     ok = meas.clear(tp.tip[before], tp.axis[before], tp.tip[last], tp.axis[last], tp.tool[last], tp.rapid[last])
     certified += np.bincount(last[ok], minlength=len(tp))
+    # A fixed axis halves its move exactly (tip linear, axis constant). A turning move is proven
+    # between its poses ``step`` apart first: a half's two ends joined by the normalised
+    # interpolation of their axes are not the move's poses between (its tip and axis are paired
+    # otherwise, off by millimetres on a turn of tens of degrees), poses this close by far less
+    # than a µm
     im = last[~ok]
-    ta, xa, fa = tp.tip[before[~ok]], tp.axis[before[~ok]], np.zeros(len(im))
-    tb, xb, fb = tp.tip[im], tp.axis[im], np.ones(len(im))
+    fixed = (tp.axis[im] == tp.axis[before[~ok]]).all(axis=1)
+    st, sx, sm_tool, sm, sf, sr = sample_moves(tp, tools, step, im[~fixed])
+    same = np.r_[False, sm[1:] == sm[:-1]]
+    prev = np.maximum(sm - 1, 0)
+    sa_t = np.where(same[:, None], np.roll(st, 1, axis=0), tp.tip[prev])
+    sa_x = np.where(same[:, None], np.roll(sx, 1, axis=0), tp.axis[prev])
+    sa_f = np.where(same, np.roll(sf, 1), 0.0)
+    ok_s = meas.clear(sa_t, sa_x, st, sx, sm_tool, sr)
+    certified += np.bincount(sm[ok_s], minlength=len(tp))
+    todo = ~ok_s
+    fx = im[fixed]
+    ta = np.concatenate([tp.tip[np.maximum(fx - 1, 0)], sa_t[todo]])
+    xa = np.concatenate([tp.axis[np.maximum(fx - 1, 0)], sa_x[todo]])
+    fa = np.concatenate([np.zeros(len(fx)), sa_f[todo]])
+    tb, xb = np.concatenate([tp.tip[fx], st[todo]]), np.concatenate([tp.axis[fx], sx[todo]])
+    fb = np.concatenate([np.ones(len(fx)), sf[todo]])
+    im = np.concatenate([fx, sm[todo]])
     it, ir = tp.tool[im], tp.rapid[im]
     unresolved = []  # (move, tip, bound) of intervals too short to halve that stay unproven
     refined = []  # the moves of the poses measured in halving
