@@ -14,6 +14,26 @@ def test_available_memory_is_read_and_a_large_estimate_refused():
         memory.check(1.5 * (1 << 30), "the lines", "use a larger --step", available=1 << 30)
 
 
+def _block_and_move(tmp_path, tools_file, z):
+    """``(part, cl)``: a 400 x 400 x 100 mm block's STL and a CL file of one 100 m move along X at
+    height ``z`` from the block's corner (a billion poses 0.1 µm apart)."""
+    import trimesh
+
+    from meshmill.geometry.shapes import box
+    from meshmill.toolpath.cldata import write_apt
+    from meshmill.toolpath.model import Toolpath
+    from meshmill.tools.table import load_tools
+
+    b = box([0, 0, 0], [400, 400, 100])
+    part = tmp_path / "block.stl"
+    trimesh.Trimesh(b.vertices, b.faces, process=False).export(part)
+    cl = tmp_path / "p.cl"
+    tip = np.array([[0, 0, z], [100_000, 0, z]])
+    write_apt(cl, Toolpath(tip, np.tile([0, 0, 1.0], (2, 1)), np.array([True, False]), np.zeros(2, int)),
+              load_tools(tools_file))
+    return part, cl
+
+
 @pytest.mark.parametrize("argv, option", [
     (["verify", "{part}", "{cl}", "--tools", "{tools}", "--step", "0.0001"], "--step"),
     (["dexel", "{part}", "--step", "0.0005", "--out", "{out}.npz"], "--step"),
@@ -23,45 +43,20 @@ def test_available_memory_is_read_and_a_large_estimate_refused():
       "--out", "{out}"], "--sample"),
 ])
 def test_commands_refuse_runs_their_memory_cannot_hold(tmp_path, tools_file, capsys, argv, option):
-    import trimesh
-
     from meshmill.cli import main
-    from meshmill.geometry.shapes import box
-    from meshmill.toolpath.cldata import write_apt
-    from meshmill.toolpath.model import Toolpath
-    from meshmill.tools.table import load_tools
 
-    b = box([0, 0, 0], [400, 400, 100])
-    part = tmp_path / "block.stl"
-    trimesh.Trimesh(b.vertices, b.faces, process=False).export(part)
-    cl = tmp_path / "p.cl"
-    # 100 m along the block's edge, in the material: the poses of a bad move are measured, a billion
-    # 0.1 µm apart
-    tip = np.array([[0, 0, 50.0], [100_000, 0, 50]])
-    write_apt(cl, Toolpath(tip, np.tile([0, 0, 1.0], (2, 1)), np.array([True, False]), np.zeros(2, int)),
-              load_tools(tools_file))
+    # along the block's edge, in the material: the poses of a bad move are all measured
+    part, cl = _block_and_move(tmp_path, tools_file, 50.0)
     fill = dict(part=part, cl=cl, tools=tools_file, out=tmp_path / "o")
     assert main([a.format(**fill) for a in argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "of memory" in err[0] and "is available" in err[0] and option in err[0]
 
 
-def test_a_clear_move_is_verified_whatever_its_length_and_the_step(tmp_path, tools_file, capsys):
+def test_a_clear_move_is_verified_whatever_its_length_and_the_step(tmp_path, tools_file):
     """Poses are sampled only where they are measured: a 100 m move well over a block is proven
     whole at a 0.1 µm step (a billion poses, were they sampled) and verified OK."""
-    import trimesh
-
     from meshmill.cli import main
-    from meshmill.geometry.shapes import box
-    from meshmill.toolpath.cldata import write_apt
-    from meshmill.toolpath.model import Toolpath
-    from meshmill.tools.table import load_tools
 
-    b = box([0, 0, 0], [400, 400, 100])
-    part = tmp_path / "block.stl"
-    trimesh.Trimesh(b.vertices, b.faces, process=False).export(part)
-    cl = tmp_path / "p.cl"
-    tip = np.array([[0, 0, 200.0], [100_000, 0, 200]])
-    write_apt(cl, Toolpath(tip, np.tile([0, 0, 1.0], (2, 1)), np.array([True, False]), np.zeros(2, int)),
-              load_tools(tools_file))
+    part, cl = _block_and_move(tmp_path, tools_file, 200.0)
     assert main(["verify", str(part), str(cl), "--tools", str(tools_file), "--step", "0.0001"]) == 0
