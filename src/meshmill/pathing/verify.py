@@ -333,7 +333,8 @@ def check_parts(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stock
     and the time left told after each); :func:`merge_reports` makes the report."""
     if progress is None:
         return [verify_moves(kern, tp, tools, tol, step, stock, only=only, bad_depths=bad_depths)]
-    meter, parts = Meter(progress, "certified check of every move", len(tp)), []
+    what = "every move" if only is None or np.all(only) else f"the {int(np.count_nonzero(only)):,} moves changed"
+    meter, parts = Meter(progress, f"certified check of {what}", len(tp)), []
     for first, piece, piece_only in path_pieces(tp, PIECES, only):
         parts.append(verify_moves(kern, piece, tools, tol, step, stock, first, piece_only, bad_depths))
         meter.done(len(piece))
