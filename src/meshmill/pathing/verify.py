@@ -155,17 +155,14 @@ def sample_moves(tp: Toolpath, tools, step: float, moves=None):
     if k == 0 or (moves is not None and len(moves) == 0):
         e3, e = np.empty((0, 3)), np.empty(0, np.int64)
         return e3, e3, e, e, np.empty(0), np.empty(0, bool)
-    reach = np.array([t.reach for t in tools])[tp.tool]
-    dtip = np.zeros(k)
-    dang = np.zeros(k)
-    if k > 1:
-        dtip[1:] = np.linalg.norm(np.diff(tp.tip, axis=0), axis=1)
-        cosang = np.clip(np.einsum("ij,ij->i", tp.axis[1:], tp.axis[:-1]), -1.0, 1.0)
-        dang[1:] = np.arccos(cosang) * reach[1:]
-    n = np.maximum(1, np.ceil(np.maximum(dtip, dang) / step))
-    n[0] = 1
+    # the poses of each move asked: its tip's travel or its reach's turn over the step (move 0, the
+    # path's first point, one pose)
     which = np.arange(k) if moves is None else np.asarray(moves, np.int64)
-    n = n[which]
+    prev = np.maximum(which - 1, 0)
+    dtip = np.linalg.norm(tp.tip[which] - tp.tip[prev], axis=1)
+    cosang = np.clip(np.einsum("ij,ij->i", tp.axis[which], tp.axis[prev]), -1.0, 1.0)
+    dang = np.arccos(cosang) * np.array([t.reach for t in tools])[tp.tool[which]]
+    n = np.where(which == 0, 1.0, np.maximum(1, np.ceil(np.maximum(dtip, dang) / step)))
     memory.check(POSE_BYTES * float(n.sum()), f"{n.sum():,.0f} poses {step:g} mm apart", "use a larger step", ("step",))
     n = n.astype(np.int64)
     move = np.repeat(which, n)
@@ -425,9 +422,7 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     it, ir = tp.tool[im], tp.rapid[im]
     unresolved = []  # (move, tip, bound) of intervals too short to halve that stay unproven
     refined = []  # the moves of the poses measured in halving
-    for _ in range(MAX_ROUNDS):  # the intervals here failed their proof
-        alive = ~bad_move[im]
-        ta, xa, fa, tb, xb, fb, im, it, ir = (a[alive] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
+    for _ in range(MAX_ROUNDS):  # the intervals here failed their proof, their moves not found bad
         if len(im) == 0:
             break
         turn = np.arccos(np.clip(np.einsum("ij,ij->i", xa, xb), -1.0, 1.0))
