@@ -2,18 +2,20 @@
 its poses.
 
 A move goes from one point to the next with the tip linear and the axis interpolated linearly and
-normalised, as a controller would. Each move is first looked at in poses at most ``step`` apart,
-each measured exactly (distances to the triangles, and whether a part lies in the material,
-:mod:`meshmill.kernels.clearance`). Then every interval between two neighbouring poses is
-*certified*: a test that cannot miss (the end swept as a capsule or chord patches, the cylinders as
-stadium prisms, with the slack the turning axis adds) shows that no pose in between enters the
-material by more than the tolerance, or the interval is halved and its midpoint measured, until the
-test passes, a pose is found too deep, or the interval is shorter than ``MIN_INTERVAL`` (then the
-move is reported with the bound). A move whose axis does not turn is certified whole, from the move
-before's last pose to its own last, in one test (its poses between are still measured, for the
-depths reported); only when that fails is it halved. So "OK" means that no point of the modelled
-tool enters the part deeper than the tolerance anywhere along any feed move, and that no rapid move
-touches the stock at all, whatever ``step`` was.
+normalised, as a controller would. Each move's point (its last pose) is measured exactly (distances
+to the triangles, and whether a part lies in the material, :mod:`meshmill.kernels.clearance`).
+Then each move is *certified* whole, from the point before to its own: a test that cannot miss (the
+end swept as a capsule or chord patches, the cylinders as stadium prisms, with the slack the
+turning axis adds) shows that no pose in between enters the material by more than the tolerance.
+Where it does not, the move is halved: the middle pose measured, each half certified, and so on
+until the test passes, a pose is found too deep, or the piece is shorter than ``MIN_INTERVAL``
+(then the move is reported with the bound). A piece of a turning move is certified between its two
+end poses, whose interpolation meets the move's axes with tips a little further along the piece:
+the test takes what that moves the tool off the tolerance (:func:`pairing_slack`). The poses
+``step`` apart are measured only for tools too thin to prove and for the depths of moves found
+bad. So "OK" means that no point of the modelled tool enters the part deeper than the tolerance
+anywhere along any feed move, and that no rapid move touches the stock at all, whatever ``step``
+was.
 
 A feed move **gouges** when the cutting part (end and flutes) enters the part by more than ``tol``;
 it **collides** when the shank or holder does, or enters the stock (the part grown by the
@@ -186,6 +188,24 @@ def move_poses(tp: Toolpath, move, frac):
     return tip, axis
 
 
+def pairing_slack(tp: Toolpath, move, fa, fb) -> np.ndarray:
+    """``(k,)`` mm: how far the poses of ``move (k,)`` between the fractions ``fa`` and ``fb``
+    (k,) of it lie at most from those of the interval between its poses there, as the kernels
+    prove it (tip linear, the two unit axes joined by their normalised interpolation): the same
+    axes, each met with the tip of another place along the piece. With the move's unnormalised
+    axes V = (1 - f) a + f b at the two ends, of lengths n0 and n1, that place is off by
+    λ(1 - λ)|n0 - n1| / ((1 - λ) n0 + λ n1) <= |n0 - n1| / (4 min(n0, n1)) of the piece, so every
+    pose of the move is a pose of the interval moved by at most that share of the piece's tip
+    travel (0 for a fixed axis, and for the whole move). A proof within a limit bounds how deep
+    any point of the tool lies in the material; moving the tool by d deepens that by d at most."""
+    prev = np.maximum(move - 1, 0)
+    a, b = tp.axis[prev], tp.axis[move]
+    n0 = np.linalg.norm((1.0 - fa)[:, None] * a + fa[:, None] * b, axis=1)
+    n1 = np.linalg.norm((1.0 - fb)[:, None] * a + fb[:, None] * b, axis=1)
+    travel = np.abs(fb - fa) * np.linalg.norm(tp.tip[move] - tp.tip[prev], axis=1)
+    return 0.25 * np.abs(n0 - n1) / np.maximum(np.minimum(n0, n1), 1e-300) * travel
+
+
 def _part_names(tools, k):
     names = []
     for tool in tools:
@@ -287,10 +307,18 @@ class _Measure:
         body = np.where(~cut, segs, 0.0).max(axis=1)
         return end, body, ring, segs, in_stock
 
-    def clear(self, ta, xa, tb, xb, tool, rapid):
+    def clear(self, ta, xa, tb, xb, tool, rapid, slack=None):
         """``(k,) bool``: intervals certified within the tolerance (rapids: out of the stock; the
-        shank and holder of feed moves: out of the stock too)."""
-        lim = np.full(len(ta), self.tol)
+        shank and holder of feed moves: out of the stock too), less ``slack (k,)`` mm where given
+        (:func:`pairing_slack`; the kernels prove limits of 0 and more only: an interval whose
+        slack reaches the tolerance is not certified)."""
+        if slack is not None and (slack >= self.tol).any():
+            ok = np.zeros(len(ta), bool)
+            sel = np.nonzero(slack < self.tol)[0]
+            if len(sel):
+                ok[sel] = self.clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel], rapid[sel], slack[sel])
+            return ok
+        lim = np.full(len(ta), self.tol) if slack is None else self.tol - slack
         ok = self.kern.intervals_clear(ta, xa, tb, xb, self._design_tool(tool, rapid), self._grow(rapid, False), lim,
                                        self.rings, self.segs, self.base)
         if self.stock.kern is not None and (ok & rapid).any():
@@ -383,11 +411,10 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     # to its own (a proof holds at any length: it bounds every pose between), unless it already
     # failed; the path's first point, a move of length zero, is proven at its pose as one too (its
     # measure samples a rounded end's circle, the proof covers it). A move whose proof fails is
-    # halved (a turning one first proven between its poses ``step`` apart, below): each half's
-    # middle pose measured, each half proven, and so on where a proof fails,
-    # until a pose is found beyond the tolerance or the intervals left are too short to halve.
-    # The poses between a move's ends are measured only where the move is found bad, for the
-    # depths reported (``bad_depths``).
+    # halved: each half's middle pose measured, each half proven (less its pairing slack), and
+    # so on where a proof fails, until a pose is found beyond the tolerance or the intervals left
+    # are too short to halve. The poses between a move's ends are measured only where the move is
+    # found bad, for the depths reported (``bad_depths``).
     mv = np.nonzero(checked)[0]
     measure(tp.tip[mv], tp.axis[mv], tp.tool[mv], mv, tp.rapid[mv])
     measure_samples(mv[meas.thin[tp.tool[mv]]])
@@ -396,29 +423,9 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     certified = np.zeros(len(tp), np.int64)
     ok = meas.clear(tp.tip[before], tp.axis[before], tp.tip[last], tp.axis[last], tp.tool[last], tp.rapid[last])
     certified += np.bincount(last[ok], minlength=len(tp))
-    # A fixed axis halves its move exactly (tip linear, axis constant). A turning move is proven
-    # between its poses ``step`` apart first: a half's two ends joined by the normalised
-    # interpolation of their axes are not the move's poses between (its tip and axis are paired
-    # otherwise, off by millimetres on a turn of tens of degrees), poses this close by far less
-    # than a µm
     im = last[~ok]
-    fixed = (tp.axis[im] == tp.axis[before[~ok]]).all(axis=1)
-    st, sx, sm_tool, sm, sf, sr = sample_moves(tp, tools, step, im[~fixed])
-    same = np.r_[False, sm[1:] == sm[:-1]]
-    prev = np.maximum(sm - 1, 0)
-    sa_t = np.where(same[:, None], np.roll(st, 1, axis=0), tp.tip[prev])
-    sa_x = np.where(same[:, None], np.roll(sx, 1, axis=0), tp.axis[prev])
-    sa_f = np.where(same, np.roll(sf, 1), 0.0)
-    ok_s = meas.clear(sa_t, sa_x, st, sx, sm_tool, sr)
-    certified += np.bincount(sm[ok_s], minlength=len(tp))
-    todo = ~ok_s
-    fx = im[fixed]
-    ta = np.concatenate([tp.tip[np.maximum(fx - 1, 0)], sa_t[todo]])
-    xa = np.concatenate([tp.axis[np.maximum(fx - 1, 0)], sa_x[todo]])
-    fa = np.concatenate([np.zeros(len(fx)), sa_f[todo]])
-    tb, xb = np.concatenate([tp.tip[fx], st[todo]]), np.concatenate([tp.axis[fx], sx[todo]])
-    fb = np.concatenate([np.ones(len(fx)), sf[todo]])
-    im = np.concatenate([fx, sm[todo]])
+    ta, xa, tb, xb = tp.tip[before[~ok]], tp.axis[before[~ok]], tp.tip[im], tp.axis[im]
+    fa, fb = np.zeros(len(im)), np.ones(len(im))
     it, ir = tp.tool[im], tp.rapid[im]
     unresolved = []  # (move, tip, bound) of intervals too short to halve that stay unproven
     refined = []  # the moves of the poses measured in halving
@@ -433,6 +440,8 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
             bad_move[im[k]] = True
         live = ~short
         ta, xa, fa, tb, xb, fb, im, it, ir = (a[live] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
+        memory.check(2 * POSE_BYTES * len(im), f"{2 * len(im):,} pieces of moves halved", "use a larger tolerance",
+                     ("tolerance",))
         fm = 0.5 * (fa + fb)
         tm, xm = move_poses(tp, im, fm)
         refined.append(im)
@@ -442,7 +451,7 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
                                                (im, im), (it, it), (ir, ir)))
         alive = ~bad_move[im]
         ta, xa, fa, tb, xb, fb, im, it, ir = (a[alive] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
-        ok = meas.clear(ta, xa, tb, xb, it, ir)
+        ok = meas.clear(ta, xa, tb, xb, it, ir, pairing_slack(tp, im, fa, fb))
         certified += np.bincount(im[ok], minlength=len(tp))
         todo = ~ok
         ta, xa, fa, tb, xb, fb, im, it, ir = (a[todo] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
