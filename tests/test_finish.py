@@ -681,6 +681,57 @@ def test_passes_are_linked_straight_where_the_rapid_is_clear_else_by_the_safe_pl
     assert "direct_in" not in role2 and np.isclose(tp2.tip[np.array(owner2) == 1, 2], setup.safe_z).any()
 
 
+def test_a_round_of_repairs_builds_again_only_the_passes_it_changed(tools):
+    """Eight passes over a block's top, linked directly, with leads: after repairs that split one
+    pass, send another by the safe plane and take a third's lead away, the builder makes the
+    blocks of moves of the changed passes and of the pass before the one by the safe plane again
+    (its way out changes), takes the others' as they were, and gives exactly the path, owners
+    and roles of a fresh builder."""
+    from meshmill.geometry.shapes import box
+    from meshmill.ops.finish import Passes, path_builder
+    from meshmill.ops.finish_path import PathBuilder, repair_passes
+
+    m = box([0, 0, 0], [60, 40, 10])
+    setup, kern, _ = _stage_setup(m, tools, step_down=5.0, lead=1.0)
+    b6 = next(i for i, t in enumerate(tools) if t.name == "B6")
+    x = np.linspace(10, 50, 9)
+    tip = np.vstack([np.c_[x, np.full(9, y), np.full(9, 10.0)] for y in 5.0 + 4.0 * np.arange(8)])
+    up = np.tile([0.0, 0.0, 1.0], (len(tip), 1))
+    side = np.tile([0.0, -1.0, 0.0], (len(tip), 1))
+    passes = [dict(contour=c, tool=b6, rank=2, idx=np.arange(9 * c, 9 * c + 9), entry=0, exit=0, first_link=0,
+                   shallow=False) for c in range(8)]
+    cut = Passes(passes, tip, up, tip + 3.0 * up, side, len(tip), 0)
+    rapid_stock = setup.stock_check()
+    builder = path_builder(cut, setup, tools, kern, rapid_stock)
+    tp, owner, role = builder.build(passes)
+    assert builder.direct_links >= 5
+    made = []
+    block = PathBuilder._block
+
+    def counted(self, ps, *a):
+        made.append(ps["contour"])
+        return block(self, ps, *a)
+
+    PathBuilder._block = counted
+    try:
+        owner, role = np.array(owner), np.array(role, object)
+        bad = [int(np.nonzero((owner == 2) & (role == 4))[0][0]),  # a cutting move of pass 2: split there
+               int(np.nonzero((owner == 5) & (role == "direct_in"))[0][0]),  # pass 5: by the safe plane
+               int(np.nonzero((owner == 6) & (role == "lead_in"))[0][0])]  # pass 6: no lead in
+        again, dropped = repair_passes(passes, bad, list(owner), list(role))
+        got = builder.build(again)
+    finally:
+        PathBuilder._block = block
+    fresh = path_builder(cut, setup, tools, kern, rapid_stock).build(again)
+    assert dropped == 0 and len(again) == 9
+    assert np.array_equal(got[0].tip, fresh[0].tip) and np.array_equal(got[0].axis, fresh[0].axis)
+    assert np.array_equal(got[0].rapid, fresh[0].rapid) and np.array_equal(got[0].tool, fresh[0].tool)
+    assert got[1] == fresh[1] and got[2] == fresh[2]
+    # made again: pass 2's two pieces, pass 4 (its way out: up, now that 5 is reached by the safe
+    # plane), 5 and 6 (pass 3 and 7 follow the same points as before)
+    assert sorted(made) == [2, 2, 4, 5, 6]
+
+
 def test_a_link_the_straight_rapid_fails_is_lifted_by_the_lowest_height_that_passes():
     """PathBuilder with a stand-in check that refuses any move across lower than z = 16: the link
     between two passes at z = 10 goes 10 mm up the first pass's axis, across (the axis turning

@@ -15,6 +15,7 @@ whole path still flags is not tried again for that pass.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -32,6 +33,25 @@ NO_LEAD = 2
 LIFTS = (0.0, 2.0, 5.0, 10.0, 20.0)  # mm: the heights a link between passes is tried at before the safe plane
 
 
+@dataclass
+class _Block:
+    """The moves of one pass (:meth:`PathBuilder._block`): ``rows (m,)`` its points, a row of the
+    builder's tips and axes (>= 0) or -1 - j for the j-th of its own ``extra``, ``axes`` (e, 3);
+    ``rapid (m,)``, ``role`` (m,) of each move into them; ``ps`` the pass."""
+
+    ps: dict
+    rows: np.ndarray
+    extra: np.ndarray
+    axes: np.ndarray
+    rapid: np.ndarray
+    role: list
+
+    def last(self, tip, axis) -> tuple:
+        """``(tip, axis)`` of the block's last point (``tip``, ``axis``: the builder's)."""
+        r = int(self.rows[-1])
+        return (tip[r], axis[r]) if r >= 0 else (self.extra[-1 - r], self.axes[-1 - r])
+
+
 class PathBuilder:
     """Turns passes into moves and maps verification problems back onto passes. ``approach``: the
     distance (mm) above a lead's end where the rapid stops and the feed begins. ``gentle``: the
@@ -46,6 +66,7 @@ class PathBuilder:
         self.direct = direct
         self.direct_links = 0  # in the last path built
         self._known, self._known_for = {}, direct  # the rapids direct has passed or failed
+        self._blocks = {}  # the blocks of moves of the last path built (:meth:`build`)
 
     def _reaches(self, passes):
         """Per pass, the distances ``(in, out)`` down the way to the safe plane to which a rapid
@@ -168,76 +189,94 @@ class PathBuilder:
         d = self._dir(u, vertical)
         return p + min(self.approach, max(0.0, (self.safe_z - p[2]) / d[2])) * d
 
-    def build(self, passes):
-        # each point of the path: a row of the points (its tip and axis), of ``self.tip`` and
-        # ``self.axis`` first, then of those added here (``extra``)
-        rows, extra_tip, extra_axis, rapid, tools, owner, role = [], [], [], [], [], [], []
-        n_own = len(self.tip)
+    def _block(self, ps, reach, way, direct_out: bool, prev) -> _Block:
+        """The moves of pass ``ps`` (:meth:`build`): its link in (``way``: the direct link's
+        points, or None: by the safe plane, turning in place first where ``prev``, the tip and
+        axis of the point before, has another axis), lead, points and lead out, and its link out
+        unless ``direct_out`` (the next pass is reached directly); ``reach``: (in, out) of
+        :meth:`_reaches`."""
+        rows, extra, axes, rapid, role = [], [], [], [], []
 
-        def add(p, u, is_rapid, tool, k, r):
-            rows.append(n_own + len(extra_tip))
-            extra_tip.append(p)
-            extra_axis.append(u)
+        def add(p, u, is_rapid, r):
+            rows.append(-1 - len(extra))
+            extra.append(p)
+            axes.append(u)
             rapid.append(is_rapid)
-            tools.append(tool)
-            owner.append(k)
             role.append(r)
 
-        def last(i):  # the tip (0) or axis (1) of the last point so far
-            row = rows[-1]
-            if row >= n_own:
-                return (extra_tip, extra_axis)[i][row - n_own]
-            return (self.tip, self.axis)[i][row]
+        idx = ps["idx"]
+        reach_in, reach_out = reach
+        t0, u0 = self.tip[idx[0]], self.axis[idx[0]]
+        t1, u1 = self.tip[idx[-1]], self.axis[idx[-1]]
+        lead_in, vertical_in, feed_in = LINKS[ps["entry"]]
+        lead_out, vertical_out, feed_out = LINKS[ps["exit"]]
+        start = t0 + (self.lead * self.side[idx[0]] if lead_in else 0.0)
+        end = t1 + (self.lead * self.side[idx[-1]] if lead_out else 0.0)
+        if way is not None:  # from where the pass before left off: straight, or lifted over what lies between
+            for j, p in enumerate(way[1:]):
+                add(p, u0 if j >= (len(way) - 1) // 2 else (axes[-1] if axes else prev[1]), True, "direct_in")
+        else:
+            if prev is not None and float(np.dot(prev[1], u0)) < 1.0 - 1e-12:  # turn in place, then travel
+                add(prev[0], u0, True, "link_in")
+            add(self._up(start, u0, vertical_in), u0, True, "link_in")
+            if not feed_in:
+                add(self._above(start, u0, vertical_in), u0, True, "link_in")
+            elif reach_in is not None:  # rapid down to where the stock begins, then feed
+                add(start + reach_in * self._dir(u0, vertical_in), u0, True, "link_in")
+        add(start, u0, False, "approach_in")
+        if lead_in:
+            add(t0, u0, False, "lead_in")
+        if len(idx) > 1:  # the pass's points, fed
+            rows.extend(idx[1:].tolist())
+            rapid.extend([False] * (len(idx) - 1))
+            role.extend(range(1, len(idx)))
+        if lead_out:
+            add(end, u1, False, "lead_out")
+        if not feed_out:
+            add(self._above(end, u1, vertical_out), u1, False, "approach_out")
+            if not direct_out:
+                add(self._up(end, u1, vertical_out), u1, True, "link_out")
+        elif reach_out is not None:  # feed out of the stock, then rapid
+            add(end + reach_out * self._dir(u1, vertical_out), u1, False, "approach_out")
+            if not direct_out:
+                add(self._up(end, u1, vertical_out), u1, True, "link_out")
+        else:
+            add(self._up(end, u1, vertical_out), u1, False, "approach_out")
+        return _Block(ps, np.array(rows, np.int64), np.reshape(extra, (-1, 3)), np.reshape(axes, (-1, 3)),
+                      np.array(rapid, bool), role)
 
+    def build(self, passes):
+        """``(toolpath, owner, role)``: the moves of ``passes``, each move's pass (index) and part
+        of it. A pass whose block of moves would come out the same as in the last path built (the
+        same pass, reaches, links and point before) takes that block again: a round of repairs
+        builds only the passes it changed and their neighbours."""
         reaches = self._reaches(passes)
         directs = self._directs(passes, reaches)
         self.direct_links = len(directs)
+        blocks, kept, prev = [], {}, None
         for k, ps in enumerate(passes):
-            idx, tool = ps["idx"], ps["tool"]
-            reach_in, reach_out = reaches[k]
-            t0, u0 = self.tip[idx[0]], self.axis[idx[0]]
-            t1, u1 = self.tip[idx[-1]], self.axis[idx[-1]]
-            lead_in, vertical_in, feed_in = LINKS[ps["entry"]]
-            lead_out, vertical_out, feed_out = LINKS[ps["exit"]]
-            start = t0 + (self.lead * self.side[idx[0]] if lead_in else 0.0)
-            end = t1 + (self.lead * self.side[idx[-1]] if lead_out else 0.0)
-            if k in directs:  # from where the pass before left off: straight, or lifted over what lies between
-                way = directs[k]
-                for j, p in enumerate(way[1:]):
-                    add(p, u0 if j >= (len(way) - 1) // 2 else last(1), True, tool, k, "direct_in")
-            else:
-                if rows and float(np.dot(last(1), u0)) < 1.0 - 1e-12:  # turn in place, then travel
-                    add(last(0), u0, True, tool, k, "link_in")
-                add(self._up(start, u0, vertical_in), u0, True, tool, k, "link_in")
-                if not feed_in:
-                    add(self._above(start, u0, vertical_in), u0, True, tool, k, "link_in")
-                elif reach_in is not None:  # rapid down to where the stock begins, then feed
-                    add(start + reach_in * self._dir(u0, vertical_in), u0, True, tool, k, "link_in")
-            add(start, u0, False, tool, k, "approach_in")
-            if lead_in:
-                add(t0, u0, False, tool, k, "lead_in")
-            if len(idx) > 1:  # the pass's points, fed
-                rows.extend(idx[1:].tolist())
-                rapid.extend([False] * (len(idx) - 1))
-                tools.extend([tool] * (len(idx) - 1))
-                owner.extend([k] * (len(idx) - 1))
-                role.extend(range(1, len(idx)))
-            if lead_out:
-                add(end, u1, False, tool, k, "lead_out")
-            if not feed_out:
-                add(self._above(end, u1, vertical_out), u1, False, tool, k, "approach_out")
-                if k + 1 not in directs:
-                    add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
-            elif reach_out is not None:  # feed out of the stock, then rapid
-                add(end + reach_out * self._dir(u1, vertical_out), u1, False, tool, k, "approach_out")
-                if k + 1 not in directs:
-                    add(self._up(end, u1, vertical_out), u1, True, tool, k, "link_out")
-            else:
-                add(self._up(end, u1, vertical_out), u1, False, tool, k, "approach_out")
-        rows = np.array(rows, np.int64)
-        tp = Toolpath(np.concatenate([self.tip, np.reshape(extra_tip, (-1, 3))])[rows],
-                      np.concatenate([self.axis, np.reshape(extra_axis, (-1, 3))])[rows], np.array(rapid, bool),
-                      np.array(tools, np.int64))
+            way = directs.get(k)
+            key = (id(ps), reaches[k][0], reaches[k][1], None if way is None else way.tobytes(), k + 1 in directs,
+                   None if prev is None else (prev[0].tobytes(), prev[1].tobytes()))
+            block = self._blocks.get(key)
+            if block is None or block.ps is not ps:
+                block = self._block(ps, reaches[k], way, k + 1 in directs, prev)
+            kept[key] = block
+            blocks.append(block)
+            prev = block.last(self.tip, self.axis)
+        self._blocks = kept  # (holding the passes: their ids stay theirs)
+        # the blocks' points: rows of ``self.tip`` and ``self.axis``, then of the blocks' own (-1 - j)
+        n_own = len(self.tip)
+        sizes = np.array([len(b.rows) for b in blocks], np.int64)
+        own = np.cumsum([0] + [len(b.extra) for b in blocks])[:-1]
+        rows = np.concatenate([b.rows for b in blocks] + [np.zeros(0, np.int64)])
+        rows = np.where(rows >= 0, rows, n_own + np.repeat(own, sizes) - 1 - rows)
+        tip = np.concatenate([self.tip] + [b.extra for b in blocks])
+        axis = np.concatenate([self.axis] + [b.axes for b in blocks])
+        tp = Toolpath(tip[rows], axis[rows], np.concatenate([b.rapid for b in blocks] + [np.zeros(0, bool)]),
+                      np.repeat([ps["tool"] for ps in passes], sizes).astype(np.int64))
+        owner = np.repeat(np.arange(len(blocks)), sizes).tolist()
+        role = [r for b in blocks for r in b.role]
         self.added = 0
         if self.gentle is not None:
             n = len(tp)
