@@ -375,9 +375,9 @@ class VerifyParams(Params):
     toolpath: object = _toolpath()
     tools: object = _tools()
     tolerance: float = _tolerance()
-    step: float = option("number", "distance between the poses first measured along a move (every interval between "
-                                   "them is then certified or halved: the result does not depend on it, its speed "
-                                   "does)", 0.5, unit="mm", low=1e-4)
+    step: float = option("number", "distance between the poses measured along a move found bad (for its depth) or "
+                                   "made with a tool too thin to prove (each move is certified whole or halved: "
+                                   "whether it passes does not depend on it)", 0.5, unit="mm", low=1e-4)
     stock: object = _stock("the material rapids must keep clear of: a closed mesh file, a saved stock (stock.npz), "
                            "'offset:MM' (the part with MM left on it); in Python a Stock (default: the part alone; "
                            "--allowance MM: offset:MM)", (("--allowance", "offset:"),))

@@ -39,7 +39,7 @@ from ..tolerances import GOUGE_TOL
 from ..tools.table import pack_cylinders, pack_rings
 from ..toolpath.model import Toolpath
 
-DEFAULT_STEP = 0.5  # mm between the poses first measured along a move
+DEFAULT_STEP = 0.5  # mm between the poses measured along a bad move (its depth) or with a thin tool
 MIN_INTERVAL = 1e-5  # mm: an interval this short that cannot be certified is reported with its bound
 MAX_ROUNDS = 40  # halvings of an interval (0.5 mm / 2^40: far below MIN_INTERVAL)
 POSE_BYTES = 400  # a pose measured and its intervals (tips, axes, depths of every part, the interval ends)
