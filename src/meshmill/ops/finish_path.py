@@ -37,7 +37,7 @@ LIFTS = (0.0, 2.0, 5.0, 10.0, 20.0)  # mm: the heights a link between passes is 
 class _Block:
     """The moves of one pass (:meth:`PathBuilder._block`): ``rows (m,)`` its points, a row of the
     builder's tips and axes (>= 0) or -1 - j for the j-th of its own ``extra``, ``axes`` (e, 3);
-    ``rapid (m,)``, ``role`` (m,) of each move into them; ``ps`` the pass."""
+    ``rapid (m,)``, ``role`` (m,) of each move into them; ``ps`` the pass (held: its id keys the block)."""
 
     ps: dict
     rows: np.ndarray
@@ -255,12 +255,12 @@ class PathBuilder:
         self.direct_links = len(directs)
         blocks, kept, prev = [], {}, None
         for k, ps in enumerate(passes):
-            way = directs.get(k)
-            key = (id(ps), reaches[k][0], reaches[k][1], None if way is None else way.tobytes(), k + 1 in directs,
+            way, direct_out = directs.get(k), k + 1 in directs
+            key = (id(ps), reaches[k][0], reaches[k][1], None if way is None else way.tobytes(), direct_out,
                    None if prev is None else (prev[0].tobytes(), prev[1].tobytes()))
             block = self._blocks.get(key)
-            if block is None or block.ps is not ps:
-                block = self._block(ps, reaches[k], way, k + 1 in directs, prev)
+            if block is None:
+                block = self._block(ps, reaches[k], way, direct_out, prev)
             kept[key] = block
             blocks.append(block)
             prev = block.last(self.tip, self.axis)
