@@ -740,3 +740,110 @@ def test_a_turning_shank_is_found_in_material_wherever_its_exact_sweep_is():
         checked += 1
         found += exact > 0
     assert found > 50 and checked - found > 50  # both kinds of lines were tried
+
+
+def _wavy_path(rng, n, tool_of):
+    """A 5-axis path of ``n`` points winding over a 30 x 20 x 10 mm box: the tip on a wave, the
+    axis tilting and swinging by up to 40 degrees (pieces of moves turn), a rapid now and then."""
+    t = np.linspace(0.0, 1.0, n)
+    tips = np.column_stack([2 + 26 * t, 10 + 6 * np.sin(9 * t + rng.uniform(0, 6)), 7.5 + 2 * np.cos(13 * t)])
+    tips += rng.normal(scale=0.05, size=tips.shape)
+    tilt = np.radians(40) * np.sin(5 * t + rng.uniform(0, 6)) ** 2
+    swing = 7 * t + rng.uniform(0, 6)
+    axes = np.column_stack([np.sin(tilt) * np.cos(swing), np.sin(tilt) * np.sin(swing), np.cos(tilt)])
+    return Toolpath(tips, axes, rng.random(n) < 0.05, tool_of)
+
+
+def _point_to_pgram(p, c, D, E):
+    """Distance (mm) from points ``p (k, 3)`` to the parallelogram ``c + s D + h E``, s, h in [0, 1]."""
+    n = np.cross(D, E)
+    if np.linalg.norm(n) < 1e-12:  # degenerate: the distance to its outline
+        segs = [(c, D), (c, E), (c + D, E), (c + E, D)]
+    else:
+        M = np.column_stack([D, E, n / np.linalg.norm(n)])
+        s, h, z = np.linalg.solve(M, (p - c).T)
+        inside = (s >= 0) & (s <= 1) & (h >= 0) & (h <= 1)
+        segs = [(c, D), (c, E), (c + D, E), (c + E, D)]
+    out = np.full(len(p), np.inf)
+    for a, d in segs:
+        dd = max(d @ d, 1e-300)
+        f = np.clip((p - a) @ d / dd, 0, 1)
+        out = np.minimum(out, np.linalg.norm(p - a - f[:, None] * d, axis=1))
+    if np.linalg.norm(n) >= 1e-12:
+        out = np.where(inside, np.abs(z), out)
+    return out
+
+
+def test_a_group_of_moves_bounds_every_pose_of_its_moves():
+    """A group of consecutive moves (``move_groups``) is skipped on a line with no material in its
+    bound: every point of every member's tool axis, at 41 poses a move (the tip interpolated, the
+    axis by the normalised interpolation), lies within the bound's growth (less the sweep's
+    tolerance) of its parallelogram; its box holds its members'."""
+    from meshmill.simulation import cut as cutting
+
+    rng = np.random.default_rng(7)
+    tested, groups = 0, {}
+    for tools in ([BALL], [BULL, FLAT]):
+        tp = _wavy_path(rng, 120, np.repeat(np.arange(len(tools)), 120 // len(tools)))
+        moves = toolpath_moves(tp, tools)
+        boxes = cutting._boxes(moves)
+        for limit in (0.1, 0.3, 2.0):
+            cutting.GROUP_GROW, keep = limit, cutting.GROUP_GROW
+            try:
+                group, bound, gboxes = cutting.move_groups(moves, boxes)
+            finally:
+                cutting.GROUP_GROW = keep
+            groups[limit] = groups.get(limit, 0) + len(bound)
+            for m in np.nonzero(group >= 0)[0]:
+                g = group[m]
+                f = np.linspace(0, 1, 41)[:, None]
+                tip = moves.pa[m] + f * (moves.pb[m] - moves.pa[m])
+                x = moves.xa[m] + f * (moves.xb[m] - moves.xa[m])
+                x /= np.linalg.norm(x, axis=1, keepdims=True)
+                H = max(0.0, moves.flutes[m] - 2 * moves.corner[m])
+                h = np.linspace(0, H, 11)
+                pts = (tip[:, None] + (moves.corner[m] + h[None, :, None]) * x[:, None]).reshape(-1, 3)
+                c, D, E, rad = bound[g, :3], bound[g, 3:6], bound[g, 6:9], bound[g, 9]
+                assert _point_to_pgram(pts, c, D, E).max() <= rad - moves.radius[m] - SWEEP_TOL + 1e-9
+                assert np.all(gboxes[g, 0] <= boxes[m, 0]) and np.all(gboxes[g, 1] >= boxes[m, 1])
+                tested += 1
+    assert tested > 500 and min(groups.values()) > 3, groups
+
+
+@pytest.mark.slow
+def test_groups_of_moves_cut_what_the_moves_cut_one_by_one(monkeypatch):
+    """Lines with no material in a group's bound skip its moves: the stock, the hits (rapids,
+    collisions of shanks and holders, feeds in material) and each move's load are those of the
+    moves cut one by one, for balls, bull-noses and flat ends turning along a winding path, with
+    lines running out of room."""
+    from meshmill.simulation import cut as cutting
+    from meshmill.simulation.cut import body_moves
+    from meshmill.tools.table import tool_from_entry
+
+    d = dexelize(box((0, 0, 0), (30, 20, 10)), 0.25)
+    tools = [tool_from_entry(dict(name=n, type=k, diameter=6.0, corner_radius=r, flute_length=6.0, gauge_length=12.0),
+                             i + 1, "t") for i, (n, k, r) in enumerate((("B6", "ball", 3.0), ("R6", "bull", 1.0),
+                                                                         ("F6", "flat", 0.0)))]
+    rng = np.random.default_rng(11)
+    tp = _wavy_path(rng, 150, np.repeat(np.arange(3), 50))
+    moves = cutting.Moves.merge(toolpath_moves(tp, tools), body_moves(tp, tools))
+    runs = []
+    for limit, slack in ((0.0, 2), (0.3, 2), (2.0, 2), (0.3, 0)):
+        monkeypatch.setattr(cutting, "GROUP_GROW", limit)  # 0: no groups
+        monkeypatch.setattr(cutting, "SLACK", slack)
+        st = stock_from_model(d)
+        runs.append((st, cut(st, moves, load=len(tp))))
+        if limit:
+            group = cutting.move_groups(moves, cutting._boxes(moves))[0]
+            assert (group >= 0).sum() > len(tp) and (group[moves.body] < 0).all()
+    s0, r0 = runs[0]
+    m0 = s0.to_model()
+    assert r0["collisions"] and len(r0["in_material"]) > 50
+    for s, r in runs[1:]:
+        m = s.to_model()
+        assert r["in_material"].tolist() == r0["in_material"].tolist()
+        assert r["rapid_cuts"] == r0["rapid_cuts"] and r["collisions"] == r0["collisions"]
+        # (the threads add each move's load in their own order)
+        assert np.allclose(r["load"].volume, r0["load"].volume, rtol=1e-12, atol=1e-12)
+        for k in range(3):
+            assert np.array_equal(m.start[k], m0.start[k]) and np.array_equal(m.iv[k], m0.iv[k]), k

@@ -177,24 +177,31 @@ class DexelKernels:
         :func:`meshmill.kernels.cpu_dexel.bin_moves`), on the CPU."""
         return self.host.bin_moves(box, float(lu), float(lv), float(step), int(nu), int(nv))
 
+    def group_moves(self, ca, cb, xa, xb, sag, H, radius, limit, most):
+        """``(group (k,), bound (g, 10))``: consecutive moves gathered under one bound (see
+        :func:`meshmill.kernels.cpu_dexel.group_moves`), on the CPU."""
+        return self.host.group_moves(ca, cb, xa, xb, sag, H, radius, float(limit), int(most))
+
     def move_constants(self, pa, pb, xa, xb, corner, flutes):
         """``(chord (k, 6), plane (k, 4))``: what every line a move crosses needs."""
         return self.impl.move_constants(pa, pb, xa, xb, corner, flutes)
 
     def cut_tiles(self, lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves, pa, pb, xa,
-                  xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo, row0=0,
-                  probe=None, load=None):
+                  xb, radius, corner, flutes, strips, chord, plane, box, kind, group, gbound, gbox, hit_min, hit, todo,
+                  redo, row0=0, probe=None, load=None):
         """Cut the lines of the rows ``combs (mod split)`` of ``tiles`` (those set in ``todo``, or
-        all when it is empty) by their moves, ``iv, count, hit, redo`` in place (see
-        :func:`meshmill.kernels.cpu_dexel.cut_tiles`); with ``probe (k, 6)`` each move's load
+        all when it is empty) by their moves, ``iv, count, hit, redo`` in place, a line skipping
+        the moves of a group (``group (k,)``, ``gbound (g, 10)``, ``gbox (g, 6)``) where it holds no
+        material in their bound (see :func:`meshmill.kernels.cpu_dexel.cut_tiles`); with ``probe
+        (k, 6)`` each move's load
         gathered in ``load`` (:meth:`new_load`)."""
         if probe is None:
             import numpy as np
 
             probe, load = np.zeros((0, 6)), np.zeros((1, 0, 5))
         self.impl.cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves, pa, pb,
-                            xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo,
-                            row0, probe, load)
+                            xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, group, gbound, gbox,
+                            hit_min, hit, todo, redo, row0, probe, load)
 
     def new_load(self, k: int) -> np.ndarray:
         """``(T, k, 5)``: what :meth:`cut_tiles` gathers each move's load in (T threads that add

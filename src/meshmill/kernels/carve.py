@@ -102,6 +102,20 @@ def build(jit, inline=None):
         return n > 0 and not (iv[off[line], 0] >= whi or iv[off[line] + n - 1, 1] <= wlo)
 
     @jit
+    def group_clear(g, line, u0, v0, iv, off, count, gbound, gbox):
+        """Whether line ``line`` at (u0, v0) holds no material where the moves of group ``g`` may
+        cut: within ``gbound[g]`` (the parallelogram from c ``[0:3]`` spanned by ``[3:6]`` and
+        ``[6:9]``, grown by the radius ``[9]``; it holds every move's sweep) and the group's box
+        ``gbox[g]`` (as a move's ``box``)."""
+        wlo = gbox[g, 4]
+        whi = gbox[g, 5]
+        if not reaches(iv, off, count, line, wlo, whi):
+            return True
+        lo, hi = swp.pgram_ball(u0, v0, gbound[g, 0], gbound[g, 1], gbound[g, 2], gbound[g, 3], gbound[g, 4],
+                                gbound[g, 5], gbound[g, 6], gbound[g, 7], gbound[g, 8], gbound[g, 9])
+        return not material_outside(iv, off[line], count[line], max(lo, wlo), min(hi, whi), 1.0, 0.0)
+
+    @jit
     def line_range(lo, hi, l0, step, n):
         """First and last of ``n`` lines at ``l0 + (i + 1/2) step`` within ``[lo, hi]``."""
         i0 = max(0, int(math.ceil((lo - l0) / step - 0.5)))
@@ -268,8 +282,24 @@ def build(jit, inline=None):
         turn = math.sqrt((xa[m, 0] - xb[m, 0]) ** 2 + (xa[m, 1] - xb[m, 1]) ** 2 + (xa[m, 2] - xb[m, 2]) ** 2)
         XA = (xa[m, 0], xa[m, 1], xa[m, 2])
         XB = (xb[m, 0], xb[m, 1], xb[m, 2])
-        lo = 1.0
-        hi = 0.0
+        # first one capsule about the cylinder's middle pose: a point s up the axis and rho off it
+        # at any pose lies within half the tip's travel, s |x - xm| and rho of the capsule's axis
+        # point s up (|x - xm| <= |xa - xm| along the arc, a short one)
+        mu = xa[m, 0] + xb[m, 0]
+        mv = xa[m, 1] + xb[m, 1]
+        mw = xa[m, 2] + xb[m, 2]
+        mn = math.sqrt(mu * mu + mv * mv + mw * mw)
+        mu /= mn
+        mv /= mn
+        mw /= mn
+        cu = 0.5 * (pa[m, 0] + pb[m, 0])
+        cv = 0.5 * (pa[m, 1] + pb[m, 1])
+        cw = 0.5 * (pa[m, 2] + pb[m, 2])
+        reach = R + 0.5 * math.sqrt((pb[m, 0] - pa[m, 0]) ** 2 + (pb[m, 1] - pa[m, 1]) ** 2 + (pb[m, 2] - pa[m, 2]) ** 2) \
+            + F * math.sqrt((XA[0] - mu) ** 2 + (XA[1] - mv) ** 2 + (XA[2] - mw) ** 2)
+        lo, hi = swp.capsule(u0, v0, cu, cv, cw, cu + F * mu, cv + F * mv, cw + F * mw, reach * (1.0 + 1e-9) + 1e-9)
+        if lo >= hi or not material_outside(iv, base, n, max(lo, wlo), min(hi, whi), 1.0, 0.0):
+            return 0.0
         for stage in range(3):
             if stage == 0:
                 # first the capsule about the cylinder's axis (a ball-end of its radius standing R
@@ -317,5 +347,5 @@ def build(jit, inline=None):
         return best
 
     return namespace(subtract=subtract, material_outside=material_outside, move_lines=move_lines,
-                     move_constants=move_constants, cut_line=cut_line, touch_line=touch_line,
+                     move_constants=move_constants, group_clear=group_clear, cut_line=cut_line, touch_line=touch_line,
                      load_extents=load_extents)

@@ -7,6 +7,8 @@ through ``u = lo_u + (i + 1/2) step``, ``v = lo_v + (j + 1/2) step`` (u, v as in
 """
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 from numba import prange
@@ -133,6 +135,79 @@ def bin_moves(box, lu, lv, step, nu, nv):
     return cnt, moves
 
 
+@numba.njit(cache=True)
+def _seg_dist(p, a, b):
+    """Distance (mm) from point ``p (3,)`` to the segment a-b."""
+    d0, d1, d2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    q0, q1, q2 = p[0] - a[0], p[1] - a[1], p[2] - a[2]
+    dd = d0 * d0 + d1 * d1 + d2 * d2
+    t = 0.0 if dd <= 0.0 else min(1.0, max(0.0, (q0 * d0 + q1 * d1 + q2 * d2) / dd))
+    return math.sqrt((q0 - t * d0) ** 2 + (q1 - t * d1) ** 2 + (q2 - t * d2) ** 2)
+
+
+@numba.njit(cache=True)
+def _group_bound(ca, cb, xa, xb, sag, H, first, last):
+    """The axis (unit, the mean of moves ``first..last``'s) and how far past the parallelogram
+    from their first chord end to the last's second, spanned by H times that axis, any point of
+    their tools' axes lies (see :func:`group_moves`)."""
+    X = np.zeros(3)
+    for m in range(first, last + 1):
+        X += xa[m] + xb[m]
+    X /= math.sqrt(X[0] ** 2 + X[1] ** 2 + X[2] ** 2)
+    dev = 0.0
+    tilt = 0.0
+    for m in range(first, last + 1):
+        dev = max(dev, max(_seg_dist(ca[m], ca[first], cb[last]), _seg_dist(cb[m], ca[first], cb[last])) + sag[m])
+        far = max(math.sqrt((xa[m, 0] - X[0]) ** 2 + (xa[m, 1] - X[1]) ** 2 + (xa[m, 2] - X[2]) ** 2),
+                  math.sqrt((xb[m, 0] - X[0]) ** 2 + (xb[m, 1] - X[1]) ** 2 + (xb[m, 2] - X[2]) ** 2))
+        if far >= math.sqrt(2.0):  # past 90 degrees from X: the arc between may reach farther
+            far += math.sqrt((xa[m, 0] - xb[m, 0]) ** 2 + (xa[m, 1] - xb[m, 1]) ** 2 + (xa[m, 2] - xb[m, 2]) ** 2)
+        tilt = max(tilt, far)
+    return X, dev + H[first] * tilt
+
+
+@numba.njit(cache=True)
+def group_moves(ca, cb, xa, xb, sag, H, radius, limit, most):
+    """Consecutive moves gathered in groups whose cuts one bound holds, so that a line with no
+    material in it skips them all. Move m's tool at each pose lies within ``radius[m]`` of its
+    axis from the ball centre up ``H[m]``; the centre lies within ``sag[m]`` of the chord ``ca[m]
+    -> cb[m] (3,)`` and the axis between ``xa[m]`` and ``xb[m]`` (unit). A group's parallelogram
+    runs from its first ``ca`` to its last ``cb``, spanned by H times its mean axis X: a point h up
+    an axis lies within its centre's distance to the group's chord plus ``h |x - X|`` of it (the
+    axes of a move on the arc between its two, no farther from X than those where they lie within
+    90 degrees of X: such a cap is convex; else farther by the chord between them at most). A
+    group takes the most moves from its first, up to ``most`` and halving, whose growth stays
+    within ``limit`` mm. Returns ``(group (k,), bound (g, 10))``:
+    each move's group (-1: alone) and each group's corner, spans and radius (the tool's plus the
+    growth; as :func:`meshmill.kernels.carve.group_clear` reads them)."""
+    k = ca.shape[0]
+    group = np.full(k, -1, np.int64)
+    bound = np.empty((k, 10))
+    g = 0
+    i = 0
+    while i < k:
+        # the most moves from i on that keep within the limit, halving from ``most``
+        size = min(most, k - i)
+        X = np.zeros(3)
+        gr = 0.0
+        while size > 1:
+            X, gr = _group_bound(ca, cb, xa, xb, sag, H, i, i + size - 1)
+            if gr <= limit:
+                break
+            size //= 2
+        if size > 1:
+            j = i + size - 1
+            group[i:j + 1] = g
+            for c in range(3):
+                bound[g, c] = ca[i, c]
+                bound[g, 3 + c] = cb[j, c] - ca[i, c]
+                bound[g, 6 + c] = H[i] * X[c]
+            bound[g, 9] = radius[i] + gr * (1.0 + 1e-9) + 1e-9
+            g += 1
+        i += size
+    return group, bound[:g].copy()
+
+
 @numba.njit(parallel=True, cache=True)
 def move_constants(pa, pb, xa, xb, corner, flutes):
     """Per move, what every line it crosses needs: ``chord (k, 6)``, ``plane (k, 4)`` (see
@@ -145,12 +220,22 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
     return chord, plane
 
 
+@numba.njit(cache=True)
+def _tile_lines(box, m, lu, lv, step, nu, nv, ti, tj, comb, split):
+    """``(i0, i1, j0, j1)``: the lines of tile (ti, tj) on rows ``comb (mod split)`` that
+    ``box[m]`` covers (the rows from i0 by ``split``)."""
+    i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)
+    i0 = max(i0, ti * TILE)
+    i0 += (comb - i0) % split
+    return i0, min(i1, ti * TILE + TILE - 1), max(j0, tj * TILE), min(j1, tj * TILE + TILE - 1)
+
+
 SPREAD = 16  # work items a thread is given at least: a call with fewer cuts them in finer combs of rows
 
 
 def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves,
-              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit,
-              todo, redo, row0, probe, load):
+              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, group, gbound, gbox,
+              hit_min, hit, todo, redo, row0, probe, load):
     """Cut the lines of the given items, each the rows ``i = combs[q] (mod split)`` of tile
     ``tiles[q]`` (``split`` a power of two up to :data:`~meshmill.kernels.carve.TILE`; 1: whole
     tiles), with their moves, in move order within each line.
@@ -161,7 +246,11 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_st
     material, not in air) or a body move (shank, holder: it removes nothing) meets that much
     material, and ``redo[line]`` when a line ran out of room: the line stops there (the others go
     on), so cutting it again after growing it is exact (removal is idempotent, and moves before
-    the stop saw the material in path order). ``todo (lines,) uint8``: the lines to cut (those
+    the stop saw the material in path order). ``group (k,)``: each move's group (-1: none; see
+    :func:`group_moves`; the moves of a group follow one another among those cutting),
+    ``gbound (g, 10)`` and ``gbox (g, 6)`` their bounds in the line frame: a
+    line with no material in a group's bound (:func:`meshmill.kernels.carve.group_clear`) skips
+    its moves (they would remove nothing). ``todo (lines,) uint8``: the lines to cut (those
     set; empty: every line of the items). ``iv, off, count`` may hold the lines from row ``row0``
     on only (a block of rows: the tiles given must lie in it; ``todo`` and ``redo`` are
     numbered as ``count``). With ``probe (k, 6)`` (each move's axis and unit vector across its
@@ -177,14 +266,14 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_st
     tiles_f = np.tile(np.asarray(tiles, np.int64), f)
     combs_f = np.tile(np.asarray(combs, np.int64), f) + split * np.repeat(np.arange(f, dtype=np.int64), len(tiles))
     _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles_f, combs_f, split * f, tile_start, tile_moves, pa, pb, xa,
-               xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo, row0, probe,
-               load)
+               xb, radius, corner, flutes, strips, chord, plane, box, kind, group, gbound, gbox, hit_min, hit, todo,
+               redo, row0, probe, load)
 
 
 @numba.njit(parallel=True, cache=True)
 def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves,
-               pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit,
-               todo, redo, row0, probe, load):
+               pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, group, gbound, gbox,
+               hit_min, hit, todo, redo, row0, probe, load):
     tv = (nv + TILE - 1) // TILE
     measure = probe.shape[0] > 0
     some = todo.shape[0] > 0
@@ -194,20 +283,28 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_s
         ti = t // tv
         tj = t % tv
         comb = combs[q]  # the rows i = comb (mod split)
+        # per line of the tile, the last group tested on it and whether it was clear (material only
+        # goes, so the line stays so for the group's later moves)
+        tested = np.full(TILE * TILE, -1, np.int64)
+        clear = np.zeros(TILE * TILE, np.bool_)
         for s in range(tile_start[t], tile_start[t + 1]):
             m = tile_moves[s]
-            i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)
-            i0 = max(i0, ti * TILE)
-            i0 += (comb - i0) % split
-            i1 = min(i1, ti * TILE + TILE - 1)
-            j0 = max(j0, tj * TILE)
-            j1 = min(j1, tj * TILE + TILE - 1)
+            g = group[m]
+            i0, i1, j0, j1 = _tile_lines(box, m, lu, lv, step, nu, nv, ti, tj, comb, split)
             for i in range(i0, i1 + 1, split):
                 u0 = lu + (i + 0.5) * step
                 for j in range(j0, j1 + 1):
                     line = (i - row0) * nv + j
                     if redo[line] or (some and not todo[line]):
                         continue
+                    if g >= 0:
+                        at = (i - ti * TILE) * TILE + j - tj * TILE
+                        if tested[at] != g:
+                            tested[at] = g
+                            clear[at] = crv.group_clear(g, line, u0, lv + (j + 0.5) * step, iv, off, count, gbound,
+                                                        gbox)
+                        if clear[at]:
+                            continue
                     if kind[m] & BODY:
                         if not hit[m] and crv.touch_line(m, line, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5],
                                                          iv, off, count, pa, pb, xa, xb, radius, corner, flutes,

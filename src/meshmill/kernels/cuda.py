@@ -319,7 +319,8 @@ def _move_constants(pa, pb, xa, xb, corner, flutes, chord, plane):
 
 @cuda.jit
 def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves, pa, pb, xa, xb,
-               radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo, row0, probe, load):
+               radius, corner, flutes, strips, chord, plane, box, kind, group, gbound, gbox, hit_min, hit, todo, redo, row0,
+               probe, load):
     t = tiles[cuda.blockIdx.x]
     tv = (nv + TILE - 1) // TILE
     i = (t // tv) * TILE + cuda.threadIdx.x // TILE
@@ -329,11 +330,20 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_s
         return
     u0 = lu + (i + 0.5) * step
     v0 = lv + (j + 0.5) * step
+    current = -1  # the last group tested on this line, and whether it was clear
+    clear = False
     for s in range(tile_start[t], tile_start[t + 1]):
         m = tile_moves[s]
         i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)
         if i < i0 or i > i1 or j < j0 or j > j1:
             continue
+        g = group[m]
+        if g >= 0:
+            if g != current:  # the group's first move on this line: none of its moves cuts it if clear
+                current = g
+                clear = crv.group_clear(g, (i - row0) * nv + j, u0, v0, iv, off, count, gbound, gbox)
+            if clear:
+                continue
         if kind[m] & BODY:  # a shank or holder meets material, it removes none
             if crv.touch_line(m, (i - row0) * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
                               radius, corner, flutes, strips) > hit_min:
@@ -366,8 +376,8 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
 
 
 def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves,
-              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, hit_min, hit, todo, redo,
-              row0, probe, load):
+              pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, group, gbound, gbox, hit_min, hit,
+              todo, redo, row0, probe, load):
     """As :func:`meshmill.kernels.cpu_dexel.cut_tiles` (host arrays updated in place): one block per
     item, one thread per line of its tile (those off its comb idle), each line cut by the tile's
     moves in path order. A line that runs out
@@ -376,13 +386,15 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_st
     if len(tiles) == 0:
         return
     d_iv, d_load = _s("ct.f", iv, load)
-    d_count, d_off, d_tiles, d_combs, d_start, d_moves, d_strips = _s("ct.i", count, off, tiles, combs, tile_start,
-                                                                      tile_moves, strips, dtype=np.int64)
+    d_count, d_off, d_tiles, d_combs, d_start, d_moves, d_strips, d_group = _s(
+        "ct.i", count, off, tiles, combs, tile_start, tile_moves, strips, group, dtype=np.int64)
     d_hit, d_redo, d_kind, d_todo = _s("ct.b", hit, redo, kind, todo, dtype=np.uint8)
     _cut_tiles[len(tiles), TILE * TILE](float(lu), float(lv), float(step), int(nu), int(nv), d_iv, d_off, d_count,
                                         d_tiles, d_combs, int(split), d_start, d_moves,
                                         *_s("ct.m", pa, pb, xa, xb, radius, corner, flutes), d_strips,
-                                        *_s("ct.c", chord, plane, box), d_kind, float(hit_min), d_hit, d_todo, d_redo,
+                                        *_s("ct.c", chord, plane, box), d_kind, d_group,
+                                        *_s("ct.g", gbound.reshape(-1, 10), gbox.reshape(-1, 6)), float(hit_min), d_hit,
+                                        d_todo, d_redo,
                                         int(row0), STAGE.put("ct.probe", probe), d_load)
     load[...] = d_load.copy_to_host()
     iv[...] = d_iv.copy_to_host()

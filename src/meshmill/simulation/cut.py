@@ -8,6 +8,11 @@ normalised linear interpolation of the two axes (a 5-axis controller's interpola
 rotary joints differs from this by less than the path tolerance for the small angle steps of a
 finishing path). A move whose axis turns is split into pieces (:func:`turn_pieces`) over which the
 cut stays within ``SWEEP_TOL`` of the swept volume.
+
+Consecutive cutting moves are gathered in groups under one bound (:func:`move_groups`): a line
+with no material in a group's bound skips all its moves, which would remove nothing from it (on
+a finish most lines a move crosses were emptied by the moves just before). The result is that of
+the moves cut one by one.
 """
 from __future__ import annotations
 
@@ -32,6 +37,8 @@ RAPID_CUT = 1e-3  # mm of a dexel a rapid move must remove (or a shank or holder
 SLACK = 2  # spare interval slots a line starts with
 CUT_PIECES = 8  # pieces the tiles are cut in on one machine (each alike: a share of every direction's tiles)
 PIECE_COMBS = 4  # combs of rows a tile is dealt out to the pieces in (a power of two up to TILE)
+GROUP_MOVES = 16  # moves a group holds at most (see move_groups)
+GROUP_GROW = 0.3  # mm: how far a group's bound may reach past its moves' tools
 MOVE_BYTES = 1200  # a move on a worker of a cluster: its arrays, and per direction its frame, constants, box, tiles
 
 
@@ -314,20 +321,64 @@ def near_moves(moves: Moves, lo, hi):
     return moves, boxes
 
 
-def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern) -> tuple:
+def move_groups(moves: Moves, boxes, kern=None) -> tuple:
+    """``(group (k,), bound (g, 10), gboxes (g, 2, 3))``: consecutive cutting moves of one tool
+    gathered under one bound (:func:`~meshmill.kernels.cpu_dexel.group_moves`, at most
+    :data:`GROUP_MOVES` moves whose bound reaches at most :data:`GROUP_GROW` mm past their
+    tools): each move's group (-1: none), each group's bound and box (world frame). (Shanks and
+    holders are not grouped: their lines mostly end at the first test, and groups of them were
+    no faster.) ``kern``: the :class:`~meshmill.kernels.backend.DexelKernels` (default the CPU's)."""
+    kern = kern or DexelKernels("cpu")
+    group = np.full(len(moves), -1, np.int64)
+    bounds, gboxes, g0 = [np.empty((0, 10))], [np.empty((0, 2, 3))], 0
+    cutting = np.nonzero(~moves.body)[0]
+    tool = np.column_stack([moves.radius[cutting], moves.corner[cutting], moves.flutes[cutting]])
+    change = np.r_[0, np.nonzero(np.any(tool[1:] != tool[:-1], axis=1))[0] + 1, len(cutting)]
+    for start, stop in zip(change[:-1], change[1:]):  # the runs of one tool
+        of = cutting[start:stop]
+        if len(of) < 2:
+            continue
+        r = moves.corner[of][:, None]
+        xa, xb = moves.xa[of], moves.xb[of]
+        ca, cb = moves.pa[of] + r * xa, moves.pb[of] + r * xb
+        H = np.maximum(0.0, moves.flutes[of] - 2 * moves.corner[of])
+        # the ball centre off its chord (the normalised interpolation of the axes), and what a
+        # cut may take past the tool's sweep
+        cos = np.clip(np.einsum("ij,ij->i", xa, xb), -1.0, 1.0)
+        sag = r[:, 0] * (1 - np.sqrt(0.5 * (1 + cos))) + SWEEP_TOL
+        g, bound = kern.group_moves(ca, cb, xa, xb, sag, H, moves.radius[of], GROUP_GROW, GROUP_MOVES)
+        inside = g >= 0
+        if not inside.any():
+            continue
+        group[of[inside]] = g[inside] + g0
+        first = np.r_[0, np.nonzero(np.diff(g[inside]))[0] + 1]
+        b = boxes[of[inside]]
+        gboxes.append(np.stack([np.minimum.reduceat(b[:, 0], first), np.maximum.reduceat(b[:, 1], first)], axis=1))
+        bounds.append(bound)
+        g0 += len(bound)
+    return group, np.concatenate(bounds), np.concatenate(gboxes)
+
+
+def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern, groups=None) -> tuple:
     """What cutting the lines along ``a`` needs of the moves: their kinds, boxes, ends and axes in
-    the direction's frame, the constants of :mod:`~meshmill.kernels.carve`, and the moves of
-    each tile."""
+    the direction's frame, the constants of :mod:`~meshmill.kernels.carve`, the moves of each
+    tile, and the groups of :func:`move_groups` (``groups``, else made here) in the frame."""
     kind = (moves.rapid.astype(np.uint8) * RAPID) | (moves.body.astype(np.uint8) * BODY)
     u, v = (a + 1) % 3, (a + 2) % 3
     perm = [u, v, a]
-    box = np.ascontiguousarray(np.column_stack([boxes[:, 0, u], boxes[:, 1, u], boxes[:, 0, v], boxes[:, 1, v],
-                                                boxes[:, 0, a], boxes[:, 1, a]]))
+
+    def in_frame(b):
+        return np.ascontiguousarray(np.column_stack([b[:, 0, u], b[:, 1, u], b[:, 0, v], b[:, 1, v], b[:, 0, a],
+                                                     b[:, 1, a]]))
+
+    box = in_frame(boxes)
     pa, pb = np.ascontiguousarray(moves.pa[:, perm]), np.ascontiguousarray(moves.pb[:, perm])
     xa, xb = np.ascontiguousarray(moves.xa[:, perm]), np.ascontiguousarray(moves.xb[:, perm])
     chord, plane = kern.move_constants(pa, pb, xa, xb, moves.corner, moves.flutes)
     tile_start, tile_moves = kern.bin_moves(box, lo[u], lo[v], step, n[u], n[v])
-    return kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves
+    group, bound, gboxes = groups if groups is not None else move_groups(moves, boxes, kern)
+    gbound = np.ascontiguousarray(bound[:, [u, v, a, 3 + u, 3 + v, 3 + a, 6 + u, 6 + v, 6 + a, 9]])
+    return kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves, group, gbound, in_frame(gboxes)
 
 
 def tile_lines(stock: Stock, a: int, prepared) -> np.ndarray:
@@ -372,7 +423,7 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
     u, v = (a + 1) % 3, (a + 2) % 3
     nu, nv = int(stock.n[u]), int(stock.n[v])
     lu, lv = float(stock.lo[u]), float(stock.lo[v])
-    kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves = (
+    kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves, group, gbound, gbox = (
         prepared or _direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern))
     if tiles is None:
         busy = np.nonzero(np.diff(tile_start))[0]
@@ -393,7 +444,7 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
         redo = np.zeros(len(stock.count[a]), np.uint8)
         kern.cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, combs, split,
                        tile_start, tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips,
-                       chord, plane, box, kind, RAPID_CUT, hit, todo, redo, row0, probe, load)
+                       chord, plane, box, kind, group, gbound, gbox, RAPID_CUT, hit, todo, redo, row0, probe, load)
         full = np.nonzero(redo)[0]
         if len(full):
             _grow(stock, a, full)
@@ -431,7 +482,8 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None, l
         gathered = _cut_on(cluster, stock, moves, boxes, hit, progress, device, probe)
     else:
         kern = DexelKernels(device)
-        prepared = [_direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern) for a in range(3)]
+        groups = move_groups(moves, boxes, kern)
+        prepared = [_direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern, groups) for a in range(3)]
         # the tiles (independent) in CUT_PIECES pieces alike, so that the time the first pieces
         # take tells the time left: each tile in PIECE_COMBS combs of its rows, dealt out from the
         # most lines their moves cover to the least, back and forth (a heavy tile's combs go to
