@@ -136,6 +136,12 @@ def bin_moves(box, lu, lv, step, nu, nv):
 
 
 @numba.njit(cache=True)
+def _dist(p, q):
+    """Distance between points ``p, q (3,)``."""
+    return math.sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
+
+
+@numba.njit(cache=True)
 def _seg_dist(p, a, b):
     """Distance (mm) from point ``p (3,)`` to the segment a-b."""
     d0, d1, d2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
@@ -158,10 +164,9 @@ def _group_bound(ca, cb, xa, xb, sag, H, first, last):
     tilt = 0.0
     for m in range(first, last + 1):
         dev = max(dev, max(_seg_dist(ca[m], ca[first], cb[last]), _seg_dist(cb[m], ca[first], cb[last])) + sag[m])
-        far = max(math.sqrt((xa[m, 0] - X[0]) ** 2 + (xa[m, 1] - X[1]) ** 2 + (xa[m, 2] - X[2]) ** 2),
-                  math.sqrt((xb[m, 0] - X[0]) ** 2 + (xb[m, 1] - X[1]) ** 2 + (xb[m, 2] - X[2]) ** 2))
+        far = max(_dist(xa[m], X), _dist(xb[m], X))
         if far >= math.sqrt(2.0):  # past 90 degrees from X: the arc between may reach farther
-            far += math.sqrt((xa[m, 0] - xb[m, 0]) ** 2 + (xa[m, 1] - xb[m, 1]) ** 2 + (xa[m, 2] - xb[m, 2]) ** 2)
+            far += _dist(xa[m], xb[m])
         tilt = max(tilt, far)
     return X, dev + H[first] * tilt
 

@@ -531,8 +531,9 @@ def cut_lines(shared: dict, a: int, rows, start, iv):
     stock.iv[a], stock.off[a], stock.count[a] = _with_room(start, iv)  # the block's lines alone
     hit = np.zeros(len(moves), np.uint8)
     kern = DexelKernels(shared["device"])
+    groups = worker_cached(shared, "groups", lambda: move_groups(moves, boxes, kern))  # once for the 3 directions
     prepared = worker_cached(shared, f"moves {a}", lambda: _direction_moves(shared["lo"], n, shared["step"], a, moves,
-                                                                          boxes, kern))
+                                                                          boxes, kern, groups))
     probe = shared.get("probe")
     load = kern.new_load(len(moves)) if probe is not None else None
     _cut_direction(stock, a, moves, boxes, kern, hit, rows, prepared, probe=probe, load=load)
