@@ -14,7 +14,7 @@ from meshmill.geometry.shapes import box
 from meshmill.kernels.cpu_dexel import swp
 from meshmill.ops.simulate import simulate
 from meshmill.simulation.stock import Stock
-from meshmill.simulation.cut import SWEEP_TOL, cut, stock_from_model, toolpath_moves, turn_pieces
+from meshmill.simulation.cut import SWEEP_TOL, cut, split_turns, stock_from_model, toolpath_moves, turn_pieces, twist_strips
 from meshmill.simulation.dexel import dexelize
 from meshmill.simulation.exactsum import expansion, total
 from meshmill.simulation.surface import machined_mesh
@@ -60,16 +60,15 @@ def test_swept_interval_matches_dense_sampling(tool, turn):
         k = np.cross(xa, rng.normal(size=3))
         k /= np.linalg.norm(k)
         xb = xa * math.cos(turn) + k * math.sin(turn)
-        m, strips = turn_pieces(pa[None], pb[None], xa[None], xb[None], np.array([R]), np.array([r]), np.array([F]))
-        m, strips = int(m[0]), int(strips[0])
-        ts = np.linspace(0, 1, m + 1)
-        poses = [(pa + t * (pb - pa), (xa + t * (xb - xa)) / np.linalg.norm(xa + t * (xb - xa))) for t in ts]
+        one = (pa[None], pb[None], xa[None], xb[None])
+        _, p0, p1, x0, x1 = split_turns(*one, turn_pieces(*one, np.array([R]), np.array([r]), np.array([F])))
+        strips = twist_strips(p0, p1, x0, x1, np.full(len(p0), r), np.full(len(p0), F))
         dense = np.linspace(0, 1, 101)
         for _ in range(4):
             u0, v0 = rng.uniform(-5, 5, 2)
             lo, hi = math.inf, -math.inf
-            for (p0, x0), (p1, x1) in zip(poses[:-1], poses[1:]):
-                a, b = swp.tool_move(u0, v0, p0, p1, x0, x1, R, r, F, strips)
+            for j in range(len(p0)):
+                a, b = swp.tool_move(u0, v0, p0[j], p1[j], x0[j], x1[j], R, r, F, int(strips[j]))
                 lo, hi = min(lo, a), max(hi, b)
             pts = np.column_stack([np.full_like(w, u0), np.full_like(w, v0), w])
             hit = np.zeros(len(w), bool)
@@ -89,6 +88,82 @@ def test_swept_interval_matches_dense_sampling(tool, turn):
             gap = [min(tool_gap(np.array([[u0, v0, e]]) - tips + 0.0, np.zeros(3), None, R, r, F, x)) for e in (lo, hi)]
             gap = np.array(gap)
             assert (gap <= SWEEP_TOL + np.linalg.norm(pb - pa) / 4000 + 1e-6).all()
+
+
+def _tool_points(tip, x, R, r, F, n=48):
+    """Points ``(k, 3)`` of a cutter's surface at one pose: its corner torus at the bottom and its
+    rounded top at F (the model of ``tool_gap``), on ``n`` meridians."""
+    e1 = np.cross(x, [1.0, 0.0, 0.0] if abs(x[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(x, e1)
+    alpha = np.linspace(0.0, math.pi, 13)
+    rad = (R - r) + r * np.sin(alpha)
+    h = np.where(alpha <= math.pi / 2, r, max(r, F - r)) - r * np.cos(alpha)
+    psi = np.linspace(0.0, 2 * math.pi, n, endpoint=False)
+    ring = np.cos(psi)[:, None] * e1 + np.sin(psi)[:, None] * e2
+    return (tip + h[:, None, None] * x + rad[:, None, None] * ring[None]).reshape(-1, 3)
+
+
+@pytest.mark.parametrize("degrees", [60.0, 120.0, 170.0])
+def test_a_move_turning_far_is_cut_in_pieces_of_equal_turns_within_their_boxes(degrees):
+    """A move whose axis turns far is split in pieces of equal turns whose ends are poses of the
+    move; the tool at 401 poses of the move (tip linear, axis by the normalised interpolation)
+    lies in the box of one of its pieces, and at 41 poses of each piece in that piece's box
+    (shanks and holders too). Equal steps of the interpolation instead turn the middle pieces
+    up to 2 tan(θ/2)/θ times more, and their tool leaves their boxes."""
+    from meshmill.simulation import cut as cutting
+    from meshmill.tools.table import tool_from_entry
+
+    rng = np.random.default_rng(int(degrees))
+    holder = tool_from_entry(dict(name="B6h", type="ball", diameter=6.0, flute_length=12.0, gauge_length=40.0,
+                                  holder_diameter=32.0, holder_length=40.0), 1, "t")
+    tools = [BALL, BULL, FLAT, holder]
+    for case in range(8):
+        xa = rng.normal(size=3)
+        xa /= np.linalg.norm(xa)
+        k = np.cross(xa, rng.normal(size=3))
+        k /= np.linalg.norm(k)
+        theta = math.radians(degrees)
+        xb = xa * math.cos(theta) + k * math.sin(theta)
+        ti = case % len(tools)
+        tp = Toolpath(np.array([[0.0, 0.0, 0.0], rng.normal(size=3)]), np.array([xa, xb]), np.zeros(2, bool),
+                      np.array([ti, ti]))
+        moves = toolpath_moves(tp, tools)
+        if ti == 3:
+            moves = cutting.body_moves(tp, tools)
+        keep = (moves.source == 1) & (moves.radius == moves.radius.max())  # the holder of the bodies
+        moves = cutting.Moves(*(getattr(moves, f)[keep] for f in (
+            "pa", "pb", "xa", "xb", "radius", "corner", "flutes", "strips", "rapid", "source", "body")))
+        boxes = cutting._boxes(moves)
+        turns = np.arccos(np.clip(np.einsum("ij,ij->i", moves.xa, moves.xb), -1, 1))
+        assert len(moves) > 3 and np.allclose(turns, theta / len(moves), rtol=1e-6)
+        assert np.array_equal(moves.pb[:-1], moves.pa[1:]) and np.array_equal(moves.xb[:-1], moves.xa[1:])
+        R, r, F = moves.radius[0], moves.corner[0], moves.flutes[0]
+        lift = float((moves.pa[0] - tp.tip[0]) @ xa)  # a body's cylinder starts up the axis
+        delta = theta / len(moves)
+        reach, H = math.hypot(lift + F, R), max(0.0, lift + F - 2 * r)
+        for t in np.linspace(0, 1, 401):
+            x = xa + t * (xb - xa)
+            x /= np.linalg.norm(x)
+            pts = _tool_points(tp.tip[0] + t * (tp.tip[1] - tp.tip[0]) + lift * x, x, R, r, F)
+            inside = np.all((pts[None] >= boxes[:, None, 0] - 1e-9) & (pts[None] <= boxes[:, None, 1] + 1e-9),
+                            axis=(1, 2))
+            assert inside.any(), (degrees, ti, t)
+            # the piece holding this axis, at the same tip: its axis is near enough that the tool's
+            # farthest point is within SWEEP_TOL of here, less the piece's chord sag
+            j = min(len(moves) - 1, int(math.acos(min(1.0, x @ xa)) / delta))
+            foot = moves.pa[j] - lift * moves.xa[j], moves.pb[j] - lift * moves.xb[j]
+            d = foot[1] - foot[0]
+            s = (tp.tip[0] + t * (tp.tip[1] - tp.tip[0]) - foot[0]) @ d / (d @ d)
+            y = moves.xa[j] + s * (moves.xb[j] - moves.xa[j])
+            off = math.acos(min(1.0, x @ y / np.linalg.norm(y)))
+            assert reach * off + (R + H) * delta ** 2 / 8 <= SWEEP_TOL * (1 + 1e-6), (degrees, ti, t)
+        for m in range(len(moves)):
+            for s in np.linspace(0, 1, 41):
+                x = moves.xa[m] + s * (moves.xb[m] - moves.xa[m])
+                x /= np.linalg.norm(x)
+                pts = _tool_points(moves.pa[m] + s * (moves.pb[m] - moves.pa[m]), x, R, r, F)
+                assert np.all(pts >= boxes[m, 0] - 1e-9) and np.all(pts <= boxes[m, 1] + 1e-9), (degrees, ti, m, s)
 
 
 def test_a_pose_of_a_flat_or_bull_nose_meets_a_line_where_its_points_are():

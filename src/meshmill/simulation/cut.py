@@ -6,8 +6,8 @@ sweep meets material left in the stock at that point of the path, the move colli
 A move goes from one CL point to the next, tip interpolated linearly and the tool axis by the
 normalised linear interpolation of the two axes (a 5-axis controller's interpolation of its
 rotary joints differs from this by less than the path tolerance for the small angle steps of a
-finishing path). A move whose axis turns is split into pieces (:func:`turn_pieces`) over which the
-cut stays within ``SWEEP_TOL`` of the swept volume.
+finishing path). A move whose axis turns is split into pieces of equal turns (:func:`turn_pieces`,
+:func:`split_turns`) over which the cut stays within ``SWEEP_TOL`` of the swept volume.
 
 Consecutive cutting moves are gathered in groups under one bound (:func:`move_groups`): a line
 with no material in a group's bound skips all its moves, which would remove nothing from it (on
@@ -123,7 +123,7 @@ def _grow(stock: Stock, a: int, lines: np.ndarray) -> None:
 @dataclass
 class Moves:
     """Linear moves of one cutter each: tips ``pa, pb (k, 3)``, unit axes ``xa, xb (k, 3)``,
-    ``radius, corner, flutes (k,)`` mm, ``strips (k,)`` (see :func:`turn_pieces`), ``rapid (k,)
+    ``radius, corner, flutes (k,)`` mm, ``strips (k,)`` (see :func:`twist_strips`), ``rapid (k,)
     bool``, ``source (k,)`` index of the tool-path point each move ends at; ``body (k,) bool``: a
     shank or holder (a flat cylinder standing at the tip given), which removes nothing."""
 
@@ -183,23 +183,13 @@ def toolpath_moves(toolpath, tools, mode="sweep") -> Moves:
                          f"point {i} (source line {int(toolpath.line[i])}): no interpolation of the axis is defined there")
     same = cos > math.cos(SAME_AXIS)  # numerically the same axis: cut as a fixed-axis move, exactly
     axis[same] = xa[same]
-    pieces, strips = turn_pieces(pa, tip, xa, axis, R, r, F)
+    pieces = turn_pieces(pa, tip, xa, axis, R, r, F)
     if (pieces == 1).all():
-        return Moves(pa, tip, xa, axis.copy(), R, r, F, strips, toolpath.rapid.astype(bool), np.arange(k))
-    src = np.repeat(np.arange(k), pieces)
-    first = np.repeat(np.cumsum(pieces) - pieces, pieces)
-    j = np.arange(len(src)) - first
-    t0 = (j / pieces[src])[:, None]
-    t1 = ((j + 1) / pieces[src])[:, None]
-
-    def at(t):
-        p = pa[src] + t * (tip[src] - pa[src])
-        x = xa[src] + t * (axis[src] - xa[src])
-        return p, x / np.linalg.norm(x, axis=1, keepdims=True)
-
-    p0, x0 = at(t0)
-    p1, x1 = at(t1)
-    return Moves(p0, p1, x0, x1, R[src], r[src], F[src], strips[src], toolpath.rapid[src].astype(bool), src)
+        return Moves(pa, tip, xa, axis.copy(), R, r, F, twist_strips(pa, tip, xa, axis, r, F),
+                     toolpath.rapid.astype(bool), np.arange(k))
+    src, p0, p1, x0, x1 = split_turns(pa, tip, xa, axis, pieces)
+    return Moves(p0, p1, x0, x1, R[src], r[src], F[src], twist_strips(p0, p1, x0, x1, r[src], F[src]),
+                 toolpath.rapid[src].astype(bool), src)
 
 
 def body_moves(toolpath, tools, shrink: float = 0.0) -> Moves:
@@ -218,20 +208,10 @@ def body_moves(toolpath, tools, shrink: float = 0.0) -> Moves:
         if len(idx) == 0 or rad <= 0 or t1 <= t0:
             continue
         R = np.full(len(idx), rad)
-        pieces, _ = turn_pieces(pa[idx], tip[idx], xa[idx], axis[idx], R, np.zeros(len(idx)), np.full(len(idx), t1))
-        src = np.repeat(idx, pieces)
-        first = np.repeat(np.cumsum(pieces) - pieces, pieces)
-        j = (np.arange(len(src)) - first)[:, None]
-        n = np.repeat(pieces, pieces)[:, None]
-
-        def at(f):
-            p = pa[src] + f * (tip[src] - pa[src])
-            x = xa[src] + f * (axis[src] - xa[src])
-            x /= np.linalg.norm(x, axis=1, keepdims=True)
-            return p + t0 * x, x
-
-        p0, x0 = at(j / n)
-        p1, x1 = at((j + 1) / n)
+        pieces = turn_pieces(pa[idx], tip[idx], xa[idx], axis[idx], R, np.zeros(len(idx)), np.full(len(idx), t1))
+        src, p0, p1, x0, x1 = split_turns(pa[idx], tip[idx], xa[idx], axis[idx], pieces)
+        src = idx[src]
+        p0, p1 = p0 + t0 * x0, p1 + t0 * x1
         same = np.all(x0 == x1, axis=1) | (np.einsum("ij,ij->i", x0, x1) > math.cos(SAME_AXIS))
         x1[same] = x0[same]
         out.append(Moves(p0, p1, x0, x1, np.full(len(src), rad), np.zeros(len(src)), np.full(len(src), t1 - t0),
@@ -258,27 +238,65 @@ def _body_cylinders(tool_of, tools):
                 yield a, b, rad, idx
 
 
-def turn_pieces(pa, pb, xa, xb, R, r, F) -> tuple[np.ndarray, np.ndarray]:
-    """How to split moves so that a turning tool's cut stays within ``SWEEP_TOL`` of its swept
-    volume: ``(pieces (k,), strips (k,))``. Pieces bound the ball centre's arc against its chord
-    ((R + H) θ²/8 over a piece) and, for flat and bull-nose cutters (searched over their poses),
-    the turn to ``MAX_TURN`` and the distance between sampled poses; strips bound the twist of the ruled surface a ball-end's axis sweeps
-    over a piece (H θ⊥/4, θ⊥ the turn out of the plane of motion)."""
+def turn_pieces(pa, pb, xa, xb, R, r, F) -> np.ndarray:
+    """How many pieces ``(k,)`` to split moves in (:func:`split_turns`, equal turns) so that a
+    turning tool's cut stays within ``SWEEP_TOL`` of its swept volume. A piece turning by δ of a
+    move turning by θ: the ball centre's arc against its chord ((R + H) δ²/8), and the piece's own
+    interpolation against the move's (the same axes, paired with the tips a little differently:
+    at most D tan(θ/2) tan(δ/2) δ/2 at the tool's farthest point, D = hypot(F, R), from the tip;
+    see :func:`split_turns`), at most δ = 0.5 rad; for flat and bull-nose cutters (searched over
+    their poses) also the turn to ``MAX_TURN`` and the distance between sampled poses."""
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", xa, xb), -1.0, 1.0))
     H = np.maximum(0.0, F - 2 * r)
-    chord = angle * np.sqrt((R + H) / (8 * SWEEP_TOL))
+    # tan(δ/2)/δ <= 0.52 for δ <= 0.5
+    pairing = np.hypot(F, R) * np.tan(0.5 * np.minimum(angle, math.radians(MAX_MOVE_TURN))) * 0.26
+    chord = np.maximum(angle * np.sqrt(((R + H) / 8 + pairing) / SWEEP_TOL), 2.0 * angle)
     # flat and bull-nose: the poses sampled along a piece are at most sqrt(8 R SWEEP_TOL) apart, so a
     # line the search misses lies within SWEEP_TOL of the side of the swept volume
     spacing = np.linalg.norm(pb - pa, axis=1) / (SEARCH_SAMPLES * np.sqrt(8 * R * SWEEP_TOL))
     other = np.where(angle > 0, np.maximum(np.maximum(chord, angle / MAX_TURN), spacing), 1.0)
-    pieces = np.maximum(1, np.ceil(np.where(r >= R, chord, other) - 1e-9)).astype(np.int64)
+    return np.maximum(1, np.ceil(np.where(r >= R, chord, other) - 1e-9)).astype(np.int64)
+
+
+def split_turns(pa, pb, xa, xb, pieces) -> tuple:
+    """Moves ``pa -> pb (k, 3)``, axes ``xa -> xb (k, 3)`` (tip linear, axis by the normalised
+    interpolation) split in ``pieces (k,)`` of equal turns: ``(source (n,), p0, p1, x0, x1 (n, 3))``.
+    The piece ends are poses of the move: the axis at angle φ from ``xa`` of the move's θ is
+    reached at t = sin φ / (sin φ + sin(θ - φ)) (where the normalised interpolation turns
+    fastest, in the middle of a large turn, the pieces are shortest). A piece's own interpolation
+    pairs the same axes with the tips a little differently: the move's weights on the piece's
+    end axes are in the ratio q of the lengths of the interpolated (unnormalised) axes there, so
+    it reaches the piece's fraction s where the piece is at s' (|s' - s| <= tanh(|ln q| / 4)),
+    and |d ln length / dφ| = |tan(φ - θ/2)| <= tan(θ/2)."""
+    src = np.repeat(np.arange(len(pa)), pieces)
+    j = np.arange(len(src)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    n = pieces[src]
+    theta = np.arccos(np.clip(np.einsum("ij,ij->i", xa[src], xb[src]), -1.0, 1.0))
+
+    def at(f):
+        phi = f * theta
+        sa, sb = np.sin(phi), np.sin(theta - phi)
+        t = np.where(theta > 1e-12, sa / np.where(sa + sb > 0, sa + sb, 1.0), f)
+        t = np.where(f >= 1.0, 1.0, t)[:, None]
+        x = xa[src] + t * (xb[src] - xa[src])
+        return pa[src] + t * (pb[src] - pa[src]), x / np.linalg.norm(x, axis=1, keepdims=True)
+
+    p0, x0 = at(j / n)
+    p1, x1 = at((j + 1) / n)
+    return src, p0, p1, x0, x1
+
+
+def twist_strips(pa, pb, xa, xb, r, F) -> np.ndarray:
+    """``(k,)`` strips for each move's ruled surface (the axis segment of a ball-end swept over the
+    move), so that its twist (H θ⊥/4, θ⊥ the turn out of the plane of the centre's motion) stays
+    within ``SWEEP_TOL`` a strip."""
+    H = np.maximum(0.0, F - 2 * r)
     centre_move = (pb + r[:, None] * xb) - (pa + r[:, None] * xa)
     normal = np.cross(centre_move, xa)
     size = np.linalg.norm(normal, axis=1)
     normal = np.divide(normal, size[:, None], out=np.zeros_like(normal), where=size[:, None] > 1e-12)
     twist = H * np.abs(np.einsum("ij,ij->i", xb - xa, normal)) / (4 * SWEEP_TOL)
-    strips = np.maximum(1, np.ceil(twist / pieces - 1e-9)).astype(np.int64)
-    return pieces, strips
+    return np.maximum(1, np.ceil(twist - 1e-9)).astype(np.int64)
 
 
 def _boxes(m: Moves) -> np.ndarray:
