@@ -109,7 +109,7 @@ def test_a_move_turning_far_is_cut_in_pieces_of_equal_turns_within_their_boxes(d
     """A move whose axis turns far is split in pieces of equal turns whose ends are poses of the
     move; the tool at 401 poses of the move (tip linear, axis by the normalised interpolation)
     lies in the box of one of its pieces, and at 41 poses of each piece in that piece's box
-    (shanks and holders too). Equal steps of the interpolation instead turn the middle pieces
+    (shanks and holders too, within their own tolerance). Equal steps of the interpolation instead turn the middle pieces
     up to 2 tan(θ/2)/θ times more, and their tool leaves their boxes."""
     from meshmill.simulation import cut as cutting
     from meshmill.tools.table import tool_from_entry
@@ -150,14 +150,15 @@ def test_a_move_turning_far_is_cut_in_pieces_of_equal_turns_within_their_boxes(d
                             axis=(1, 2))
             assert inside.any(), (degrees, ti, t)
             # the piece holding this axis, at the same tip: its axis is near enough that the tool's
-            # farthest point is within SWEEP_TOL of here, less the piece's chord sag
+            # farthest point is within its tolerance of here, less the piece's chord sag
             j = min(len(moves) - 1, int(math.acos(min(1.0, x @ xa)) / delta))
             foot = moves.pa[j] - lift * moves.xa[j], moves.pb[j] - lift * moves.xb[j]
             d = foot[1] - foot[0]
             s = (tp.tip[0] + t * (tp.tip[1] - tp.tip[0]) - foot[0]) @ d / (d @ d)
             y = moves.xa[j] + s * (moves.xb[j] - moves.xa[j])
             off = math.acos(min(1.0, x @ y / np.linalg.norm(y)))
-            assert reach * off + (R + H) * delta ** 2 / 8 <= SWEEP_TOL * (1 + 1e-6), (degrees, ti, t)
+            tol = cutting.BODY_SWEEP_TOL if ti == 3 else SWEEP_TOL
+            assert reach * off + (R + H) * delta ** 2 / 8 <= tol * (1 + 1e-6), (degrees, ti, t)
         for m in range(len(moves)):
             for s in np.linspace(0, 1, 41):
                 x = moves.xa[m] + s * (moves.xb[m] - moves.xa[m])
@@ -586,8 +587,9 @@ def test_subtract_cases_and_growing_room():
     st = stock_from_model(dexelize(box((0, 0, 0), (2, 2, 2)), 0.5))
     before = st.to_model()
     full = np.nonzero(st.count[2])[0]
+    room = np.diff(st.off[2])[full]
     _grow(st, 2, full)
-    assert (np.diff(st.off[2])[full] == 2 * (1 + 2)).all()
+    assert (room >= 1 + 2).all() and (np.diff(st.off[2])[full] == 2 * room).all()
     np.testing.assert_array_equal(st.to_model().iv[2], before.iv[2])
 
 

@@ -13,7 +13,7 @@ class Cutter:
     """The cutting part of a tool, as ``toolpath_moves`` reads it."""
 
     def __init__(self, type, d, r):
-        self.type, self.radius, self.corner_radius, self.flute_length, self.name = type, d / 2, r, 8.0, type
+        self.type, self.radius, self.corner_radius, self.flute_length, self.name = type, d / 2, r, 2.0, type
 
 
 def test_cutting_matches_cpu_through_overflow(monkeypatch):
@@ -29,7 +29,7 @@ def test_cutting_matches_cpu_through_overflow(monkeypatch):
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
     rapid = np.array([True, False, False, False, True, False, True, False])
     tp = Toolpath(tip, axis, rapid, np.array([0, 0, 0, 0, 1, 1, 2, 2]))
-    # the shanks (as wide as the cutters) meet the stock where the tools go deep
+    # the shanks (as wide as the cutters) meet the stock where the tools go deeper than their flutes
     real = [tool_from_entry(dict(name=t.type, type=t.type, diameter=2 * t.radius, corner_radius=t.corner_radius,
                                  flute_length=2.0, gauge_length=9.0), k + 1, "t") for k, t in enumerate(tools)]
     moves = cutting.Moves.merge(cutting.toolpath_moves(tp, tools), cutting.body_moves(tp, real))

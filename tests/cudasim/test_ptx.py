@@ -93,8 +93,8 @@ def test_every_cuda_kernel_compiles_for_a_gpu(monkeypatch):
     mod.cut_tiles(0.0, 0.0, 1.0, 4, 4, np.zeros((10, 2)), np.arange(17), np.zeros(16, np.int64), np.array([0]),
                   np.array([0]), 1, np.array([0, 1]), np.array([0]), *mv, np.ones(k, np.int64), np.zeros((k, 6)), np.zeros((k, 4)),
                   np.zeros((k, 6)), np.zeros(k, np.uint8), np.zeros(k, np.int64) - 1, np.zeros((0, 10)), np.zeros((0, 6)),
-                  1e-3, np.zeros(k, np.uint8), np.zeros(0, np.uint8),
-                  np.zeros(16, np.uint8), 0,
+                  1e-3, np.zeros(k, np.uint8), np.zeros(0, np.int64),
+                  np.zeros(16, np.int64), 0,
                   np.zeros((k, 6)), np.zeros((1, k, 5)))
     kernels = sorted(n for n in dir(mod) if isinstance(getattr(mod, n), Compile))
     assert sorted(compiled) == kernels, set(kernels) - set(compiled)

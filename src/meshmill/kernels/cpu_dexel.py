@@ -249,14 +249,16 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_st
     :data:`~meshmill.kernels.carve.RAPID` and :data:`~meshmill.kernels.carve.BODY`. Sets ``hit[m]``
     when a move removes more than ``hit_min`` mm of a dexel (a rapid that cuts; a feed move in
     material, not in air) or a body move (shank, holder: it removes nothing) meets that much
-    material, and ``redo[line]`` when a line ran out of room: the line stops there (the others go
-    on), so cutting it again after growing it is exact (removal is idempotent, and moves before
-    the stop saw the material in path order). ``group (k,)``: each move's group (-1: none; see
+    material, and ``redo[line] = s + 1`` when a line ran out of room at the tile's move ``s`` (an
+    index of ``tile_moves``): the line stops there (the others go on), so cutting it again from
+    that move after growing it is exact (the moves before the stop saw the material in path
+    order). ``group (k,)``: each move's group (-1: none; see
     :func:`group_moves`; the moves of a group follow one another among those cutting),
     ``gbound (g, 10)`` and ``gbox (g, 6)`` their bounds in the line frame: a
     line with no material in a group's bound (:func:`meshmill.kernels.carve.group_clear`) skips
-    its moves (they would remove nothing). ``todo (lines,) uint8``: the lines to cut (those
-    set; empty: every line of the items). ``iv, off, count`` may hold the lines from row ``row0``
+    its moves (they would remove nothing). ``todo (lines,) int64``: the lines to cut (those
+    set, from the tile's move ``todo - 1`` on: a ``redo`` of before; empty: every line of the
+    items, from the first move). ``iv, off, count`` may hold the lines from row ``row0``
     on only (a block of rows: the tiles given must lie in it; ``todo`` and ``redo`` are
     numbered as ``count``). With ``probe (k, 6)`` (each move's axis and unit vector across its
     feed in the line frame; ``(0, 6)``: not measured), ``load (T, k, 5)`` gathers per thread and
@@ -275,6 +277,31 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_st
                redo, row0, probe, load)
 
 
+@numba.njit(cache=True, inline="always")
+def _move_line(m, s, line, u0, v0, iv, off, count, pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box,
+               kind, hit_min, hit, redo, probe, load, measure, me):
+    """Move m (the tile's move ``s``) on the line at (u0, v0): a body's touch test, or its cut
+    (``redo[line] = s + 1`` when the line ran out of room); sets ``hit`` and gathers the load."""
+    if kind[m] & BODY:
+        if not hit[m] and crv.touch_line(m, line, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
+                                         radius, corner, flutes, strips) > hit_min:
+            hit[m] = 1
+        return
+    removed, first, last = crv.cut_line(m, line, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
+                                        radius, corner, flutes, strips, chord, plane, measure)
+    if removed < 0.0:
+        redo[line] = s + 1
+    elif removed > hit_min:
+        hit[m] = 1
+        if measure:
+            ax_lo, ax_hi, lat_lo, lat_hi = crv.load_extents(m, u0, v0, first, last, probe)
+            load[me, m, 0] += removed
+            load[me, m, 1] = max(load[me, m, 1], ax_hi)
+            load[me, m, 2] = min(load[me, m, 2], lat_lo)
+            load[me, m, 3] = max(load[me, m, 3], lat_hi)
+            load[me, m, 4] = min(load[me, m, 4], ax_lo)
+
+
 @numba.njit(parallel=True, cache=True)
 def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves,
                pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, group, gbound, gbox,
@@ -291,7 +318,7 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_s
         # per line of the tile, the last group tested on it and whether it was clear (material only
         # goes, so the line stays so for the group's later moves)
         tested = np.full(TILE * TILE, -1, np.int64)
-        clear = np.zeros(TILE * TILE, np.bool_)
+        clear_at = np.zeros(TILE * TILE, np.bool_)
         for s in range(tile_start[t], tile_start[t + 1]):
             m = tile_moves[s]
             g = group[m]
@@ -300,34 +327,15 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_s
                 u0 = lu + (i + 0.5) * step
                 for j in range(j0, j1 + 1):
                     line = (i - row0) * nv + j
-                    if redo[line] or (some and not todo[line]):
+                    if redo[line] > 0 or (some and (todo[line] == 0 or s < todo[line] - 1)):
                         continue
+                    v0 = lv + (j + 0.5) * step
                     if g >= 0:
                         at = (i - ti * TILE) * TILE + j - tj * TILE
                         if tested[at] != g:
                             tested[at] = g
-                            clear[at] = crv.group_clear(g, line, u0, lv + (j + 0.5) * step, iv, off, count, gbound,
-                                                        gbox)
-                        if clear[at]:
+                            clear_at[at] = crv.group_clear(g, line, u0, v0, iv, off, count, gbound, gbox)
+                        if clear_at[at]:
                             continue
-                    if kind[m] & BODY:
-                        if not hit[m] and crv.touch_line(m, line, u0, lv + (j + 0.5) * step, box[m, 4], box[m, 5],
-                                                         iv, off, count, pa, pb, xa, xb, radius, corner, flutes,
-                                                         strips) > hit_min:
-                            hit[m] = 1
-                        continue
-                    v0 = lv + (j + 0.5) * step
-                    removed, first, last = crv.cut_line(m, line, u0, v0, box[m, 4], box[m, 5], iv, off, count,
-                                                        pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane,
-                                                        measure)
-                    if removed < 0.0:
-                        redo[line] = 1
-                    elif removed > hit_min:
-                        hit[m] = 1
-                        if measure:
-                            ax_lo, ax_hi, lat_lo, lat_hi = crv.load_extents(m, u0, v0, first, last, probe)
-                            load[me, m, 0] += removed
-                            load[me, m, 1] = max(load[me, m, 1], ax_hi)
-                            load[me, m, 2] = min(load[me, m, 2], lat_lo)
-                            load[me, m, 3] = max(load[me, m, 3], lat_hi)
-                            load[me, m, 4] = min(load[me, m, 4], ax_lo)
+                    _move_line(m, s, line, u0, v0, iv, off, count, pa, pb, xa, xb, radius, corner, flutes, strips,
+                               chord, plane, box, kind, hit_min, hit, redo, probe, load, measure, me)

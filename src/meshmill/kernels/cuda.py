@@ -326,13 +326,14 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_s
     i = (t // tv) * TILE + cuda.threadIdx.x // TILE
     j = (t % tv) * TILE + cuda.threadIdx.x % TILE
     if i >= nu or j >= nv or i % split != combs[cuda.blockIdx.x] \
-            or (todo.shape[0] > 0 and not todo[(i - row0) * nv + j]):
+            or (todo.shape[0] > 0 and todo[(i - row0) * nv + j] == 0):
         return
+    resume = tile_start[t] if todo.shape[0] == 0 else todo[(i - row0) * nv + j] - 1
     u0 = lu + (i + 0.5) * step
     v0 = lv + (j + 0.5) * step
     current = -1  # the last group tested on this line, and whether it was clear
     clear = False
-    for s in range(tile_start[t], tile_start[t + 1]):
+    for s in range(resume, tile_start[t + 1]):
         m = tile_moves[s]
         i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)
         if i < i0 or i > i1 or j < j0 or j > j1:
@@ -353,7 +354,7 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_s
         removed, first, last = crv.cut_line(m, (i - row0) * nv + j, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa,
                                             pb, xa, xb, radius, corner, flutes, strips, chord, plane, measure)
         if removed < 0.0:
-            redo[(i - row0) * nv + j] = 1
+            redo[(i - row0) * nv + j] = s + 1
             return
         if removed > hit_min:  # a rapid that cuts, or a feed move in material
             hit[m] = 1
@@ -381,14 +382,13 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_st
     """As :func:`meshmill.kernels.cpu_dexel.cut_tiles` (host arrays updated in place): one block per
     item, one thread per line of its tile (those off its comb idle), each line cut by the tile's
     moves in path order. A line that runs out
-    of room stops and is flagged in ``redo``; the others go on (removal is idempotent, so cutting
-    it again after growing it is exact)."""
+    of room stops and is flagged in ``redo`` (with the move it stopped at); the others go on."""
     if len(tiles) == 0:
         return
     d_iv, d_load = _s("ct.f", iv, load)
-    d_count, d_off, d_tiles, d_combs, d_start, d_moves, d_strips, d_group = _s(
-        "ct.i", count, off, tiles, combs, tile_start, tile_moves, strips, group, dtype=np.int64)
-    d_hit, d_redo, d_kind, d_todo = _s("ct.b", hit, redo, kind, todo, dtype=np.uint8)
+    d_count, d_off, d_tiles, d_combs, d_start, d_moves, d_strips, d_group, d_redo, d_todo = _s(
+        "ct.i", count, off, tiles, combs, tile_start, tile_moves, strips, group, redo, todo, dtype=np.int64)
+    d_hit, d_kind = _s("ct.b", hit, kind, dtype=np.uint8)
     _cut_tiles[len(tiles), TILE * TILE](float(lu), float(lv), float(step), int(nu), int(nv), d_iv, d_off, d_count,
                                         d_tiles, d_combs, int(split), d_start, d_moves,
                                         *_s("ct.m", pa, pb, xa, xb, radius, corner, flutes), d_strips,

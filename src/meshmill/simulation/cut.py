@@ -30,11 +30,13 @@ from ..kernels.sweep import SEARCH_SAMPLES
 from .dexel import DexelModel, compact_lines, join_lines
 
 SWEEP_TOL = 1e-3  # mm: largest gap between the cut and the true swept volume of a turning tool
+BODY_SWEEP_TOL = 5e-3  # mm: the same for a shank or holder, which cuts nothing (each also that much thinner)
 MAX_TURN = 0.05  # rad: largest turn of a piece of a flat or bull-nose move (searched over poses)
 SAME_AXIS = 1e-9  # rad: axes closer than this are one axis (the move is cut with a fixed axis)
 MAX_MOVE_TURN = 179.0  # degrees: a larger turn in one move has no interpolation (the axis passes 0)
 RAPID_CUT = 1e-3  # mm of a dexel a rapid move must remove (or a shank or holder meet) to count as cutting
-SLACK = 2  # spare interval slots a line starts with
+SLACK = 8  # spare interval slots a line with material starts with, at most (a line out of room is cut again)
+SLACK_BYTES = 256e6  # bytes the spare slots of a direction may take (with at least 2 a line)
 CUT_PIECES = 8  # pieces the tiles are cut in on one machine (each alike: a share of every direction's tiles)
 PIECE_COMBS = 4  # combs of rows a tile is dealt out to the pieces in (a power of two up to TILE)
 GROUP_MOVES = 16  # moves a group holds at most (see move_groups)
@@ -63,14 +65,23 @@ class Stock:
         return DexelModel(lo=self.lo.copy(), step=self.step, n=self.n.copy(), start=starts, iv=ivs, name=name)
 
 
+def slack(counts) -> int:
+    """Spare interval slots for each line with material among lines of ``counts (lines,)``
+    intervals: :data:`SLACK`, fewer (down to 2) where they would take more than
+    :data:`SLACK_BYTES`."""
+    lines = max(1, int(np.count_nonzero(counts)))
+    return int(min(SLACK, max(2, SLACK_BYTES // (16 * lines))))
+
+
 @numba.njit(cache=True)
 def _spread(start, src, allowance, slack):
-    """Per-line room ``count + slack`` and the intervals widened by ``allowance`` at both ends
-    (merged where they then overlap)."""
+    """Per-line room ``count + slack`` (lines with intervals) and the intervals widened by
+    ``allowance`` at both ends (merged where they then overlap)."""
     n = start.shape[0] - 1
     off = np.zeros(n + 1, np.int64)
     for i in range(n):
-        off[i + 1] = off[i] + (start[i + 1] - start[i]) + slack
+        c = start[i + 1] - start[i]
+        off[i + 1] = off[i] + c + (slack if c > 0 else 0)
     iv = np.zeros((off[n], 2))
     count = np.zeros(n, np.int64)
     for i in range(n):
@@ -93,7 +104,7 @@ def stock_from_model(model: DexelModel, allowance: float = 0.0) -> Stock:
     seed's "both ends" stock allowance: an offset of ``allowance * |n.a|`` of a surface)."""
     ivs, offs, counts = [], [], []
     for a in range(3):
-        iv, off, count = _spread(model.start[a], model.iv[a], float(allowance), SLACK)
+        iv, off, count = _spread(model.start[a], model.iv[a], float(allowance), slack(np.diff(model.start[a])))
         ivs.append(iv)
         offs.append(off)
         counts.append(count)
@@ -195,20 +206,24 @@ def toolpath_moves(toolpath, tools, mode="sweep") -> Moves:
 def body_moves(toolpath, tools, shrink: float = 0.0) -> Moves:
     """The shank and holder of every move of ``toolpath`` (each a flat cylinder, from its start up
     the axis), split where the axis turns as a flat cutter reaching up to the cylinder's top would
-    be, so that their sweep stays within ``SWEEP_TOL`` of the true one. ``shrink`` (mm): each
-    cylinder thinner by it and starting that much higher (what meets the stock is then deeper in
-    it than ``shrink``, as verification counts a collision beyond its tolerance)."""
+    be, so that their sweep stays within ``BODY_SWEEP_TOL`` of the true one (a collision test
+    needs no more: they cut nothing). ``shrink`` (mm): each cylinder thinner by it and starting
+    that much higher (what meets the stock is then deeper in it than ``shrink``, as verification
+    counts a collision beyond its tolerance), and by ``BODY_SWEEP_TOL`` more: a cylinder that meets
+    the stock goes deeper in it than ``shrink``, and one that goes deeper than ``shrink + 2
+    BODY_SWEEP_TOL`` meets it."""
     tip = np.asarray(toolpath.tip, float)
     axis = np.asarray(toolpath.axis, float)
     pa = np.vstack([tip[:1], tip[:-1]])
     xa = np.vstack([axis[:1], axis[:-1]])
     out = []
     for t0, t1, rad, idx in _body_cylinders(toolpath.tool, tools):
-        t0, rad = t0 + shrink, rad - shrink
+        t0, rad = t0 + shrink + BODY_SWEEP_TOL, rad - shrink - BODY_SWEEP_TOL
         if len(idx) == 0 or rad <= 0 or t1 <= t0:
             continue
         R = np.full(len(idx), rad)
-        pieces = turn_pieces(pa[idx], tip[idx], xa[idx], axis[idx], R, np.zeros(len(idx)), np.full(len(idx), t1))
+        pieces = turn_pieces(pa[idx], tip[idx], xa[idx], axis[idx], R, np.zeros(len(idx)), np.full(len(idx), t1),
+                             BODY_SWEEP_TOL)
         src, p0, p1, x0, x1 = split_turns(pa[idx], tip[idx], xa[idx], axis[idx], pieces)
         src = idx[src]
         p0, p1 = p0 + t0 * x0, p1 + t0 * x1
@@ -238,9 +253,9 @@ def _body_cylinders(tool_of, tools):
                 yield a, b, rad, idx
 
 
-def turn_pieces(pa, pb, xa, xb, R, r, F) -> np.ndarray:
+def turn_pieces(pa, pb, xa, xb, R, r, F, tol: float = SWEEP_TOL) -> np.ndarray:
     """How many pieces ``(k,)`` to split moves in (:func:`split_turns`, equal turns) so that a
-    turning tool's cut stays within ``SWEEP_TOL`` of its swept volume. A piece turning by δ of a
+    turning tool's cut stays within ``tol`` mm of its swept volume. A piece turning by δ of a
     move turning by θ: the ball centre's arc against its chord ((R + H) δ²/8), and the piece's own
     interpolation against the move's (the same axes, paired with the tips a little differently:
     at most D tan(θ/2) tan(δ/2) δ/2 at the tool's farthest point, D = hypot(F, R), from the tip;
@@ -250,10 +265,10 @@ def turn_pieces(pa, pb, xa, xb, R, r, F) -> np.ndarray:
     H = np.maximum(0.0, F - 2 * r)
     # tan(δ/2)/δ <= 0.52 for δ <= 0.5
     pairing = np.hypot(F, R) * np.tan(0.5 * np.minimum(angle, math.radians(MAX_MOVE_TURN))) * 0.26
-    chord = np.maximum(angle * np.sqrt(((R + H) / 8 + pairing) / SWEEP_TOL), 2.0 * angle)
-    # flat and bull-nose: the poses sampled along a piece are at most sqrt(8 R SWEEP_TOL) apart, so a
-    # line the search misses lies within SWEEP_TOL of the side of the swept volume
-    spacing = np.linalg.norm(pb - pa, axis=1) / (SEARCH_SAMPLES * np.sqrt(8 * R * SWEEP_TOL))
+    chord = np.maximum(angle * np.sqrt(((R + H) / 8 + pairing) / tol), 2.0 * angle)
+    # flat and bull-nose: the poses sampled along a piece are at most sqrt(8 R tol) apart, so a
+    # line the search misses lies within tol of the side of the swept volume
+    spacing = np.linalg.norm(pb - pa, axis=1) / (SEARCH_SAMPLES * np.sqrt(8 * R * tol))
     other = np.where(angle > 0, np.maximum(np.maximum(chord, angle / MAX_TURN), spacing), 1.0)
     return np.maximum(1, np.ceil(np.where(r >= R, chord, other) - 1e-9)).astype(np.int64)
 
@@ -301,13 +316,14 @@ def twist_strips(pa, pb, xa, xb, r, F) -> np.ndarray:
 
 def _boxes(m: Moves) -> np.ndarray:
     """``(k, 2, 3)`` boxes holding each move's swept volume: the hull of the core segment's ends
-    (from c = tip + r x up H = F - 2r) widened by the disk and the corner radius, plus SWEEP_TOL."""
+    (from c = tip + r x up H = F - 2r) widened by the disk and the corner radius, plus SWEEP_TOL
+    (a shank's or holder's BODY_SWEEP_TOL)."""
     r, rho = m.corner[:, None], (m.radius - m.corner)[:, None]
     H = np.maximum(0.0, m.flutes - 2 * m.corner)[:, None]
     ca, cb = m.pa + r * m.xa, m.pb + r * m.xb
     pts = np.stack([ca, cb, ca + H * m.xa, cb + H * m.xb, ca + H * m.xb, cb + H * m.xa], axis=1)
     disk = rho * np.maximum(np.sqrt(np.clip(1 - m.xa ** 2, 0, 1)), np.sqrt(np.clip(1 - m.xb ** 2, 0, 1)))
-    ext = disk + r + SWEEP_TOL
+    ext = disk + r + np.where(m.body, BODY_SWEEP_TOL, SWEEP_TOL)[:, None]
     return np.stack([pts.min(axis=1) - ext, pts.max(axis=1) + ext], axis=1)
 
 
@@ -457,9 +473,9 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
     tiles, combs = tiles[spread], combs[spread]
     if probe is not None:
         probe = np.ascontiguousarray(probe[:, [u, v, a, 3 + u, 3 + v, 3 + a]])  # in the line frame
-    todo = np.zeros(0, np.uint8)  # every line of the tiles, then the lines that ran out of room
+    todo = np.zeros(0, np.int64)  # every line of the tiles, then the lines that ran out of room (from where)
     while len(tiles):
-        redo = np.zeros(len(stock.count[a]), np.uint8)
+        redo = np.zeros(len(stock.count[a]), np.int64)
         kern.cut_tiles(lu, lv, stock.step, nu, nv, stock.iv[a], stock.off[a], stock.count[a], tiles, combs, split,
                        tile_start, tile_moves, pa, pb, xa, xb, moves.radius, moves.corner, moves.flutes, moves.strips,
                        chord, plane, box, kind, group, gbound, gbox, RAPID_CUT, hit, todo, redo, row0, probe, load)
@@ -560,11 +576,11 @@ def cut_lines(shared: dict, a: int, rows, start, iv):
 
 
 def _with_room(start, iv):
-    """``(iv, off, count)`` of CSR lines ``(start, iv)`` with :data:`SLACK` spare slots a line
-    (the intervals as they are)."""
+    """``(iv, off, count)`` of CSR lines ``(start, iv)`` with :func:`slack` spare slots a line
+    with material (the intervals as they are)."""
     count = np.diff(start).astype(np.int64)
     off = np.zeros(len(count) + 1, np.int64)
-    np.cumsum(count + SLACK, out=off[1:])
+    np.cumsum(count + np.where(count > 0, slack(count), 0), out=off[1:])
     out = np.zeros((off[-1], 2))
     out[np.repeat(off[:-1], count) + (np.arange(len(iv)) - np.repeat(start[:-1], count))] = iv
     return out, off, count
@@ -588,7 +604,8 @@ def _cut_on(client, stock: Stock, moves: Moves, boxes, hit, progress, device, pr
             pieces.append((a, (r0, r1), start, iv))
             # a worker holds the block's lines: offsets and counts, intervals with room (doubled while
             # a line grows), and what it returns
-            peak = max(peak, 16.0 * (l1 - l0) + 2 * 16.0 * (len(iv) + SLACK * (l1 - l0)) + 24.0 * len(iv))
+            c = stock.count[a][l0:l1]
+            peak = max(peak, 16.0 * (l1 - l0) + 2 * 16.0 * (len(iv) + slack(c) * np.count_nonzero(c)) + 24.0 * len(iv))
     # and the moves with, per direction it cuts, their frame, constants, boxes and tiles
     check_workers(client, peak + MOVE_BYTES * len(moves), f"cutting {len(moves):,} moves in blocks of dexel lines",
                   "use more workers, or a coarser step")
