@@ -111,6 +111,11 @@ def test_cl_from_another_cam_system(tmp_path, tools):
     ("LOADTL/1\nGOTO/1,2\n", "GOTO needs"),
     ("LOADTL/1\nGOTO/1,2,nan\n", "NaN"),
     ("LOADTL/1\nGOTO/1,2,x\n", "expected numbers"),
+    ("LOADTL/1\nGOTO/0,0,1,0,0,0\n", "bad.cl:2: zero-length tool axis"),
+    ("LOADTL/1\nGOTO/0,0,1\nGOTO/0,0,1e9\n", "bad.cl:3: value 1e\\+09 is out of range"),
+    # the GOTOs' numbers are read at the end, all at once: a bad one still comes before a later error
+    ("LOADTL/1\nGOTO/0,0,1\nGOTO/1,2,x\nGOTO/0,0,2\nWHATEVER/1\n", "bad.cl:3: expected numbers"),
+    ("LOADTL/1\nGOTO/0,0,1\nGOTO/1,2,3,4\nWHATEVER/1\n", "bad.cl:3: GOTO needs"),
     ("PARTNO/X\nFINI\n", "no GOTO"),
     # what looks like a move but is not one, and statements that change the moves, are refused
     ("LOADTL/1\nGOTO/0,0,50\nGOTO 0, 0, 15, 0, 0, 1\n", "bad.cl:3: cannot read 'GOTO 0, 0, 15"),
@@ -125,6 +130,15 @@ def test_bad_cl_files(tmp_path, tools, body, message):
     (tmp_path / "bad.cl").write_text(body)
     with pytest.raises(InputError, match=message):
         read_apt(tmp_path / "bad.cl", tools)
+
+
+def test_gotos_of_three_and_six_numbers_with_spaces_and_a_trailing_comma(tmp_path, tools):
+    (tmp_path / "g.cl").write_text("LOADTL/1\nGOTO / 1, 2 ,3\nGOTO/4,5,6, 0,3,4\nRAPID\nGOTO/7,8,9,\n"
+                                   "UNITS/INCHES\nGOTO/1,0,0,0,0,2\nFINI\n")
+    tp, _ = read_apt(tmp_path / "g.cl", tools)
+    np.testing.assert_array_equal(tp.tip, [[1, 2, 3], [4, 5, 6], [7, 8, 9], [25.4, 0, 0]])
+    np.testing.assert_array_equal(tp.axis, [[0, 0, 1], [0, 0.6, 0.8], [0, 0, 1], [0, 0, 1]])
+    assert list(tp.rapid) == [False, False, True, False] and list(tp.line) == [2, 3, 5, 7]
 
 
 def test_cl_in_inches_is_read_in_mm(tmp_path, tools):

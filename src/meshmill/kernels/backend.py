@@ -173,8 +173,8 @@ class DexelKernels:
         return _backend("cpu").points_inside(points, inside)
 
     def bin_moves(self, box, lu, lv, step, nu, nv):
-        """``(tile_start, tile_moves)``: the moves of each tile of :data:`TILE` x TILE lines (see
-        :func:`meshmill.kernels.cpu_dexel.bin_moves`), on the CPU."""
+        """``(tile_start, tile_moves, work)``: the moves of each tile of :data:`TILE` x TILE lines
+        and the lines they cover (see :func:`meshmill.kernels.cpu_dexel.bin_moves`), on the CPU."""
         return self.host.bin_moves(box, float(lu), float(lv), float(step), int(nu), int(nv))
 
     def group_moves(self, ca, cb, xa, xb, sag, H, radius, limit, most):

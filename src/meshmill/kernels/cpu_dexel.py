@@ -112,7 +112,9 @@ def _tile_span(box, m, lu, lv, step, nu, nv):
 @numba.njit(cache=True)
 def bin_moves(box, lu, lv, step, nu, nv):
     """Tiles of ``TILE x TILE`` lines and, per tile, the moves whose box ``(k, 6)`` (ulo, uhi,
-    vlo, vhi, wlo, whi) covers one of its lines, in move order: ``(tile_start, tile_moves)``."""
+    vlo, vhi, wlo, whi) covers one of its lines, in move order: ``(tile_start, tile_moves,
+    work)``, ``work (tiles,)`` the lines of the tile its moves' boxes cover, added over the moves
+    (what cutting the tile costs, roughly)."""
     tu = (nu + TILE - 1) // TILE
     tv = (nv + TILE - 1) // TILE
     cnt = np.zeros(tu * tv + 1, np.int64)
@@ -125,14 +127,19 @@ def bin_moves(box, lu, lv, step, nu, nv):
         cnt[t + 1] += cnt[t]
     fill = cnt[:-1].copy()
     moves = np.empty(cnt[-1], np.int64)
+    work = np.zeros(tu * tv)
     for m in range(box.shape[0]):
-        ti0, ti1, tj0, tj1 = _tile_span(box, m, lu, lv, step, nu, nv)
-        for ti in range(ti0, ti1 + 1):
-            for tj in range(tj0, tj1 + 1):
+        i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)
+        if i0 > i1 or j0 > j1:
+            continue
+        for ti in range(i0 // TILE, i1 // TILE + 1):
+            rows = min(i1, ti * TILE + TILE - 1) - max(i0, ti * TILE) + 1
+            for tj in range(j0 // TILE, j1 // TILE + 1):
                 t = ti * tv + tj
                 moves[fill[t]] = m
                 fill[t] += 1
-    return cnt, moves
+                work[t] += rows * (min(j1, tj * TILE + TILE - 1) - max(j0, tj * TILE) + 1)
+    return cnt, moves, work
 
 
 @numba.njit(cache=True)

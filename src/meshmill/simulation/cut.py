@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -158,12 +159,11 @@ class Moves:
         return len(self.pa)
 
     @staticmethod
-    def merge(a: "Moves", b: "Moves") -> "Moves":
-        """``a`` and ``b`` in path order (by source point; for one point, a's first)."""
+    def merge(*parts: "Moves") -> "Moves":
+        """The ``parts`` in path order (by source point; for one point, in the order given)."""
         fields = ("pa", "pb", "xa", "xb", "radius", "corner", "flutes", "strips", "rapid", "source", "body")
-        cat = {f: np.concatenate([getattr(a, f), getattr(b, f)]) for f in fields}
-        order = np.lexsort((np.r_[np.zeros(len(a)), np.ones(len(b))], cat["source"]))
-        return Moves(**{f: v[order] for f, v in cat.items()})
+        order = np.argsort(np.concatenate([p.source for p in parts]), kind="stable")
+        return Moves(**{f: np.concatenate([getattr(p, f) for p in parts])[order] for f in fields})
 
 
 def toolpath_moves(toolpath, tools, mode="sweep") -> Moves:
@@ -236,10 +236,7 @@ def body_moves(toolpath, tools, shrink: float = 0.0) -> Moves:
         e = np.empty(0)
         return Moves(e3, e3, e3, e3, e, e, e, np.empty(0, np.int64), np.empty(0, bool), np.empty(0, np.int64),
                      np.empty(0, bool))
-    moves = out[0]
-    for m in out[1:]:
-        moves = Moves.merge(moves, m)
-    return moves
+    return Moves.merge(*out)
 
 
 def _body_cylinders(tool_of, tools):
@@ -318,13 +315,27 @@ def _boxes(m: Moves) -> np.ndarray:
     """``(k, 2, 3)`` boxes holding each move's swept volume: the hull of the core segment's ends
     (from c = tip + r x up H = F - 2r) widened by the disk and the corner radius, plus SWEEP_TOL
     (a shank's or holder's BODY_SWEEP_TOL)."""
-    r, rho = m.corner[:, None], (m.radius - m.corner)[:, None]
-    H = np.maximum(0.0, m.flutes - 2 * m.corner)[:, None]
-    ca, cb = m.pa + r * m.xa, m.pb + r * m.xb
-    pts = np.stack([ca, cb, ca + H * m.xa, cb + H * m.xb, ca + H * m.xb, cb + H * m.xa], axis=1)
-    disk = rho * np.maximum(np.sqrt(np.clip(1 - m.xa ** 2, 0, 1)), np.sqrt(np.clip(1 - m.xb ** 2, 0, 1)))
-    ext = disk + r + np.where(m.body, BODY_SWEEP_TOL, SWEEP_TOL)[:, None]
-    return np.stack([pts.min(axis=1) - ext, pts.max(axis=1) + ext], axis=1)
+    return _move_boxes(m.pa, m.pb, m.xa, m.xb, m.radius, m.corner, m.flutes,
+                       np.where(m.body, BODY_SWEEP_TOL, SWEEP_TOL))
+
+
+@numba.njit(cache=True)
+def _move_boxes(pa, pb, xa, xb, radius, corner, flutes, tol):
+    out = np.empty((pa.shape[0], 2, 3))
+    for k in range(pa.shape[0]):
+        r = corner[k]
+        H = max(0.0, flutes[k] - 2.0 * r)
+        for d in range(3):
+            ca = pa[k, d] + r * xa[k, d]
+            cb = pb[k, d] + r * xb[k, d]
+            lo = min(ca, cb, ca + H * xa[k, d], cb + H * xb[k, d], ca + H * xb[k, d], cb + H * xa[k, d])
+            hi = max(ca, cb, ca + H * xa[k, d], cb + H * xb[k, d], ca + H * xb[k, d], cb + H * xa[k, d])
+            disk = (radius[k] - r) * max(math.sqrt(min(1.0, max(0.0, 1.0 - xa[k, d] ** 2))),
+                                         math.sqrt(min(1.0, max(0.0, 1.0 - xb[k, d] ** 2))))
+            ext = disk + r + tol[k]
+            out[k, 0, d] = lo - ext
+            out[k, 1, d] = hi + ext
+    return out
 
 
 def material_bounds(stock: Stock):
@@ -393,10 +404,33 @@ def move_groups(moves: Moves, boxes, kern=None) -> tuple:
     return group, np.concatenate(bounds), np.concatenate(gboxes)
 
 
-def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern, groups=None) -> tuple:
-    """What cutting the lines along ``a`` needs of the moves: their kinds, boxes, ends and axes in
-    the direction's frame, the constants of :mod:`~meshmill.kernels.carve`, the moves of each
-    tile, and the groups of :func:`move_groups` (``groups``, else made here) in the frame."""
+class DirectionMoves(NamedTuple):
+    """What cutting the lines along one direction needs of the moves (``k`` of them, ``g`` groups),
+    in the direction's frame (u, v, then the lines' axis): their ``kind (k,)`` bits, ``box (k, 6)``,
+    ends ``pa, pb`` and axes ``xa, xb (k, 3)``, the ``chord (k, 6)`` and ``plane (k, 4)`` of
+    :mod:`~meshmill.kernels.carve`, the moves of each tile (``tile_start``, ``tile_moves``), each
+    move's ``group (k,)`` with the groups' ``gbound (g, 10)`` and ``gbox (g, 6)``, and ``work
+    (tiles,)`` the lines each tile's moves cover, added over them."""
+
+    kind: np.ndarray
+    box: np.ndarray
+    pa: np.ndarray
+    pb: np.ndarray
+    xa: np.ndarray
+    xb: np.ndarray
+    chord: np.ndarray
+    plane: np.ndarray
+    tile_start: np.ndarray
+    tile_moves: np.ndarray
+    group: np.ndarray
+    gbound: np.ndarray
+    gbox: np.ndarray
+    work: np.ndarray
+
+
+def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern, groups=None) -> DirectionMoves:
+    """The moves as cutting the lines along ``a`` needs them, with the groups of
+    :func:`move_groups` (``groups``, else made here)."""
     kind = (moves.rapid.astype(np.uint8) * RAPID) | (moves.body.astype(np.uint8) * BODY)
     u, v = (a + 1) % 3, (a + 2) % 3
     perm = [u, v, a]
@@ -409,28 +443,11 @@ def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern, groups=None
     pa, pb = np.ascontiguousarray(moves.pa[:, perm]), np.ascontiguousarray(moves.pb[:, perm])
     xa, xb = np.ascontiguousarray(moves.xa[:, perm]), np.ascontiguousarray(moves.xb[:, perm])
     chord, plane = kern.move_constants(pa, pb, xa, xb, moves.corner, moves.flutes)
-    tile_start, tile_moves = kern.bin_moves(box, lo[u], lo[v], step, n[u], n[v])
+    tile_start, tile_moves, work = kern.bin_moves(box, lo[u], lo[v], step, n[u], n[v])
     group, bound, gboxes = groups if groups is not None else move_groups(moves, boxes, kern)
     gbound = np.ascontiguousarray(bound[:, [u, v, a, 3 + u, 3 + v, 3 + a, 6 + u, 6 + v, 6 + a, 9]])
-    return kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves, group, gbound, in_frame(gboxes)
-
-
-def tile_lines(stock: Stock, a: int, prepared) -> np.ndarray:
-    """``(tiles,)``: the lines along ``a`` each tile's moves cover, added over its moves (what
-    cutting the tile costs, roughly; 0: a tile without moves), from :func:`_direction_moves`'s
-    ``prepared``."""
-    box, tile_start, tile_moves = prepared[1], prepared[8], prepared[9]
-    u, v = (a + 1) % 3, (a + 2) % 3
-    nv = int(stock.n[v])
-    tv = (nv + TILE - 1) // TILE
-    tile = np.repeat(np.arange(len(tile_start) - 1), np.diff(tile_start))
-    b = box[tile_moves]
-    span = []
-    for k, (lo, n, first) in enumerate(((stock.lo[u], stock.n[u], tile // tv), (stock.lo[v], nv, tile % tv))):
-        i0 = np.maximum(np.ceil((b[:, 2 * k] - lo) / stock.step - 0.5), first * TILE)
-        i1 = np.minimum(np.floor((b[:, 2 * k + 1] - lo) / stock.step - 0.5), np.minimum(first * TILE + TILE, n) - 1)
-        span.append(np.maximum(0.0, i1 - i0 + 1))
-    return np.bincount(tile, weights=span[0] * span[1], minlength=len(tile_start) - 1)
+    return DirectionMoves(kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves, group, gbound,
+                          in_frame(gboxes), work)
 
 
 def dealt(work, pieces: int) -> np.ndarray:
@@ -457,7 +474,7 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
     u, v = (a + 1) % 3, (a + 2) % 3
     nu, nv = int(stock.n[u]), int(stock.n[v])
     lu, lv = float(stock.lo[u]), float(stock.lo[v])
-    kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves, group, gbound, gbox = (
+    kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves, group, gbound, gbox, _ = (
         prepared or _direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern))
     if tiles is None:
         busy = np.nonzero(np.diff(tile_start))[0]
@@ -522,7 +539,7 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None, l
         # take tells the time left: each tile in PIECE_COMBS combs of its rows, dealt out from the
         # most lines their moves cover to the least, back and forth (a heavy tile's combs go to
         # pieces one after the other); the share done by those lines
-        work = [np.repeat(tile_lines(stock, a, p), PIECE_COMBS) / PIECE_COMBS for a, p in enumerate(prepared)]
+        work = [np.repeat(p.work, PIECE_COMBS) / PIECE_COMBS for p in prepared]
         piece = [dealt(w, CUT_PIECES) for w in work]
         meter = Meter(progress, "cutting lines along X, Y and Z", sum(float(w.sum()) for w in work))
         per = [kern.new_load(len(moves)) if load else None for _ in range(3)]

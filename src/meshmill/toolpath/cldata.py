@@ -141,44 +141,98 @@ def _tool_for_cutter(values, tools, where):
     raise InputError(f"{where}: CUTTER/{d:g}, {r:g} matches no tool in the table")
 
 
+def _goto(args, where, scale):
+    """``(tip (3,), axis (3,))`` of one GOTO's ``args``: tip in mm, unit axis (z without one)."""
+    v = _numbers(args, where, scale)
+    if len(v) not in (3, 6):
+        raise InputError(f"{where}: GOTO needs x, y, z or x, y, z, i, j, k")
+    axis = [a / scale for a in v[3:]] if len(v) == 6 else [0.0, 0.0, 1.0]
+    n = math.sqrt(sum(a * a for a in axis))
+    if n < 1e-9:
+        raise InputError(f"{where}: zero-length tool axis")
+    return v[:3], [a / n for a in axis]
+
+
+def _gotos(args, name, lines, scales) -> tuple[np.ndarray, np.ndarray]:
+    """``(tips (k, 3), axes (k, 3))`` of GOTO statements ``args`` on ``lines`` of file ``name`` in
+    units of ``scales`` mm (as :func:`_goto`, the numbers read at once; when some statement reads
+    otherwise, such as with an empty item or a bad number, one by one: its error)."""
+    k = len(args)
+    try:
+        counts = np.fromiter((a.count(",") for a in args), np.int64, k) + 1
+        flat = np.array(",".join(args).split(","), dtype=np.float64) if k else np.zeros(0)
+    except ValueError:
+        counts = flat = None
+    if flat is not None and np.isin(counts, (3, 6)).all():
+        first = np.cumsum(counts) - counts
+        six = counts == 6
+        scale = np.asarray(scales, np.float64)
+        vals = flat * np.repeat(scale, counts)
+        tips = vals[first[:, None] + np.arange(3)]
+        axes = np.zeros((k, 3))
+        axes[:, 2] = 1.0
+        axes[six] = vals[first[six, None] + np.arange(3, 6)] / scale[six, None]
+        n = np.sqrt(axes[:, 0] * axes[:, 0] + axes[:, 1] * axes[:, 1] + axes[:, 2] * axes[:, 2])
+        if np.isfinite(vals).all() and (np.abs(vals) <= MAX_COORDINATE).all() and (n >= 1e-9).all():
+            return tips, axes / n[:, None]
+    read = [_goto(a, f"{name}:{line}", scale) for a, line, scale in zip(args, lines, scales)]  # or the first error
+    return np.array([t for t, _ in read], np.float64), np.array([x for _, x in read], np.float64)
+
+
 def read_apt(path, tools) -> tuple[Toolpath, list[str]]:
     """Read an APT CL file; moves refer to ``tools`` by ``LOADTL/n`` or, failing that, by
     matching ``CUTTER/`` diameter and corner radius. Returns the tool path and warnings."""
     path = os.fspath(path)
     text = read_text(path, "CL", "APT CL")
     name = os.path.basename(path)
-    tips, axes, rapid, tool_idx, lines = [], [], [], [], []
+    goto, scales, rapid, tool_idx, lines = [], [], [], [], []
     warnings = []
     skipped = {}
+    try:
+        _read_statements(text, name, tools, goto, scales, rapid, tool_idx, lines, skipped)
+    except InputError:
+        _gotos(goto, name, lines, scales)  # a GOTO before the statement that failed may have failed first
+        raise
+    for word, count in skipped.items():
+        warnings.append(f"{name}: ignored {count} {word} statement(s)")
+    if not goto:
+        raise InputError(f"{path}: no GOTO moves")
+    tips, axes = _gotos(goto, name, lines, scales)
+    tp = Toolpath(tip=tips, axis=axes, rapid=np.array(rapid, bool), tool=np.array(tool_idx, np.int64),
+                  line=np.array(lines, np.int64))
+    return tp, warnings
+
+
+def _read_statements(text, name, tools, goto, scales, rapid, tool_idx, lines, skipped):
+    """The statements of an APT CL ``text``: each GOTO's arguments, unit, whether it is rapid, its
+    tool and line appended to the lists given (its numbers are read later, all at
+    once); the statements ignored counted in ``skipped``."""
     current = -1
     cutter = None
     next_rapid = False
     scale = 1.0  # mm per unit of the file (UNITS/INCHES: 25.4)
     for number, stmt in _statements(text):
-        where = f"{name}:{number}"
         word, slash, args = stmt.partition("/")
         word = word.strip().upper()
         if not slash and word not in ("RAPID", "FINI", "END") and not word.isalpha():
-            raise InputError(f"{where}: cannot read '{stmt.strip()[:40]}' (an APT statement is WORD or WORD/arguments)")
+            raise InputError(f"{name}:{number}: cannot read '{stmt.strip()[:40]}' (an APT statement is WORD or "
+                             "WORD/arguments)")
         if word == "GOTO":
-            v = _numbers(args, where, scale)
-            if len(v) not in (3, 6):
-                raise InputError(f"{where}: GOTO needs x, y, z or x, y, z, i, j, k")
             if current < 0:
+                where = f"{name}:{number}"
+                _goto(args, where, scale)  # its own error first
                 if cutter is None:
                     raise InputError(f"{where}: GOTO before any CUTTER/ or LOADTL/")
                 current = _tool_for_cutter(cutter, tools, where)
-            axis = [a / scale for a in v[3:]] if len(v) == 6 else [0.0, 0.0, 1.0]
-            n = math.sqrt(sum(a * a for a in axis))
-            if n < 1e-9:
-                raise InputError(f"{where}: zero-length tool axis")
-            tips.append(v[:3])
-            axes.append([a / n for a in axis])
+            goto.append(args)
+            scales.append(scale)
             rapid.append(next_rapid)
             tool_idx.append(current)
             lines.append(number)
             next_rapid = False
-        elif word == "RAPID":
+            continue
+        where = f"{name}:{number}"
+        if word == "RAPID":
             next_rapid = True
         elif word == "UNITS":
             unit = args.strip().upper()
@@ -207,10 +261,3 @@ def read_apt(path, tools) -> tuple[Toolpath, list[str]]:
         elif word not in HARMLESS:
             shown = word if len(word) <= 20 else word[:20] + "..."
             raise InputError(f"{where}: unknown statement '{shown}' (refused: a move it stands for would be lost)")
-    for word, count in skipped.items():
-        warnings.append(f"{name}: ignored {count} {word} statement(s)")
-    if not tips:
-        raise InputError(f"{path}: no GOTO moves")
-    tp = Toolpath(tip=np.array(tips, np.float64), axis=np.array(axes, np.float64), rapid=np.array(rapid, bool),
-                  tool=np.array(tool_idx, np.int64), line=np.array(lines, np.int64))
-    return tp, warnings
