@@ -409,8 +409,9 @@ class DirectionMoves(NamedTuple):
     in the direction's frame (u, v, then the lines' axis): their ``kind (k,)`` bits, ``box (k, 6)``,
     ends ``pa, pb`` and axes ``xa, xb (k, 3)``, the ``chord (k, 6)`` and ``plane (k, 4)`` of
     :mod:`~meshmill.kernels.carve`, the moves of each tile (``tile_start``, ``tile_moves``), each
-    move's ``group (k,)`` with the groups' ``gbound (g, 10)`` and ``gbox (g, 6)``, and ``work
-    (tiles,)`` the lines each tile's moves cover, added over them."""
+    move's ``group (k,)`` with the groups' ``gbound (g, 10)`` and ``gbox (g, 6)``, ``work
+    (tiles,)`` the lines each tile's moves cover, added over them, and the moves' ``probe (k, 6)``
+    where their load is gathered (:func:`~meshmill.simulation.load.move_probe`; else None)."""
 
     kind: np.ndarray
     box: np.ndarray
@@ -426,11 +427,13 @@ class DirectionMoves(NamedTuple):
     gbound: np.ndarray
     gbox: np.ndarray
     work: np.ndarray
+    probe: np.ndarray | None = None
 
 
-def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern, groups=None) -> DirectionMoves:
+def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern, groups=None, probe=None) -> DirectionMoves:
     """The moves as cutting the lines along ``a`` needs them, with the groups of
-    :func:`move_groups` (``groups``, else made here)."""
+    :func:`move_groups` (``groups``, else made here) and ``probe (k, 6)`` (world frame; None: no
+    load gathered)."""
     kind = (moves.rapid.astype(np.uint8) * RAPID) | (moves.body.astype(np.uint8) * BODY)
     u, v = (a + 1) % 3, (a + 2) % 3
     perm = [u, v, a]
@@ -446,8 +449,10 @@ def _direction_moves(lo, n, step, a: int, moves: Moves, boxes, kern, groups=None
     tile_start, tile_moves, work = kern.bin_moves(box, lo[u], lo[v], step, n[u], n[v])
     group, bound, gboxes = groups if groups is not None else move_groups(moves, boxes, kern)
     gbound = np.ascontiguousarray(bound[:, [u, v, a, 3 + u, 3 + v, 3 + a, 6 + u, 6 + v, 6 + a, 9]])
+    if probe is not None:
+        probe = np.ascontiguousarray(probe[:, [u, v, a, 3 + u, 3 + v, 3 + a]])
     return DirectionMoves(kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves, group, gbound,
-                          in_frame(gboxes), work)
+                          in_frame(gboxes), work, probe)
 
 
 def dealt(work, pieces: int) -> np.ndarray:
@@ -463,18 +468,17 @@ def dealt(work, pieces: int) -> np.ndarray:
 
 
 def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=None, prepared=None,
-                   alone: bool = True, probe=None, load=None, tiles=None) -> None:
+                   alone: bool = True, load=None, tiles=None) -> None:
     """Cut the lines along ``a`` (those of the tile rows ``rows = (first, stop)`` along the axis
     after ``a``, which ``stock`` then holds ``alone`` for that direction, else among all its lines;
     or those of ``tiles = (tiles, combs, split)``, the rows ``combs (mod split)`` of each tile;
     default all) by the moves, in place; ``hit (k,)`` marks the moves that hit; ``prepared``: what
-    :func:`_direction_moves` gives (else made here); with ``probe (k, 6)`` (world frame,
-    :func:`~meshmill.simulation.load.move_probe`) each move's load gathered in ``load``
-    (:meth:`~meshmill.kernels.backend.DexelKernels.new_load`)."""
+    :func:`_direction_moves` gives (else made here); where it has a probe, each move's load
+    gathered in ``load`` (:meth:`~meshmill.kernels.backend.DexelKernels.new_load`)."""
     u, v = (a + 1) % 3, (a + 2) % 3
     nu, nv = int(stock.n[u]), int(stock.n[v])
     lu, lv = float(stock.lo[u]), float(stock.lo[v])
-    kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves, group, gbound, gbox, _ = (
+    kind, box, pa, pb, xa, xb, chord, plane, tile_start, tile_moves, group, gbound, gbox, _, probe = (
         prepared or _direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern))
     if tiles is None:
         busy = np.nonzero(np.diff(tile_start))[0]
@@ -488,8 +492,6 @@ def _cut_direction(stock: Stock, a: int, moves: Moves, boxes, kern, hit, rows=No
         row0 = rows[0] * TILE if alone else 0
     spread = np.random.default_rng(0).permutation(len(tiles))  # the busy tiles over the threads
     tiles, combs = tiles[spread], combs[spread]
-    if probe is not None:
-        probe = np.ascontiguousarray(probe[:, [u, v, a, 3 + u, 3 + v, 3 + a]])  # in the line frame
     todo = np.zeros(0, np.int64)  # every line of the tiles, then the lines that ran out of room (from where)
     while len(tiles):
         redo = np.zeros(len(stock.count[a]), np.int64)
@@ -534,7 +536,8 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None, l
     else:
         kern = DexelKernels(device)
         groups = move_groups(moves, boxes, kern)
-        prepared = [_direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern, groups) for a in range(3)]
+        prepared = [_direction_moves(stock.lo, stock.n, stock.step, a, moves, boxes, kern, groups, probe)
+                    for a in range(3)]
         # the tiles (independent) in CUT_PIECES pieces alike, so that the time the first pieces
         # take tells the time left: each tile in PIECE_COMBS combs of its rows, dealt out from the
         # most lines their moves cover to the least, back and forth (a heavy tile's combs go to
@@ -547,7 +550,7 @@ def cut(stock: Stock, moves: Moves, progress=None, device="cpu", cluster=None, l
             for a in range(3):
                 some = np.nonzero(piece[a] == k)[0]  # (tile, comb) = divmod(unit, PIECE_COMBS)
                 if len(some):
-                    _cut_direction(stock, a, moves, boxes, kern, hit, None, prepared[a], False, probe, per[a],
+                    _cut_direction(stock, a, moves, boxes, kern, hit, None, prepared[a], False, per[a],
                                    (some // PIECE_COMBS, some % PIECE_COMBS, PIECE_COMBS))
             meter.done(sum(float(work[a][piece[a] == k].sum()) for a in range(3)))
         if load:
@@ -583,11 +586,11 @@ def cut_lines(shared: dict, a: int, rows, start, iv):
     hit = np.zeros(len(moves), np.uint8)
     kern = DexelKernels(shared["device"])
     groups = worker_cached(shared, "groups", lambda: move_groups(moves, boxes, kern))  # once for the 3 directions
-    prepared = worker_cached(shared, f"moves {a}", lambda: _direction_moves(shared["lo"], n, shared["step"], a, moves,
-                                                                          boxes, kern, groups))
     probe = shared.get("probe")
+    prepared = worker_cached(shared, f"moves {a}", lambda: _direction_moves(shared["lo"], n, shared["step"], a, moves,
+                                                                          boxes, kern, groups, probe))
     load = kern.new_load(len(moves)) if probe is not None else None
-    _cut_direction(stock, a, moves, boxes, kern, hit, rows, prepared, probe=probe, load=load)
+    _cut_direction(stock, a, moves, boxes, kern, hit, rows, prepared, load=load)
     s, out = compact_lines(stock.iv[a], stock.off[a], stock.count[a])
     return s, out, hit, None if load is None else reduce_load(load)
 
