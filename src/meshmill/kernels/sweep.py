@@ -660,9 +660,11 @@ def build(jit):
     @jit
     def turning_search(u0, v0, pa, pb, xa, xb, R, r, F, upper):
         """Lowest start (``upper`` False) or highest end of the pose intervals over the move: the
-        best of ``SEARCH_SAMPLES + 1`` poses, then a golden-section search around it (the pieces
-        moves are split into turn little, so the extreme is unimodal there), one pose a step, until
-        the poses left differ by ``SEARCH_TOL`` at any point of the tool."""
+        best of ``SEARCH_SAMPLES + 1`` poses, then Brent's search around it (parabolas through
+        the best three poses where they fit, golden sections where not; the pieces moves are
+        split into turn little, so the extreme is unimodal there), one pose a step, until the
+        best pose lies within ``SEARCH_TOL`` of both ends of the bracket at any point of the
+        tool."""
         # how fast any point of the tool moves with t (the normalised axis turns at most
         # |xb - xa| / cos(turn / 2), under 1.01 |xb - xa| for the turns of a piece)
         speed = math.sqrt((pb[0] - pa[0]) ** 2 + (pb[1] - pa[1]) ** 2 + (pb[2] - pa[2]) ** 2) + 1.01 * (F + R) * \
@@ -670,50 +672,80 @@ def build(jit):
         width = SEARCH_TOL / max(speed, SEARCH_TOL)
         best = INF
         tbest = -1.0
-        a = 0.0
-        b = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        f1 = 0.0
-        f2 = 0.0
-        left = True
-        for k in range(SEARCH_SAMPLES + 1 + SEARCH_STEPS):
-            t = k / SEARCH_SAMPLES if k <= SEARCH_SAMPLES else (s1 if left else s2)
+        for k in range(SEARCH_SAMPLES + 1):
+            t = k / SEARCH_SAMPLES
             lo, hi = pose_at(u0, v0, pa, pb, xa, xb, t, R, r, F, 2 if upper else 1)
             f = (-hi if upper else lo) if lo <= hi else INF
             if f < best:
                 best = f
                 tbest = t
-            if k < SEARCH_SAMPLES:
-                continue
-            if k == SEARCH_SAMPLES:  # the bracket about the best sample; s1 is evaluated next, then s2
-                if tbest < 0.0:
-                    return -INF if upper else INF
-                a = max(0.0, tbest - 1.0 / SEARCH_SAMPLES)
-                b = min(1.0, tbest + 1.0 / SEARCH_SAMPLES)
-                s1 = b - GOLDEN * (b - a)
-                s2 = a + GOLDEN * (b - a)
-                continue
-            if left:
-                f1 = f
-            else:
-                f2 = f
-            if k == SEARCH_SAMPLES + 1:
-                left = False
-                continue
-            if b - a < width:
+        if tbest < 0.0:
+            return -INF if upper else INF
+        a = max(0.0, tbest - 1.0 / SEARCH_SAMPLES)
+        b = min(1.0, tbest + 1.0 / SEARCH_SAMPLES)
+        # x the best pose so far, w the second best, v the one before (their values fx, fw, fv);
+        # d the last step, e the one before it
+        x = tbest
+        w = tbest
+        v = tbest
+        fx = best
+        fw = best
+        fv = best
+        d = 0.0
+        e = 0.0
+        step = 0.5 * width  # the least step
+        for _ in range(SEARCH_STEPS):
+            if max(x - a, b - x) <= width:
                 break
-            if f1 >= INF and f2 >= INF and tbest > s2:
-                # neither inner pose meets the line: keep the side of the best pose (the poses
-                # that meet it lie about it), which the step would drop
-                a = s1
-                s1 = s2
-                f1 = f2
-                s2 = a + GOLDEN * (b - a)
-                left = False
+            mid = 0.5 * (a + b)
+            golden = True
+            if abs(e) > step and fx < INF and fw < INF and fv < INF:
+                # the parabola through (v, fv), (w, fw), (x, fx): its vertex at x + p / q
+                rr = (x - w) * (fx - fv)
+                q = (x - v) * (fx - fw)
+                p = (x - v) * q - (x - w) * rr
+                q = 2.0 * (q - rr)
+                if q > 0.0:
+                    p = -p
+                q = abs(q)
+                before = e
+                e = d
+                if abs(p) < abs(0.5 * q * before) and p > q * (a - x) and p < q * (b - x):
+                    d = p / q
+                    golden = False
+                    if x + d - a < 2.0 * step or b - x - d < 2.0 * step:
+                        d = step if mid >= x else -step
+            if golden:
+                e = (a - x) if x >= mid else (b - x)
+                d = (1.0 - GOLDEN) * e
+            u = min(b, max(a, x + d if abs(d) >= step else x + (step if d > 0.0 else -step)))
+            lo, hi = pose_at(u0, v0, pa, pb, xa, xb, u, R, r, F, 2 if upper else 1)
+            fu = (-hi if upper else lo) if lo <= hi else INF
+            if fu <= fx:
+                if u >= x:
+                    a = x
+                else:
+                    b = x
+                v = w
+                fv = fw
+                w = x
+                fw = fx
+                x = u
+                fx = fu
             else:
-                a, b, s1, s2, f1, f2, left = golden_step(a, b, s1, s2, f1, f2)
-        return -best if upper else best
+                if u < x:
+                    a = u
+                else:
+                    b = u
+                if fu <= fw or w == x:
+                    v = w
+                    fv = fw
+                    w = u
+                    fw = fu
+                elif fu <= fv or v == x or v == w:
+                    v = u
+                    fv = fu
+        return -fx if upper else fx
 
     @jit
     def flute_plane(pa, pb, xa, xb, r, F):
