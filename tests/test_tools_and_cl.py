@@ -112,6 +112,8 @@ def test_cl_from_another_cam_system(tmp_path, tools):
     ("LOADTL/1\nGOTO/1,2,nan\n", "NaN"),
     ("LOADTL/1\nGOTO/1,2,x\n", "expected numbers"),
     ("LOADTL/1\nGOTO/0,0,1,0,0,0\n", "bad.cl:2: zero-length tool axis"),
+    ("GOTO/1, 2, 3, 0, 0, 0\n", "bad.cl:1: GOTO before any CUTTER"),
+    ("CUTTER/7\nGOTO/1,2,3,0,0,0\n", "bad.cl:2: CUTTER/7, 0 matches no tool"),
     ("LOADTL/1\nGOTO/0,0,1\nGOTO/0,0,1e9\n", "bad.cl:3: value 1e\\+09 is out of range"),
     # the GOTOs' numbers are read at the end, all at once: a bad one still comes before a later error
     ("LOADTL/1\nGOTO/0,0,1\nGOTO/1,2,x\nGOTO/0,0,2\nWHATEVER/1\n", "bad.cl:3: expected numbers"),

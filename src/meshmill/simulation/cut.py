@@ -222,6 +222,9 @@ def body_moves(toolpath, tools, shrink: float = 0.0) -> Moves:
         if len(idx) == 0 or rad <= 0 or t1 <= t0:
             continue
         R = np.full(len(idx), rad)
+        # as a flat end reaching up to the cylinder's top: the chord of its foot, t0 up the axis, is
+        # within t0 δ²/8 of the foot's arc, which the cylinder's own chord term (R + t1 - t0) δ²/8
+        # leaves in the budget of F = t1
         pieces = turn_pieces(pa[idx], tip[idx], xa[idx], axis[idx], R, np.zeros(len(idx)), np.full(len(idx), t1),
                              BODY_SWEEP_TOL)
         src, p0, p1, x0, x1 = split_turns(pa[idx], tip[idx], xa[idx], axis[idx], pieces)
@@ -259,6 +262,7 @@ def turn_pieces(pa, pb, xa, xb, R, r, F, tol: float = SWEEP_TOL) -> np.ndarray:
     see :func:`split_turns`), at most δ = 0.5 rad; for flat and bull-nose cutters (searched over
     their poses) also the turn to ``MAX_TURN`` and the distance between sampled poses."""
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", xa, xb), -1.0, 1.0))
+    angle[np.all(xa == xb, axis=1)] = 0.0  # arccos of a unit vector's square can be 1e-8
     H = np.maximum(0.0, F - 2 * r)
     # tan(δ/2)/δ <= 0.52 for δ <= 0.5
     pairing = np.hypot(F, R) * np.tan(0.5 * np.minimum(angle, math.radians(MAX_MOVE_TURN))) * 0.26

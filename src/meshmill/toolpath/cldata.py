@@ -153,6 +153,24 @@ def _goto(args, where, scale):
     return v[:3], [a / n for a in axis]
 
 
+def _gotos_at_once(flat, counts, scales):
+    """``(tips, axes)`` of :func:`_gotos` from all their numbers ``flat`` (``counts (k,)``, 3 or 6
+    each), or None where some value is not finite or out of range, or an axis is zero."""
+    k = len(counts)
+    first = np.cumsum(counts) - counts
+    six = counts == 6
+    scale = np.asarray(scales, np.float64)
+    vals = flat * np.repeat(scale, counts)
+    tips = vals[first[:, None] + np.arange(3)]
+    axes = np.zeros((k, 3))
+    axes[:, 2] = 1.0
+    axes[six] = vals[first[six, None] + np.arange(3, 6)] / scale[six, None]
+    n = np.sqrt(axes[:, 0] * axes[:, 0] + axes[:, 1] * axes[:, 1] + axes[:, 2] * axes[:, 2])
+    if np.isfinite(vals).all() and (np.abs(vals) <= MAX_COORDINATE).all() and (n >= 1e-9).all():
+        return tips, axes / n[:, None]
+    return None
+
+
 def _gotos(args, name, lines, scales) -> tuple[np.ndarray, np.ndarray]:
     """``(tips (k, 3), axes (k, 3))`` of GOTO statements ``args`` on ``lines`` of file ``name`` in
     units of ``scales`` mm (as :func:`_goto`, the numbers read at once; when some statement reads
@@ -164,17 +182,10 @@ def _gotos(args, name, lines, scales) -> tuple[np.ndarray, np.ndarray]:
     except ValueError:
         counts = flat = None
     if flat is not None and np.isin(counts, (3, 6)).all():
-        first = np.cumsum(counts) - counts
-        six = counts == 6
-        scale = np.asarray(scales, np.float64)
-        vals = flat * np.repeat(scale, counts)
-        tips = vals[first[:, None] + np.arange(3)]
-        axes = np.zeros((k, 3))
-        axes[:, 2] = 1.0
-        axes[six] = vals[first[six, None] + np.arange(3, 6)] / scale[six, None]
-        n = np.sqrt(axes[:, 0] * axes[:, 0] + axes[:, 1] * axes[:, 1] + axes[:, 2] * axes[:, 2])
-        if np.isfinite(vals).all() and (np.abs(vals) <= MAX_COORDINATE).all() and (n >= 1e-9).all():
-            return tips, axes / n[:, None]
+        with np.errstate(over="ignore", invalid="ignore"):  # such values are read one by one below
+            done = _gotos_at_once(flat, counts, scales)
+        if done is not None:
+            return done
     read = [_goto(a, f"{name}:{line}", scale) for a, line, scale in zip(args, lines, scales)]  # or the first error
     return np.array([t for t, _ in read], np.float64), np.array([x for _, x in read], np.float64)
 
@@ -220,7 +231,8 @@ def _read_statements(text, name, tools, goto, scales, rapid, tool_idx, lines, sk
         if word == "GOTO":
             if current < 0:
                 where = f"{name}:{number}"
-                _goto(args, where, scale)  # its own error first
+                if len(_numbers(args, where, scale)) not in (3, 6):  # its numbers' errors first
+                    raise InputError(f"{where}: GOTO needs x, y, z or x, y, z, i, j, k")
                 if cutter is None:
                     raise InputError(f"{where}: GOTO before any CUTTER/ or LOADTL/")
                 current = _tool_for_cutter(cutter, tools, where)
