@@ -242,7 +242,7 @@ def _tile_lines(box, m, lu, lv, step, nu, nv, ti, tj, comb, split):
     return i0, min(i1, ti * TILE + TILE - 1), max(j0, tj * TILE), min(j1, tj * TILE + TILE - 1)
 
 
-SPREAD = 16  # work items a thread is given at least: a call with fewer cuts them in finer combs of rows
+SPREAD = 64  # work items a thread is given at least: a call with fewer cuts them in finer combs of rows
 
 
 def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves,
