@@ -100,16 +100,6 @@ def cast_lines(a, lu, lv, step, nu, nv, index, first_row=0):
 
 
 @numba.njit(cache=True)
-def _tile_span(box, m, lu, lv, step, nu, nv):
-    """The tiles (first and last along u, then along v) holding lines that move m's box covers;
-    none when a first is past its last."""
-    i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)
-    if i0 > i1 or j0 > j1:
-        return 0, -1, 0, -1
-    return i0 // TILE, i1 // TILE, j0 // TILE, j1 // TILE
-
-
-@numba.njit(cache=True)
 def bin_moves(box, lu, lv, step, nu, nv):
     """Tiles of ``TILE x TILE`` lines and, per tile, the moves whose box ``(k, 6)`` (ulo, uhi,
     vlo, vhi, wlo, whi) covers one of its lines, in move order: ``(tile_start, tile_moves,
@@ -119,9 +109,11 @@ def bin_moves(box, lu, lv, step, nu, nv):
     tv = (nv + TILE - 1) // TILE
     cnt = np.zeros(tu * tv + 1, np.int64)
     for m in range(box.shape[0]):
-        ti0, ti1, tj0, tj1 = _tile_span(box, m, lu, lv, step, nu, nv)
-        for ti in range(ti0, ti1 + 1):
-            for tj in range(tj0, tj1 + 1):
+        i0, i1, j0, j1 = crv.move_lines(box, m, lu, lv, step, nu, nv)
+        if i0 > i1 or j0 > j1:
+            continue
+        for ti in range(i0 // TILE, i1 // TILE + 1):
+            for tj in range(j0 // TILE, j1 // TILE + 1):
                 cnt[ti * tv + tj + 1] += 1
     for t in range(tu * tv):
         cnt[t + 1] += cnt[t]
@@ -284,31 +276,6 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_st
                redo, row0, probe, load)
 
 
-@numba.njit(cache=True, inline="always")
-def _move_line(m, s, line, u0, v0, iv, off, count, pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box,
-               kind, hit_min, hit, redo, probe, load, measure, me):
-    """Move m (the tile's move ``s``) on the line at (u0, v0): a body's touch test, or its cut
-    (``redo[line] = s + 1`` when the line ran out of room); sets ``hit`` and gathers the load."""
-    if kind[m] & BODY:
-        if not hit[m] and crv.touch_line(m, line, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
-                                         radius, corner, flutes, strips) > hit_min:
-            hit[m] = 1
-        return
-    removed, first, last = crv.cut_line(m, line, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa, pb, xa, xb,
-                                        radius, corner, flutes, strips, chord, plane, measure)
-    if removed < 0.0:
-        redo[line] = s + 1
-    elif removed > hit_min:
-        hit[m] = 1
-        if measure:
-            ax_lo, ax_hi, lat_lo, lat_hi = crv.load_extents(m, u0, v0, first, last, probe)
-            load[me, m, 0] += removed
-            load[me, m, 1] = max(load[me, m, 1], ax_hi)
-            load[me, m, 2] = min(load[me, m, 2], lat_lo)
-            load[me, m, 3] = max(load[me, m, 3], lat_hi)
-            load[me, m, 4] = min(load[me, m, 4], ax_lo)
-
-
 @numba.njit(parallel=True, cache=True)
 def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves,
                pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, group, gbound, gbox,
@@ -344,5 +311,22 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_s
                             clear_at[at] = crv.group_clear(g, line, u0, v0, iv, off, count, gbound, gbox)
                         if clear_at[at]:
                             continue
-                    _move_line(m, s, line, u0, v0, iv, off, count, pa, pb, xa, xb, radius, corner, flutes, strips,
-                               chord, plane, box, kind, hit_min, hit, redo, probe, load, measure, me)
+                    if kind[m] & BODY:
+                        if not hit[m] and crv.touch_line(m, line, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa,
+                                                         pb, xa, xb, radius, corner, flutes, strips) > hit_min:
+                            hit[m] = 1
+                        continue
+                    removed, first, last = crv.cut_line(m, line, u0, v0, box[m, 4], box[m, 5], iv, off, count,
+                                                        pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane,
+                                                        measure)
+                    if removed < 0.0:
+                        redo[line] = s + 1
+                    elif removed > hit_min:
+                        hit[m] = 1
+                        if measure:
+                            ax_lo, ax_hi, lat_lo, lat_hi = crv.load_extents(m, u0, v0, first, last, probe)
+                            load[me, m, 0] += removed
+                            load[me, m, 1] = max(load[me, m, 1], ax_hi)
+                            load[me, m, 2] = min(load[me, m, 2], lat_lo)
+                            load[me, m, 3] = max(load[me, m, 3], lat_hi)
+                            load[me, m, 4] = min(load[me, m, 4], ax_lo)
