@@ -71,6 +71,44 @@ def test_the_gap_between_triangles_along_their_centroids_never_exceeds_their_dis
         close += exact > 3.0 and gap > 0.5 * exact
     assert close > 20, close
 
+@pytest.mark.parametrize("part", ["box", "sphere"])
+def test_the_prism_search_finds_the_nearest_triangle_of_the_whole_mesh(part):
+    # long tilted stadium prisms (a shank's band swept across its axis) against every triangle
+    # one by one: the BVH's pruning (the prism's box, its slab, the band round the mid axis)
+    # never drops the nearest; slab ends put exactly on the box's faces and vertices
+    mesh = {"box": box([-10, -10, 0], [10, 10, 10]), "sphere": sphere(8.0, 16, 32)}[part]
+    kern = solid_kernels(mesh)
+    tris = kern.mesh[-1]
+    rng = np.random.default_rng(11)
+    stack, w = np.empty(cpu.STACK_SIZE, np.int32), np.zeros(cpu.WORK_SIZE)
+    near = 0
+    for case in range(300):
+        u = rng.normal(size=3) if case % 4 else np.array([0.0, 0.0, 1.0])
+        u /= np.linalg.norm(u)
+        e1 = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        (e1x, e1y, e1z), (e2x, e2y, e2z) = e1, np.cross(u, e1)
+        a = rng.uniform(-12, 12, 3)
+        if case % 4 == 0:  # the slab's ends on the top face (z = 10) or through a corner's height
+            a[2] = 0.0
+        s0, s1 = sorted(rng.uniform(-25, 25, 2))
+        if case % 4 == 0:
+            s0, s1 = (10.0, s1 + 20) if case % 8 == 0 else (s0 - 20, 10.0)
+        v = rng.normal(size=2) * rng.uniform(0, 2)
+        got = cpu.clr.mesh_stadium_dist2(*a, *u, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, v[0], v[1], 1e300, 0.0,
+                                         *kern.mesh, stack, w)
+        ref = min(cpu.clr.stadium_tri_dist2(tris, t, *a, *u, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, v[0], v[1], w)
+                  for t in range(len(tris)))
+        assert got == ref, (case, got, ref)
+        for radius in (np.sqrt(ref) * 1.001, np.sqrt(ref) * 0.999)[:2 * (ref < 1e200)]:  # capped there: found or not
+            cap = radius * radius
+            capped = cpu.clr.mesh_stadium_dist2(*a, *u, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, v[0], v[1], cap, cap,
+                                                *kern.mesh, stack, w)
+            assert (capped < cap) == (ref < cap), (case, radius)
+        near += 0.0 < ref < 4.0
+    assert near > 30, near
+
+
 @pytest.mark.parametrize("part", ["box", "ridge", "sphere"])
 @pytest.mark.slow
 def test_every_clear_interval_is_clear_at_every_pose(part):

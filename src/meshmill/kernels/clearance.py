@@ -386,6 +386,19 @@ def build(jit):
                          + abs(az) + he + abs(s0) + abs(s1)) + 1e-12
         if hc + he < s0 - slack or hc - he > s1 + slack:
             return best
+        # a point of the slab within reach across the axis of the stadium's segment lies within
+        # reach of the band the axis sweeps, so within reach + |v| / 2 of the axis through the
+        # sweep's middle (over [s0, s1], flat ends: the disks' extent along each coordinate axis)
+        hv = 0.5 * math.sqrt(vx * vx + vy * vy)
+        mx = ax + 0.5 * (vx * e1x + vy * e2x)
+        my = ay + 0.5 * (vx * e1y + vy * e2y)
+        mz = az + 0.5 * (vx * e1z + vy * e2z)
+        rr = reach + hv
+        if not g.box_near_segment(node_lo, node_hi, n, mx + s0 * ux, my + s0 * uy, mz + s0 * uz, mx + s1 * ux,
+                                  my + s1 * uy, mz + s1 * uz, rr * math.sqrt(max(0.0, 1.0 - ux * ux)),
+                                  rr * math.sqrt(max(0.0, 1.0 - uy * uy)), rr * math.sqrt(max(0.0, 1.0 - uz * uz)),
+                                  rr):
+            return best
         return d
 
     @jit
