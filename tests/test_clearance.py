@@ -194,6 +194,26 @@ def test_a_fixed_axis_step_up_past_an_edge_is_decided_in_pieces(limit, clear):
     assert seg.max() == pytest.approx(0.01, abs=1e-6)
 
 
+@pytest.mark.parametrize("depth", [3e-8, 4e-6, 0.0123, 0.4])
+def test_a_cylinders_axial_depth_is_never_less_than_it_is(depth):
+    """A cylinder of radius 1 whose bottom lies ``depth`` into a block's top, its axis 0.5 mm in
+    from the block's side (radially 1.5 deep) and tilted a little: its depth is the axial one,
+    bisected from above to within AXIAL_TOL (never less than the true depth)."""
+    from meshmill.kernels.clearance import AXIAL_TOL
+    kern = solid_kernels(box([-0.5, -10, -10], [20, 10, 0]))
+    tilt = np.radians(0.3)
+    axis = np.array([[np.sin(tilt), 0.0, np.cos(tilt)]])
+    # the bottom's lowest point (its rim towards -x) lies ``depth`` below z = 0
+    tip = np.array([[0.0, 0.0, -depth + np.sin(tilt) * 1.0]])
+    t0 = np.array([[0.0]])
+    segs = (t0, np.array([[10.0]]), np.array([[1.0]]))
+    rings = (np.zeros(1), np.zeros(1), np.zeros(1), np.ones(1, np.int64))
+    _, seg = kern.pose_penetration(tip, axis, np.zeros(1, np.int64), np.zeros(1), rings, segs, t0)
+    # the rim point (-cos, 0, sin) of the bottom disk is the lowest: depth / cos(tilt) along the axis
+    true = depth / np.cos(tilt)
+    assert true <= seg[0, 0] <= true + AXIAL_TOL + 1e-12, (seg[0, 0], true)
+
+
 @pytest.mark.parametrize("drop, limit, clear", [(0.0, 0.0, False), (0.0, 0.01, True), (1e-9, 0.0, True)])
 def test_a_shank_bottom_exactly_on_a_face_is_seen(drop, limit, clear):
     """A shank wider than the ball passes over a block's edge with its flat bottom exactly at the

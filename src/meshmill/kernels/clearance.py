@@ -54,6 +54,7 @@ _SUB = _POLY_B + 15  # the tips of a piece of a fixed-axis interval (6)
 _HULL = _TRI_A  # a tetrahedron's four faces (36) then its corners (12), over the triangles and polygons
 SPLIT_SHARE = 0.25  # a fixed-axis interval is cut so that each piece moves along the axis by at most
 MAX_SPLIT = 16  # this share of the limit (at most this many pieces; see cylinder_clear)
+AXIAL_TOL = 1e-7  # mm: a cylinder's axial depth is bisected to this (from above: never less than it is)
 
 
 def build(jit):
@@ -954,8 +955,9 @@ def build(jit):
             if d2 >= r2:
                 continue
             radial = r - math.sqrt(d2)
-            # axial depth: how far the bottom of the cylinder must rise to clear (bisection), when
-            # less than the radial depth (raised by that much, the cylinder must clear)
+            # axial depth: how far the bottom of the cylinder must rise to clear (bisection to
+            # AXIAL_TOL, the upper end kept), when less than the radial depth (raised by that much,
+            # the cylinder must clear)
             lo = t0
             hi = min(t1 - 1e-9, t0 + radial)
             if cylinder_dist(px, py, pz, ux, uy, uz, hi, t1, r2, r2, node_lo, node_hi, node_child, node_range,
@@ -963,6 +965,8 @@ def build(jit):
                 segs[i, k] = radial
                 continue
             for _ in range(30):
+                if hi - lo <= AXIAL_TOL:
+                    break
                 mid = 0.5 * (lo + hi)
                 if cylinder_dist(px, py, pz, ux, uy, uz, mid, t1, r2, r2, node_lo, node_hi, node_child, node_range,
                                  tris, stack) < r2:
