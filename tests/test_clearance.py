@@ -110,6 +110,67 @@ def test_the_prism_search_finds_the_nearest_triangle_of_the_whole_mesh(part):
 
 
 @pytest.mark.parametrize("part", ["box", "ridge", "sphere"])
+def test_a_depth_asked_only_past_a_stop_decides_as_the_exact_one(part):
+    # poses above, grazing, in and buried in the part, every tool, grown or not: with ``stop``
+    # each depth is past stop exactly where the exact one is, equal to it at or below stop (the
+    # rounded ends) or between it and stop (the cylinders: the radial depth, or stop itself)
+    mesh = {"box": box([-10, -10, 0], [10, 10, 10]), "ridge": _ridge(), "sphere": sphere(8.0, 12, 24)}[part]
+    top = mesh.bounds[1, 2]
+    kern = solid_kernels(mesh)
+    tools = _tools()
+    (t0, t1, r), cutting = pack_cylinders(tools)
+    stop = 0.01
+    segs = (np.where(cutting & (t0 == 0.0), stop, t0), t1, r)
+    rings = pack_rings(tools)
+    rng = np.random.default_rng(7)
+    n = 3000
+    tip = np.column_stack([rng.uniform(-14, 14, n), rng.uniform(-14, 14, n), top + rng.uniform(-12, 4, n)])
+    axis = np.column_stack([rng.uniform(-0.6, 0.6, (n, 2)) * (rng.random((n, 1)) < 0.6), np.ones(n)])
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    tool = rng.integers(0, 3, n)
+    # two thirds on the surface: the tip on an upward facet, a few hundredths off it
+    tri = mesh.vertices[mesh.faces]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    up = np.nonzero(normal[:, 2] > 0.3 * np.linalg.norm(normal, axis=1))[0]
+    on = rng.random(n) < 0.67
+    f = rng.choice(up, on.sum())
+    a, b = rng.random((2, on.sum()))
+    a, b = np.where(a + b > 1, 1 - a, a), np.where(a + b > 1, 1 - b, b)
+    tip[on] = tri[f, 0] + a[:, None] * (tri[f, 1] - tri[f, 0]) + b[:, None] * (tri[f, 2] - tri[f, 0])
+    nrm = normal[f] / np.linalg.norm(normal[f], axis=1, keepdims=True)
+    axis[on] = nrm
+    tip[on] += rng.uniform(-0.02, 0.01, (on.sum(), 1)) * nrm
+    # a third of those on their side: the first cylinder's middle alongside the facet, radially
+    # a few hundredths into it
+    idx = np.nonzero(on)[0]
+    side = rng.random(len(idx)) < 0.33
+    k = idx[side]
+    tan = np.cross(nrm[side], rng.normal(size=(len(k), 3)))
+    tan /= np.linalg.norm(tan, axis=1, keepdims=True)
+    reach = segs[2][tool[k], 0] - rng.uniform(-0.01, 0.02, len(k))
+    mid = 0.5 * (segs[0][tool[k], 0] + segs[1][tool[k], 0])
+    axis[k] = tan
+    tip[k] += reach[:, None] * nrm[side] - mid[:, None] * tan
+    grow = np.where(rng.random(n) < 0.3, 0.5, 0.0)
+    ring, seg = kern.pose_penetration(tip, axis, tool, grow, rings, segs, t0)
+    # half the poses in contact raised along their axis to about stop deep, either side of it
+    deep = np.maximum(ring, seg.max(axis=1))
+    lift = (deep > 0) & (deep < 1.0) & (rng.random(n) < 0.6)
+    tip[lift] += (deep[lift] - rng.uniform(0.0, 2 * stop, lift.sum()))[:, None] * axis[lift]
+    ring, seg = kern.pose_penetration(tip, axis, tool, grow, rings, segs, t0)
+    ring_d, seg_d = kern.pose_penetration(tip, axis, tool, grow, rings, segs, t0, stop=stop)
+    assert np.array_equal(ring > stop, ring_d > stop) and np.array_equal(seg > stop, seg_d > stop)
+    low = ring <= stop
+    assert np.array_equal(ring[low], ring_d[low])
+    low = seg <= stop
+    assert (seg[low] <= seg_d[low] + 1e-15).all() and (seg_d[low] <= stop).all()
+    # the cases are there: both sides of stop, for ends and cylinders, and buried poses
+    assert 50 < (ring > stop).sum() < n - 50 and 50 < (seg > stop).any(axis=1).sum() < n - 50
+    assert ((ring > 0) & (ring <= stop)).sum() > 10 and ((seg > 0) & (seg <= stop)).sum() > 5
+    assert (ring > 1.0).sum() > 50
+
+
+@pytest.mark.parametrize("part", ["box", "ridge", "sphere"])
 @pytest.mark.slow
 def test_every_clear_interval_is_clear_at_every_pose(part):
     mesh = {"box": box([-10, -10, 0], [10, 10, 10]), "ridge": _ridge(), "sphere": sphere(8.0, 12, 24)}[part]

@@ -467,3 +467,35 @@ def test_a_piece_whose_pairing_slack_passes_the_tolerance_is_not_certified():
         assert r["colliding_moves" if not rapid else "rapid_moves_touching"] == 1
     assert not rapids_clear(kern, [b6], 0.01, StockCheck(), tip[:1], axis[:1], tip[1:], axis[1:],
                             np.zeros(1, np.int64))[0]
+
+
+def test_rapids_asked_only_whether_they_pass_are_judged_as_verification_judges_them():
+    """rapids_clear measures poses only as deep as the tolerance (the kernels' ``stop``): on 400
+    random rapids over and into a sphere, with an allowance and a clearance, its answers are
+    those of the whole check of each rapid as a path, both ways."""
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.pathing.verify import StockCheck, rapids_clear, verify_moves
+
+    b6 = tool_from_entry(dict(name="B6", type="ball", diameter=6, flute_length=12, gauge_length=30,
+                              shank_diameter=4, holder_diameter=20, holder_length=20), 1, "t")
+    kern = solid_kernels(sphere(10.0, 16, 32))
+    stock = StockCheck(allowance=0.5, clearance=1.0)
+    rng = np.random.default_rng(3)
+    n = 400
+    a = rng.uniform(-14, 14, (n, 3)) + [0, 0, 6]
+    b = a + rng.normal(size=(n, 3)) * rng.uniform(0.1, 8, (n, 1))
+    xa = np.column_stack([rng.uniform(-0.5, 0.5, (n, 2)), np.ones(n)])
+    xa /= np.linalg.norm(xa, axis=1, keepdims=True)
+    xb = np.where(rng.random((n, 1)) < 0.5, xa, xa + rng.normal(scale=0.2, size=(n, 3)))
+    xb /= np.linalg.norm(xb, axis=1, keepdims=True)
+    got = rapids_clear(kern, [b6], 0.01, stock, a, xa, b, xb, np.zeros(n, np.int64))
+    tp = Toolpath(np.stack([a, b], 1).reshape(-1, 3), np.stack([xa, xb], 1).reshape(-1, 3), np.ones(2 * n, bool),
+                  np.zeros(2 * n, np.int64))
+    only = np.zeros(2 * n, bool)
+    only[1::2] = True
+    found = verify_moves(kern, tp, [b6], 0.01, 0.5, stock, only=only)
+    ref = np.ones(n, bool)
+    ref[[p.move // 2 for p in found["problems"]]] = False
+    ref[[m // 2 for m in found["unresolved"]]] = False
+    assert np.array_equal(got, ref)
+    assert 40 < got.sum() < n - 40

@@ -110,8 +110,8 @@ class MeshKernels:
             raise ValueError("these kernels were bound without the solid's inside arrays")
         return self.inside
 
-    def pose_penetration(self, tip, axis, tool, grow, rings, segs, base):
-        return self.impl.pose_penetration(tip, axis, tool, grow, rings, segs, base, self.mesh, self._inside())
+    def pose_penetration(self, tip, axis, tool, grow, rings, segs, base, stop=-1.0):
+        return self.impl.pose_penetration(tip, axis, tool, grow, rings, segs, base, self.mesh, self._inside(), stop)
 
     def intervals_clear(self, tip_a, axis_a, tip_b, axis_b, tool, grow, limit, rings, segs, base):
         return self.impl.intervals_clear(tip_a, axis_a, tip_b, axis_b, tool, grow, limit, rings, segs, base,

@@ -900,12 +900,14 @@ def build(jit):
     @jit
     def pose_depth(i, tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
                    node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris, in_kind,
-                   floor, stack, ring, segs):
+                   floor, stop, stack, ring, segs):
         """How deep pose i (every part grown by ``grow[i]``) enters the material: ``ring[i]`` for
         the rounded end (its ``ring_n`` spheres; a ball is one), ``segs[i, k]`` for each cylinder
         (the smaller of the radial and the axial depth from ``seg_base``), 0 where clear. A part
         whose reference point (sphere centre, the cylinder's top on the axis) lies in the material
-        (:func:`inside`) is measured from the far side: radius plus distance."""
+        (:func:`inside`) is measured from the far side: radius plus distance. With ``stop >= 0``
+        only whether each depth exceeds ``stop`` is asked: a depth is then exact up to stop, and
+        past it any value past stop (searches end at the first triangle deeper than that)."""
         t = tool[i]
         g_i = grow[i]
         px = tip[i, 0]
@@ -916,6 +918,7 @@ def build(jit):
         uz = axis[i, 2]
         ex, ey, ez, gx, gy, gz = normal_frame(ux, uy, uz)
         r = ring_r[t] + g_i
+        decide = stop >= 0.0 and r > stop  # a part this wide buried is past stop
         if ring_r[t] > 0.0:
             cx = px + ring_t[t] * ux
             cy = py + ring_t[t] * uy
@@ -926,12 +929,15 @@ def build(jit):
             for j in range(n):
                 phi = 2.0 * math.pi * j / n
                 qx, qy, qz = on_circle(cx, cy, cz, rho, math.cos(phi), math.sin(phi), ex, ey, ez, gx, gy, gz)
-                cap = r * r if not buried else INF
-                d = math.sqrt(point_dist(qx, qy, qz, cap, 0.0, node_lo, node_hi, node_child, node_range, tris, stack))
                 if buried and (rho <= 0.0 or inside(qx, qy, qz, in_lo, in_hi, in_child, in_range, in_tris, in_kind,
                                                     floor, stack)):
+                    d = 0.0 if decide else math.sqrt(point_dist(qx, qy, qz, INF, 0.0, node_lo, node_hi, node_child,
+                                                                node_range, tris, stack))
                     ring[i] = max(ring[i], r + d)
-                elif d < r:
+                    continue
+                d = math.sqrt(point_dist(qx, qy, qz, r * r, (r - stop) ** 2 if decide else 0.0, node_lo, node_hi,
+                                         node_child, node_range, tris, stack))
+                if d < r:
                     ring[i] = max(ring[i], r - d)
         for k in range(seg_r.shape[1]):
             r = seg_r[t, k]
@@ -941,20 +947,30 @@ def build(jit):
             t0 = seg_t0[t, k] - g_i
             t1 = seg_t1[t, k] + g_i
             r2 = r * r
-            d2 = cylinder_dist(px, py, pz, ux, uy, uz, t0, t1, r2, 0.0, node_lo, node_hi, node_child, node_range,
-                               tris, stack)
+            decide = stop >= 0.0 and r > stop
+            d2 = cylinder_dist(px, py, pz, ux, uy, uz, t0, t1, r2, (r - stop) ** 2 if decide else 0.0,
+                               node_lo, node_hi, node_child, node_range, tris, stack)
             qx = px + t1 * ux
             qy = py + t1 * uy
             qz = pz + t1 * uz
             if inside(qx, qy, qz, in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor, stack):
                 # the top of the cylinder lies in the material: as deep as it gets across the axis
-                top = math.sqrt(point_dist(qx, qy, qz, INF, 0.0, node_lo, node_hi, node_child, node_range, tris,
-                                           stack))
-                segs[i, k] = r + max(top, math.sqrt(d2) if d2 < r2 else 0.0)
+                top = 0.0 if decide else math.sqrt(point_dist(qx, qy, qz, INF, 0.0, node_lo, node_hi, node_child,
+                                                              node_range, tris, stack))
+                segs[i, k] = r + max(top, math.sqrt(d2) if d2 < r2 and not decide else 0.0)
                 continue
             if d2 >= r2:
                 continue
-            radial = r - math.sqrt(d2)
+            radial = r - math.sqrt(d2)  # (with decide and past stop: at most the radial depth)
+            base = seg_base[t, k] - g_i
+            if stop >= 0.0:
+                # past stop radially; axially too where the cylinder raised by stop still meets the mesh
+                if radial > stop and cylinder_dist(px, py, pz, ux, uy, uz, min(max(t0, base + stop), t1 - 1e-9), t1,
+                                                   r2, r2, node_lo, node_hi, node_child, node_range, tris,
+                                                   stack) >= r2:
+                    radial = stop
+                segs[i, k] = radial
+                continue
             # axial depth: how far the bottom of the cylinder must rise to clear (bisection to
             # AXIAL_TOL, the upper end kept), when less than the radial depth (raised by that much,
             # the cylinder must clear)
@@ -973,7 +989,7 @@ def build(jit):
                     lo = mid
                 else:
                     hi = mid
-            segs[i, k] = min(radial, hi - (seg_base[t, k] - g_i))
+            segs[i, k] = min(radial, hi - base)
 
     return namespace(seg_seg_dist2=seg_seg_dist2, tri_tri_dist2=tri_tri_dist2, tri_gap=tri_gap,
                      mesh_tris_dist2=mesh_tris_dist2,

@@ -108,14 +108,14 @@ def axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body
 @numba.njit(parallel=True, cache=True)
 def _pose_penetration(tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
                       node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
-                      in_kind, floor):
+                      in_kind, floor, stop):
     ring = np.zeros(tip.shape[0])
     segs = np.zeros((tip.shape[0], seg_r.shape[1]))
     for i in prange(tip.shape[0]):
         stack = np.empty(STACK_SIZE, np.int32)
         clr.pose_depth(i, tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
                        node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
-                       in_kind, floor, stack, ring, segs)
+                       in_kind, floor, stop, stack, ring, segs)
     return ring, segs
 
 
@@ -123,7 +123,7 @@ def _f(a):
     return np.ascontiguousarray(a, np.float64)
 
 
-def pose_penetration(tip, axis, tool, grow, rings, segs, base, bvh, inside):
+def pose_penetration(tip, axis, tool, grow, rings, segs, base, bvh, inside, stop=-1.0):
     """How deep each tool pose enters the material, mm (0 where clear).
 
     ``tip, axis (k, 3)``; ``tool (k,)`` index into the per-tool arrays; ``grow (k,)`` mm every part
@@ -132,11 +132,12 @@ def pose_penetration(tip, axis, tool, grow, rings, segs, base, bvh, inside):
     ``segs`` is ``(seg_t0, seg_t1, seg_r)`` (T, K) cylinders and ``base (T, K)`` where their axial
     depth is measured from; ``bvh`` the check mesh's arrays, ``inside`` the
     :attr:`~meshmill.geometry.solid.Solid.inside` arrays. Returns ``ring (k,)`` and ``segs (k, K)``
-    (see :func:`meshmill.kernels.clearance.build`'s ``pose_depth``).
+    (see :func:`meshmill.kernels.clearance.build`'s ``pose_depth``). ``stop`` >= 0: only whether
+    each depth exceeds it is asked (exact up to it, any value past it beyond).
     """
     *in_bvh, kind, floor = inside
     return _pose_penetration(_f(tip), _f(axis), np.ascontiguousarray(tool, np.int32), _f(grow), *rings, *segs,
-                             _f(base), *bvh, *in_bvh, np.ascontiguousarray(kind, np.int8), float(floor))
+                             _f(base), *bvh, *in_bvh, np.ascontiguousarray(kind, np.int8), float(floor), float(stop))
 
 
 @numba.njit(parallel=True, cache=True)

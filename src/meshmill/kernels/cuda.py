@@ -162,16 +162,16 @@ def axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body
 @cuda.jit
 def _pose_penetration(tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
                       node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
-                      in_kind, floor, ring, segs):
+                      in_kind, floor, stop, ring, segs):
     i = cuda.grid(1)
     if i < tip.shape[0]:
         stack = cuda.local.array(STACK_SIZE, int32)
         clr.pose_depth(i, tip, axis, tool, grow, ring_t, ring_rho, ring_r, ring_n, seg_t0, seg_t1, seg_r, seg_base,
                        node_lo, node_hi, node_child, node_range, tris, in_lo, in_hi, in_child, in_range, in_tris,
-                       in_kind, floor, stack, ring, segs)
+                       in_kind, floor, stop, stack, ring, segs)
 
 
-def pose_penetration(tip, axis, tool, grow, rings, segs, base, bvh, inside):
+def pose_penetration(tip, axis, tool, grow, rings, segs, base, bvh, inside, stop=-1.0):
     """As :func:`meshmill.kernels.cpu.pose_penetration` (``inside`` from :func:`inside_to_device`)."""
     k = len(tip)
     ring = STAGE.zeros("pp.ring", (k,))
@@ -180,7 +180,7 @@ def pose_penetration(tip, axis, tool, grow, rings, segs, base, bvh, inside):
     _pose_penetration[_blocks(k), THREADS](*_s("pp", tip, axis), STAGE.put("pp.tool", tool, np.int32),
                                            *_s("ppg", grow, ring_t, ring_rho, ring_r),
                                            STAGE.put("pp.n", ring_n, np.asarray(ring_n).dtype),
-                                           *_s("pps", *segs, base), *bvh, *inside, ring, depth)
+                                           *_s("pps", *segs, base), *bvh, *inside, float(stop), ring, depth)
     return ring.copy_to_host(), depth.copy_to_host()
 
 

@@ -128,7 +128,7 @@ def rapids_clear(kern, tools, tol: float, stock: StockCheck, starts, start_axes,
     tp = Toolpath(tips, axes, np.ones(2 * k, bool), np.repeat(np.asarray(tool, np.int64), 2))
     only = np.zeros(2 * k, bool)
     only[1::2] = True
-    found = verify_moves(kern, tp, tools, tol, step, stock, only=only)
+    found = verify_moves(kern, tp, tools, tol, step, stock, only=only, bad_depths=False, decide=True)
     ok = np.ones(k, bool)
     ok[[p.move // 2 for p in found["problems"]]] = False
     ok[[m // 2 for m in found["unresolved"]]] = False
@@ -271,31 +271,32 @@ class _Measure:
         c = self.stock.clearance
         return np.where(rapid, c if on_stock else self.stock.allowance + c, 0.0)
 
-    def _body_stock_depth(self, tip, axis, tool):
+    def _body_stock_depth(self, tip, axis, tool, stop=-1.0):
         """``(f, Kb)``: how deep the shank and holder of feed poses enter the stock (the design
         grown by the allowance, and the stock mesh)."""
         depth = np.zeros((len(tip), self.body_col.shape[1]))
         for kern, grow in self.body_stocks:
             depth = np.maximum(depth, kern.pose_penetration(tip, axis, tool, np.full(len(tip), grow), self.no_rings,
-                                                            self.body_segs, self.body_segs[0])[1])
+                                                            self.body_segs, self.body_segs[0], stop)[1])
         return depth
 
-    def depths(self, tip, axis, tool, rapid):
+    def depths(self, tip, axis, tool, rapid, stop=-1.0):
         """``(end (s,), body (s,), ring (s,), segs (s, K), stock (s,))``: how deep each pose enters;
         rapid poses are measured against the stock (grown) and reported as depth into it; the
-        shank and holder of feed poses also against the stock (``stock``: that depth alone)."""
+        shank and holder of feed poses also against the stock (``stock``: that depth alone). With
+        ``stop`` >= 0 only whether each depth exceeds it is asked (the kernels' ``stop``)."""
         ring, segs = self.kern.pose_penetration(tip, axis, self._design_tool(tool, rapid), self._grow(rapid, False),
-                                                self.rings, self.segs, self.base)
+                                                self.rings, self.segs, self.base, stop)
         if self.stock.kern is not None and rapid.any():
             r2, s2 = self.stock.kern.pose_penetration(tip[rapid], axis[rapid], tool[rapid],
                                                       self._grow(rapid[rapid], True), self.rings, self.segs,
-                                                      self.base)
+                                                      self.base, stop)
             ring[rapid] = np.maximum(ring[rapid], r2)
             segs[rapid] = np.maximum(segs[rapid], s2)
         in_stock = np.zeros(len(tip))
         feed = np.nonzero(~rapid)[0]
         if self.body_stocks and len(feed):
-            sb = self._body_stock_depth(tip[feed], axis[feed], tool[feed])
+            sb = self._body_stock_depth(tip[feed], axis[feed], tool[feed], stop)
             in_stock[feed] = sb.max(axis=1)
             cols = self.body_col[tool[feed]]
             used = self.body_segs[2][tool[feed]] > 0
@@ -375,7 +376,7 @@ def path_pieces(tp: Toolpath, count: int, only=None) -> list[tuple]:
 
 
 def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: StockCheck, first: int = 0,
-                 only=None, bad_depths: bool = True) -> dict:
+                 only=None, bad_depths: bool = True, decide: bool = False) -> dict:
     """What :func:`verify_toolpath` finds on the moves into points ``first + 1 ..`` of ``tp``, whose
     point 0 is the point ``first`` of a whole path (its pose is checked with the move into it, in
     the piece before), or on those where ``only (len(tp),) bool`` is set: counts, the deepest feed
@@ -384,7 +385,9 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     ``max_gouge``, ``max_collision``). Pieces of a path verified apart (:func:`merge_reports`) give
     the whole path's report. A move's figures depend on its two points alone. Without
     ``bad_depths`` a move found bad is not measured further: its depth is that of the poses that
-    found it, at least (for repairs, which need only which moves fail)."""
+    found it, at least (for repairs, which need only which moves fail). With ``decide`` only
+    which moves fail is asked: a pose's depth is exact up to ``tol`` and past it any depth past
+    ``tol`` (the same problems: the searches end at the first triangle deeper than that)."""
     checked = np.ones(len(tp), bool) if only is None else np.asarray(only, bool).copy()
     if first > 0:
         checked[0] = False
@@ -396,7 +399,7 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     poses = []  # (tip, tool, move, rapid, end, body, ring, segs, in_stock) of the poses measured
 
     def measure(tip, axis, tool, move, rapid):  # a move with a pose beyond the tolerance is bad
-        got = meas.depths(tip, axis, tool, rapid)
+        got = meas.depths(tip, axis, tool, rapid, tol if decide else -1.0)
         poses.append((tip, tool, move, rapid, *got))
         bad_move[move[(got[0] > tol) | (got[1] > tol)]] = True
 
