@@ -67,6 +67,7 @@ class PathBuilder:
         self.direct_links = 0  # in the last path built
         self._known, self._known_for = {}, direct  # the rapids direct has passed or failed
         self._blocks = {}  # the blocks of moves of the last path built (:meth:`build`)
+        self._ends = {}  # the rapid ends of its passes (:meth:`_directs`), keyed as the blocks
 
     def _reaches(self, passes):
         """Per pass, the distances ``(in, out)`` down the way to the safe plane to which a rapid
@@ -120,7 +121,13 @@ class PathBuilder:
         (:meth:`_lifted`)."""
         if self.direct is None or len(passes) < 2:
             return {}
-        ends = [self._rapid_ends(ps, r) for ps, r in zip(passes, reaches)]
+        kept, ends = {}, []
+        for ps, r in zip(passes, reaches):  # (each pass's, as in the last path built where it is the same)
+            key = (id(ps), r[0], r[1])
+            got = self._ends.get(key) or (ps, self._rapid_ends(ps, r))
+            kept[key] = got
+            ends.append(got[1])
+        self._ends = kept  # (holding the passes: their ids stay theirs)
         ks = np.array([k for k in range(1, len(passes)) if passes[k]["tool"] == passes[k - 1]["tool"]
                        and passes[k].get("direct_in", True) and ends[k - 1][1] is not None
                        and ends[k][0] is not None], np.int64)
@@ -157,7 +164,8 @@ class PathBuilder:
         (a round of repairs rebuilds the passes it did not change the same)."""
         if self._known_for is not self.direct:
             self._known, self._known_for = {}, self.direct
-        keys = [np.concatenate([a[i], xa[i], b[i], xb[i], [tool[i]]]).tobytes() for i in range(len(a))]
+        rows = np.ascontiguousarray(np.column_stack([a, xa, b, xb, tool]), np.float64)
+        keys = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel().tolist()
         new = [i for i, k in enumerate(keys) if k not in self._known]
         if new:
             for i, ok in zip(new, self.direct(a[new], xa[new], b[new], xb[new], tool[new])):

@@ -500,7 +500,7 @@ def _found(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth,
     problems = []
     clearance = meas.stock.clearance
 
-    def collect(kind, mask, depth, part_of, shift=0.0):
+    def collect(kind, mask, depth, part, shift=0.0):
         idx = np.nonzero(mask)[0]
         if len(idx) == 0:
             return set()
@@ -508,22 +508,27 @@ def _found(tp, tools, tip, tool, move, rapid, end_depth, body_depth, ring_depth,
         order = np.lexsort((-depth[idx], move[idx]))
         idx = idx[order]
         firsts = idx[np.r_[True, move[idx][1:] != move[idx][:-1]]]
-        for i in firsts:
-            problems.append(Problem(kind, int(move[i]), int(tp.line[move[i]]), part_of(i), float(depth[i] - shift),
-                                    tuple(float(v) for v in tip[i])))
-        return {int(move[i]) for i in firsts}
+        parts = part(firsts)
+        for m, line, d, at, name in zip(move[firsts].tolist(), tp.line[move[firsts]].tolist(),
+                                        (depth[firsts] - shift).tolist(), tip[firsts].tolist(), parts):
+            problems.append(Problem(kind, m, line, name, d, tuple(at)))
+        return set(move[firsts].tolist())
+
+    def named(i, seg):  # the part of each pose i whose column of ``seg`` is deepest
+        return [names[t][c] for t, c in zip(tool[i].tolist(), np.argmax(seg[i], axis=1).tolist())]
 
     def end_part(i):
-        if ring_depth[i] >= seg_cut[i].max():
-            return tools[tool[i]].type + " end"
-        return names[tool[i]][int(np.argmax(seg_cut[i]))]
+        ring_wins = ring_depth[i] >= seg_cut[i].max(axis=1)
+        cyl = named(i, seg_cut)
+        return [tools[t].type + " end" if w else c for t, w, c in zip(tool[i].tolist(), ring_wins.tolist(), cyl)]
 
     def body_part(i):
-        where = " (in the stock)" if stock_depth[i] >= body_depth[i] > 0.0 else ""
-        return names[tool[i]][int(np.argmax(seg_body[i]))] + where
+        where = (stock_depth[i] >= body_depth[i]) & (body_depth[i] > 0.0)
+        return [c + " (in the stock)" if w else c for w, c in zip(where.tolist(), named(i, seg_body))]
 
     def any_part(i):
-        return end_part(i) if end_depth[i] >= body_depth[i] else body_part(i)
+        end_wins = end_depth[i] >= body_depth[i]
+        return [e if w else b for w, e, b in zip(end_wins.tolist(), end_part(i), body_part(i))]
 
     gouge = collect("gouge", ~rapid & (end_depth > tol), end_depth, end_part)
     coll = collect("collision", ~rapid & (body_depth > tol), body_depth, body_part)
