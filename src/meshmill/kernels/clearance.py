@@ -387,9 +387,18 @@ def build(jit):
                          + abs(az) + he + abs(s0) + abs(s1)) + 1e-12
         if hc + he < s0 - slack or hc - he > s1 + slack:
             return best
-        # a point of the slab within reach across the axis of the stadium's segment lies within
-        # reach of the band the axis sweeps, so within reach + |v| / 2 of the axis through the
-        # sweep's middle (over [s0, s1], flat ends: the disks' extent along each coordinate axis)
+        return d
+
+    @jit
+    def leaning_prism_box(q, node_lo, node_hi, n, best, reach):
+        # (:func:`prism_box`, for an axis whose prism's box is much wider than the prism) a point
+        # of the slab within reach across the axis of the stadium's segment lies within reach of
+        # the band the axis sweeps, so within reach + |v| / 2 of the axis through the sweep's
+        # middle (over [s0, s1], flat ends: the disks' extent along each coordinate axis)
+        d = prism_box(q, node_lo, node_hi, n, best, reach)
+        if d >= best:
+            return d
+        ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, box, w = q
         hv = 0.5 * math.sqrt(vx * vx + vy * vy)
         mx = ax + 0.5 * (vx * e1x + vy * e2x)
         my = ay + 0.5 * (vx * e1y + vy * e2y)
@@ -408,6 +417,7 @@ def build(jit):
         return stadium_tri_dist2(tris, t, ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, w)
 
     prism_search = bvh_search(jit, prism_box, prism_leaf)
+    leaning_prism_search = bvh_search(jit, leaning_prism_box, prism_leaf)
 
     @jit
     def mesh_stadium_dist2(ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, cap2, stop2,
@@ -423,6 +433,10 @@ def build(jit):
             box = grow_box(box, ax + h * ux + f * (vx * e1x + vy * e2x), ay + h * uy + f * (vx * e1y + vy * e2y),
                            az + h * uz + f * (vx * e1z + vy * e2z))
         q = (ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, box, w)
+        # an axis leaning off x, y and z by more than the distance asked: the prism's box is that
+        # much wider than the prism, and boxes are tested against the band round its mid axis too
+        if (s1 - s0) * math.sqrt(max(0.0, 1.0 - max(ux * ux, uy * uy, uz * uz))) > math.sqrt(cap2):
+            return leaning_prism_search(q, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack)[0]
         return prism_search(q, cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack)[0]
 
     @jit
