@@ -54,6 +54,14 @@ def _ridge():
 
 
 
+def _part_and_tools(part, tol):
+    """``(mesh, kernels, t0, segs, rings)``: a box, the ridge or a sphere, and :func:`_tools`
+    packed as verification packs them (a flat bottom's slab starting ``tol`` above the tip)."""
+    mesh = {"box": box([-10, -10, 0], [10, 10, 10]), "ridge": _ridge(), "sphere": sphere(8.0, 12, 24)}[part]
+    (t0, t1, r), cutting = pack_cylinders(_tools())
+    return mesh, solid_kernels(mesh), t0, (np.where(cutting & (t0 == 0.0), tol, t0), t1, r), pack_rings(_tools())
+
+
 def test_the_gap_between_triangles_along_their_centroids_never_exceeds_their_distance():
     # the cheap bound mesh_tris_dist2 prunes with: below the exact distance for any pair (near,
     # far, long and thin, touching), and near it for a far pair (so it prunes)
@@ -115,14 +123,9 @@ def test_a_depth_asked_only_past_a_stop_decides_as_the_exact_one(part):
     # poses above, grazing, in and buried in the part, every tool, grown or not: with ``stop``
     # each depth is past stop exactly where the exact one is, equal to it at or below stop (the
     # rounded ends) or between it and stop (the cylinders: the radial depth, or stop itself)
-    mesh = {"box": box([-10, -10, 0], [10, 10, 10]), "ridge": _ridge(), "sphere": sphere(8.0, 12, 24)}[part]
-    top = mesh.bounds[1, 2]
-    kern = solid_kernels(mesh)
-    tools = _tools()
-    (t0, t1, r), cutting = pack_cylinders(tools)
     stop = 0.01
-    segs = (np.where(cutting & (t0 == 0.0), stop, t0), t1, r)
-    rings = pack_rings(tools)
+    mesh, kern, t0, segs, rings = _part_and_tools(part, stop)
+    top = mesh.bounds[1, 2]
     rng = np.random.default_rng(7)
     n = 3000
     tip = np.column_stack([rng.uniform(-14, 14, n), rng.uniform(-14, 14, n), top + rng.uniform(-12, 4, n)])
@@ -174,14 +177,9 @@ def test_a_depth_asked_only_past_a_stop_decides_as_the_exact_one(part):
 @pytest.mark.parametrize("part", ["box", "ridge", "sphere"])
 @pytest.mark.slow
 def test_every_clear_interval_is_clear_at_every_pose(part):
-    mesh = {"box": box([-10, -10, 0], [10, 10, 10]), "ridge": _ridge(), "sphere": sphere(8.0, 12, 24)}[part]
-    top = mesh.bounds[1, 2]
-    kern = solid_kernels(mesh)
-    tools = _tools()
-    (t0, t1, r), cutting = pack_cylinders(tools)
     tol = 0.01
-    segs = (np.where(cutting & (t0 == 0.0), tol, t0), t1, r)
-    rings = pack_rings(tools)
+    mesh, kern, t0, segs, rings = _part_and_tools(part, tol)
+    top = mesh.bounds[1, 2]
     fine = (rings[0], rings[1], rings[2], np.full(3, 720))  # the torus densely sampled for the reference
     rng = np.random.default_rng({"box": 2, "ridge": 3, "sphere": 4}[part])
     n = 240
