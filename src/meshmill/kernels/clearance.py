@@ -403,7 +403,8 @@ def build(jit):
         mx = ax + 0.5 * (vx * e1x + vy * e2x)
         my = ay + 0.5 * (vx * e1y + vy * e2y)
         mz = az + 0.5 * (vx * e1z + vy * e2z)
-        rr = reach + hv
+        # (rounding of coordinates this large: a triangle at the reach is never dropped)
+        rr = (reach + hv) * (1.0 + 1e-12) + 1e-12 * (1.0 + abs(mx) + abs(my) + abs(mz) + abs(s0) + abs(s1))
         if not g.box_near_segment(node_lo, node_hi, n, mx + s0 * ux, my + s0 * uy, mz + s0 * uz, mx + s1 * ux,
                                   my + s1 * uy, mz + s1 * uz, rr * math.sqrt(max(0.0, 1.0 - ux * ux)),
                                   rr * math.sqrt(max(0.0, 1.0 - uy * uy)), rr * math.sqrt(max(0.0, 1.0 - uz * uz)),
@@ -921,7 +922,9 @@ def build(jit):
         whose reference point (sphere centre, the cylinder's top on the axis) lies in the material
         (:func:`inside`) is measured from the far side: radius plus distance. With ``stop >= 0``
         only whether each depth exceeds ``stop`` is asked: a depth is then exact up to stop, and
-        past it any value past stop (searches end at the first triangle deeper than that)."""
+        past it any value past stop (searches end at the first triangle deeper than that); a
+        cylinder's axial depth within AXIAL_TOL under stop is put past it, as the exact measure's
+        bisection from above may: past stop wherever the exact depth is."""
         t = tool[i]
         g_i = grow[i]
         px = tip[i, 0]
@@ -933,6 +936,7 @@ def build(jit):
         ex, ey, ez, gx, gy, gz = normal_frame(ux, uy, uz)
         r = ring_r[t] + g_i
         decide = stop >= 0.0 and r > stop  # a part this wide buried is past stop
+        past = stop + max(1e-12 * stop, 1e-300)  # a depth reported past stop
         if ring_r[t] > 0.0:
             cx = px + ring_t[t] * ux
             cy = py + ring_t[t] * uy
@@ -949,9 +953,12 @@ def build(jit):
                                                                 node_range, tris, stack))
                     ring[i] = max(ring[i], r + d)
                     continue
-                d = math.sqrt(point_dist(qx, qy, qz, r * r, (r - stop) ** 2 if decide else 0.0, node_lo, node_hi,
-                                         node_child, node_range, tris, stack))
-                if d < r:
+                stop2 = (r - stop) ** 2 if decide else 0.0
+                d2 = point_dist(qx, qy, qz, r * r, stop2, node_lo, node_hi, node_child, node_range, tris, stack)
+                d = math.sqrt(d2)
+                if d2 < stop2:  # (the search ended there: past stop, whatever r - d rounds to)
+                    ring[i] = max(ring[i], max(r - d, past))
+                elif d < r:
                     ring[i] = max(ring[i], r - d)
         for k in range(seg_r.shape[1]):
             r = seg_r[t, k]
@@ -962,8 +969,9 @@ def build(jit):
             t1 = seg_t1[t, k] + g_i
             r2 = r * r
             decide = stop >= 0.0 and r > stop
-            d2 = cylinder_dist(px, py, pz, ux, uy, uz, t0, t1, r2, (r - stop) ** 2 if decide else 0.0,
-                               node_lo, node_hi, node_child, node_range, tris, stack)
+            stop2 = (r - stop) ** 2 if decide else 0.0
+            d2 = cylinder_dist(px, py, pz, ux, uy, uz, t0, t1, r2, stop2, node_lo, node_hi, node_child, node_range,
+                               tris, stack)
             qx = px + t1 * ux
             qy = py + t1 * uy
             qz = pz + t1 * uz
@@ -976,12 +984,16 @@ def build(jit):
             if d2 >= r2:
                 continue
             radial = r - math.sqrt(d2)  # (with decide and past stop: at most the radial depth)
+            if d2 < stop2:  # (the search ended there: past stop, whatever r - sqrt(d2) rounds to)
+                radial = max(radial, past)
             base = seg_base[t, k] - g_i
             if stop >= 0.0:
-                # past stop radially; axially too where the cylinder raised by stop still meets the mesh
-                if radial > stop and cylinder_dist(px, py, pz, ux, uy, uz, min(max(t0, base + stop), t1 - 1e-9), t1,
-                                                   r2, r2, node_lo, node_hi, node_child, node_range, tris,
-                                                   stack) >= r2:
+                # past stop radially; axially too where the cylinder raised by stop less AXIAL_TOL
+                # still meets the mesh (the bisection from above may put a depth that far under
+                # stop past it: never past stop here where it is not so there)
+                if radial > stop and cylinder_dist(px, py, pz, ux, uy, uz,
+                                                   min(max(t0, base + stop - AXIAL_TOL), t1 - 1e-9), t1, r2, r2,
+                                                   node_lo, node_hi, node_child, node_range, tris, stack) >= r2:
                     radial = stop
                 segs[i, k] = radial
                 continue
@@ -994,7 +1006,7 @@ def build(jit):
                              tris, stack) < r2:
                 segs[i, k] = radial
                 continue
-            for _ in range(30):
+            for _ in range(64):  # (2^64 AXIAL_TOL: any radial depth)
                 if hi - lo <= AXIAL_TOL:
                     break
                 mid = 0.5 * (lo + hi)
