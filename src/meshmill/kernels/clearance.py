@@ -405,10 +405,8 @@ def build(jit):
         mz = az + 0.5 * (vx * e1z + vy * e2z)
         # (rounding of coordinates this large: a triangle at the reach is never dropped)
         rr = (reach + hv) * (1.0 + 1e-12) + 1e-12 * (1.0 + abs(mx) + abs(my) + abs(mz) + abs(s0) + abs(s1))
-        if not g.box_near_segment(node_lo, node_hi, n, mx + s0 * ux, my + s0 * uy, mz + s0 * uz, mx + s1 * ux,
-                                  my + s1 * uy, mz + s1 * uz, rr * math.sqrt(max(0.0, 1.0 - ux * ux)),
-                                  rr * math.sqrt(max(0.0, 1.0 - uy * uy)), rr * math.sqrt(max(0.0, 1.0 - uz * uz)),
-                                  rr):
+        if not g.box_near_cylinder(node_lo, node_hi, n, mx + s0 * ux, my + s0 * uy, mz + s0 * uz, mx + s1 * ux,
+                                   my + s1 * uy, mz + s1 * uz, ux, uy, uz, rr):
             return best
         return d
 

@@ -437,14 +437,19 @@ def build(jit):
         return dist - extent <= r + slack
 
     @jit
+    def box_near_cylinder(node_lo, node_hi, n, p0x, p0y, p0z, p1x, p1y, p1z, ux, uy, uz, r):
+        """False only when box n certainly lies farther than r from the flat-ended cylinder's
+        axis p0-p1 (unit u): :func:`box_near_segment`, its end disks reaching r·sqrt(1 - u_k²)
+        along coordinate axis k past the segment's box."""
+        return box_near_segment(node_lo, node_hi, n, p0x, p0y, p0z, p1x, p1y, p1z,
+                                r * math.sqrt(max(0.0, 1.0 - ux * ux)), r * math.sqrt(max(0.0, 1.0 - uy * uy)),
+                                r * math.sqrt(max(0.0, 1.0 - uz * uz)), r)
+
+    @jit
     def cylinder_box(q, node_lo, node_hi, n, best, reach):
-        # the query: axis point a, unit u, range t0..t1 along it, and the range's ends p0, p1; the
-        # flat cylinder of radius reach reaches reach·sqrt(1 - u_k²) across axis k from them
+        # the query: axis point a, unit u, range t0..t1 along it, and the range's ends p0, p1
         ax, ay, az, ux, uy, uz, t0, t1, p0x, p0y, p0z, p1x, p1y, p1z = q
-        ex = reach * math.sqrt(max(0.0, 1.0 - ux * ux))
-        ey = reach * math.sqrt(max(0.0, 1.0 - uy * uy))
-        ez = reach * math.sqrt(max(0.0, 1.0 - uz * uz))
-        return 0.0 if box_near_segment(node_lo, node_hi, n, p0x, p0y, p0z, p1x, p1y, p1z, ex, ey, ez, reach) else best
+        return 0.0 if box_near_cylinder(node_lo, node_hi, n, p0x, p0y, p0z, p1x, p1y, p1z, ux, uy, uz, reach) else best
 
     @jit
     def cylinder_leaf(q, tris, t, best, reach):
@@ -629,7 +634,7 @@ def build(jit):
         point_tri_dist2=point_tri_dist2,
         point_segment_dist2=point_segment_dist2,
         box_point_dist2=box_point_dist2,
-        box_near_segment=box_near_segment,
+        box_near_segment=box_near_segment, box_near_cylinder=box_near_cylinder,
         segment_line_dist2=segment_line_dist2,
         line_crossing=line_crossing,
         triangle_axis_dist2=triangle_axis_dist2,

@@ -387,7 +387,8 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     ``bad_depths`` a move found bad is not measured further: its depth is that of the poses that
     found it, at least (for repairs, which need only which moves fail). With ``decide`` only
     which moves fail is asked: a pose's depth is exact up to ``tol`` and past it any depth past
-    ``tol`` (the same problems: the searches end at the first triangle deeper than that)."""
+    ``tol`` (past it wherever the exact depth is: the searches end at the first triangle deeper
+    than that)."""
     checked = np.ones(len(tp), bool) if only is None else np.asarray(only, bool).copy()
     if first > 0:
         checked[0] = False
