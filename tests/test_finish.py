@@ -748,7 +748,7 @@ def test_a_link_the_straight_rapid_fails_is_lifted_by_the_lowest_height_that_pas
         across = np.linalg.norm((b - a)[:, :2], axis=1) > 2.0  # not a leg up or down
         return ~across | (np.minimum(a[:, 2], b[:, 2]) >= 16.0 - 1e-9)
 
-    builder = PathBuilder(tip, axis, side, safe_z=50.0, lead=0.0, approach=1.0, radius=np.array([3.0]), direct=high)
+    builder = PathBuilder(tip, axis, side, safe_z=50.0, lead=0.0, approach=1.0, radius=np.array([3.0]), check=high)
     tp, owner, role = builder.build(passes)
     way = [i for i, r in enumerate(role) if r == "direct_in"]
     assert len(way) == 3 and builder.direct_links == 1 and LIFTS[:4] == (0.0, 2.0, 5.0, 10.0)
@@ -757,9 +757,42 @@ def test_a_link_the_straight_rapid_fails_is_lifted_by_the_lowest_height_that_pas
     assert np.allclose(tp.axis[way[0]], axis[1]) and np.allclose(tp.axis[way[1]], tilted)
     assert np.allclose(tp.tip[way[2]], tip[2] + 1.0 * tilted) and tp.rapid[way].all()
     assert not np.isclose(tp.tip[:, 2], 50.0)[way[0] - 1:way[2] + 1].any()
-    builder.direct = lambda a, xa, b, xb, tool: np.zeros(len(a), bool)
+    builder.check = lambda a, xa, b, xb, tool: np.zeros(len(a), bool)
     tp, owner, role = builder.build(passes)
     assert "direct_in" not in role and np.isclose(tp.tip[:, 2], 50.0).sum() >= 2
+
+
+def test_ways_whose_rapid_ends_in_the_way_are_skipped_before_the_path_is_built():
+    """PathBuilder with a stand-in check that refuses the tool's pose left of x = -0.1 and around
+    x = 10: a pass at x = 0 whose axis leans left takes the vertical retract (its rapid along the
+    axis would end at x = -0.3), a pass at x = 10 gives up its rapids' ways only as far as the
+    last one (feeding all the way is left to the repairs, which may first split the pass), and
+    no pose is asked twice over two builds."""
+    from meshmill.ops.finish_path import LAST_RAPID_WAY, LINKS, PathBuilder
+
+    lean = np.array([-math.sin(0.3), 0.0, math.cos(0.3)])
+    tip = np.array([[0.0, 0, 10], [0, 5, 10], [10, 0, 10], [10, 5, 10]])
+    axis = np.array([lean, lean, [0, 0, 1], [0, 0, 1]])
+    side = np.tile([0.0, -1.0, 0.0], (4, 1))
+    passes = [dict(tool=0, idx=np.array([0, 1]), entry=0, exit=0), dict(tool=0, idx=np.array([2, 3]), entry=0, exit=0)]
+    asked = []
+
+    def check(a, xa, b, xb, tool):
+        asked.append(len(a))
+        pose = np.all(a == b, axis=1)
+        blocked = (a[:, 0] < -0.1) | (np.abs(a[:, 0] - 10.0) < 1.0)
+        return ~(pose & blocked)
+
+    builder = PathBuilder(tip, axis, side, safe_z=50.0, lead=2.0, approach=1.0, radius=np.array([3.0]), check=check,
+                          direct=False)
+    tp, owner, role = builder.build(passes)
+    assert (passes[0]["entry"], passes[0]["exit"]) == (1, 1) and LINKS[1] == (True, True, False)
+    assert (passes[1]["entry"], passes[1]["exit"]) == (LAST_RAPID_WAY, LAST_RAPID_WAY) and not LINKS[LAST_RAPID_WAY][2]
+    into = [i for i, r in enumerate(role) if r == "link_in" and owner[i] == 0][-1]
+    assert np.allclose(tp.tip[into], tip[0] + [0.0, -2.0, 1.0]) and tp.rapid[into]  # vertical, above the lead
+    n = sum(asked)
+    builder.build(passes)
+    assert sum(asked) == n
 
 
 def test_points_within_the_tolerance_of_a_move_are_merged_and_put_back_where_it_fails():

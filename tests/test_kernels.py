@@ -180,6 +180,59 @@ def _meshes():
     return [_grid_mesh(0), _grid_mesh(1), _random_mesh(0, 40)]
 
 
+def _segment_triangle_dist2(a, b, tris, t):
+    """Exact squared distance from segment a-b to triangle t: 0 where it pierces, else the least
+    of its ends' distances to the triangle and of the triangle's edges' to it."""
+    tri = tris[t].reshape(3, 3)
+    m = np.column_stack([b - a, tri[0] - tri[1], tri[0] - tri[2]])
+    if abs(np.linalg.det(m)) > 1e-12:  # (parallel or in its plane: the terms below are exact)
+        s, beta, gamma = np.linalg.solve(m, tri[0] - a)
+        if 0.0 <= s <= 1.0 and beta >= 0.0 and gamma >= 0.0 and beta + gamma <= 1.0:
+            return 0.0
+    d = min(cpu.dev.point_triangle_dist2(*a, tris, t), cpu.dev.point_triangle_dist2(*b, tris, t))
+    for k in range(3):
+        d = min(d, cpu.clr.seg_seg_dist2(*a, *b, *tri[k], *tri[(k + 1) % 3]))
+    return d
+
+
+def test_the_segment_gap_never_exceeds_the_distance():
+    # segment_tri_gap prunes the cylinder searches' triangles: a lower bound on the distance from
+    # a segment (or a point) to a triangle, on grid meshes whose queries lie on vertices, edges
+    # and faces, segments along them, of length zero, and random ones
+    checked = 0
+    for V, F in _meshes():
+        bvh = build_bvh(V, F)
+        rng = np.random.default_rng(7 + len(F))
+        pts = _queries(V, F, rng)
+        pairs = [(a, b) for a, b in zip(pts[::2], pts[1::2])] + [(p, p) for p in pts[:20]]
+        pairs += [(V[f[0]], V[f[1]]) for f in F[:20]]  # along an edge of the mesh
+        for a, b in pairs:
+            for t in range(len(bvh.tris)):
+                gap = cpu.dev.segment_tri_gap(bvh.tris, t, *a, *b)
+                assert gap <= math.sqrt(_segment_triangle_dist2(a, b, bvh.tris, t)) + 1e-12
+                checked += 1
+    assert checked > 10000
+
+
+def test_capped_cylinder_searches_find_every_triangle_within_the_cap():
+    # the pose measures ask a cylinder's distance capped at its radius: with the triangles
+    # pruned by the gap, it is still exactly the least of the exact test below the cap
+    stack = np.empty(STACK_SIZE, np.int32)
+    for V, F in _meshes():
+        bvh = build_bvh(V, F)
+        rng = np.random.default_rng(11 + len(F))
+        pts = _queries(V, F, rng)
+        tris = range(len(bvh.tris))
+        for a, b in zip(pts[::2], pts[1::2]):
+            if np.linalg.norm(b - a) == 0.0:
+                continue
+            u = (b - a) / np.linalg.norm(b - a)
+            ref = min(cpu.dev.triangle_axis_dist2(bvh.tris, t, *a, *u, 0.5, 3.0) for t in tris)
+            for r in (0.25, 1.0, 2.0, 3.0):
+                d = cpu.dev.mesh_cylinder_dist2(*a, *u, 0.5, 3.0, r * r, 0.0, *bvh.arrays, stack)
+                assert d == ref if ref < r * r else d >= r * r
+
+
 def test_every_bvh_search_is_the_minimum_of_its_triangle_test():
     # the traversal written once prunes only what cannot come below the best, so each search
     # returns exactly the least of its triangle test over all triangles, and a triangle giving it

@@ -154,6 +154,27 @@ def build(jit):
         return wx - s * dx, wy - s * dy, wz - s * dz
 
     @jit
+    def segment_tri_gap(tris, t, ax, ay, az, bx, by, bz):
+        """A lower bound on the distance from triangle t to segment a-b (mm, up to rounding of
+        1e-12 of the coordinates): how far the triangle's corners lie past the segment along the
+        direction from the segment's point s nearest the triangle's centroid c to c (the segment
+        lies wholly at or before s along it; 0 where c is on the segment)."""
+        cx = (tris[t, 0] + tris[t, 3] + tris[t, 6]) / 3.0
+        cy = (tris[t, 1] + tris[t, 4] + tris[t, 7]) / 3.0
+        cz = (tris[t, 2] + tris[t, 5] + tris[t, 8]) / 3.0
+        vx, vy, vz = point_segment_offset(cx, cy, cz, ax, ay, az, bx, by, bz)
+        vn = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if vn <= 0.0:
+            return 0.0
+        sx = cx - vx
+        sy = cy - vy
+        sz = cz - vz
+        low = INF
+        for k in range(3):
+            low = min(low, (tris[t, 3 * k] - sx) * vx + (tris[t, 3 * k + 1] - sy) * vy + (tris[t, 3 * k + 2] - sz) * vz)
+        return low / vn
+
+    @jit
     def point_segment_dist2(px, py, pz, ax, ay, az, bx, by, bz):
         """Squared distance from point p to segment a-b."""
         wx, wy, wz = point_segment_offset(px, py, pz, ax, ay, az, bx, by, bz)
@@ -454,6 +475,12 @@ def build(jit):
     @jit
     def cylinder_leaf(q, tris, t, best, reach):
         ax, ay, az, ux, uy, uz, t0, t1, p0x, p0y, p0z, p1x, p1y, p1z = q
+        # a triangle farther than reach from the axis segment is farther across the axis within the
+        # slab (the exact test costs some ten times this bound; most triangles of the boxes met fail it)
+        slack = 1e-12 * (1.0 + abs(tris[t, 0]) + abs(tris[t, 1]) + abs(tris[t, 2]) + abs(p0x) + abs(p0y) + abs(p0z)
+                         + abs(p1x) + abs(p1y) + abs(p1z))
+        if segment_tri_gap(tris, t, p0x, p0y, p0z, p1x, p1y, p1z) > reach + slack:
+            return INF
         return triangle_axis_dist2(tris, t, ax, ay, az, ux, uy, uz, t0, t1)
 
     cylinder_search = bvh_search(jit, cylinder_box, cylinder_leaf)
@@ -632,7 +659,7 @@ def build(jit):
         keep_previous_axes=keep_previous_axes,
         point_triangle_dist2=point_triangle_dist2,
         point_tri_dist2=point_tri_dist2,
-        point_segment_dist2=point_segment_dist2,
+        point_segment_dist2=point_segment_dist2, segment_tri_gap=segment_tri_gap,
         box_point_dist2=box_point_dist2,
         box_near_segment=box_near_segment, box_near_cylinder=box_near_cylinder,
         segment_line_dist2=segment_line_dist2,

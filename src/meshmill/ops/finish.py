@@ -574,11 +574,12 @@ def path_builder(cut: Passes, setup: FinishSetup, tools, kern, rapid_stock: Stoc
     params = setup.params
     gentle = machine.chain.singular if machine is not None and machine.chain.type != "3-axis" else None
     reach = None if setup.stock is None else functools.partial(rapid_reach, kern, tools, params.tolerance, rapid_stock)
-    direct = None if params.links == "safe" else functools.partial(rapids_clear, kern, tools, params.tolerance,
-                                                                  rapid_stock, step=min(DEFAULT_STEP, params.sample))
+    check = functools.partial(rapids_clear, kern, tools, params.tolerance, rapid_stock,
+                              step=min(DEFAULT_STEP, params.sample))
     return PathBuilder(cut.tip, cut.axis, cut.side, setup.safe_z, params.lead,
                        approach=rapid_stock.allowance + rapid_stock.clearance + params.tolerance,
-                       radius=np.array([t.radius for t in tools]), gentle=gentle, reach=reach, direct=direct)
+                       radius=np.array([t.radius for t in tools]), gentle=gentle, reach=reach, check=check,
+                       direct=params.links != "safe")
 
 
 def path_check(mesh: Mesh, kern, setup: FinishSetup, tools, rapid_stock: StockCheck, device="cpu", cluster=None,
@@ -612,16 +613,17 @@ class Verified:
     dropped: int
 
 
-def verify_and_repair(passes: list, build, check) -> Verified:
+def verify_and_repair(passes: list, build, check, built=None) -> Verified:
     """The path of ``passes`` that passes its verification: ``build(passes)`` gives ``(toolpath,
-    owner (k,), role (k,))`` (each move's pass and part in it, :meth:`PathBuilder.build`),
+    owner (k,), role (k,))`` (each move's pass and part in it, :meth:`PathBuilder.build`;
+    ``built``: that of ``passes``, already built),
     ``check(toolpath)`` its report (:func:`~meshmill.pathing.verify.merge_reports`, with
     ``problem_moves``). Up to :data:`REPAIR_ROUNDS` rounds of :func:`repair_passes` change the passes
     that own the failing moves; then the passes that still fail are left out. NothingToCut when
     no pass is left."""
     dropped = 0
     for rnd in range(REPAIR_ROUNDS + 1):
-        tp, owner, role = build(passes)
+        tp, owner, role = built if rnd == 0 and built is not None else build(passes)
         report = check(tp)
         if report["ok"] or not passes:
             break
@@ -787,9 +789,10 @@ def finish(mesh: Mesh, tools, params: FinishParams, progress=None, device: str =
     with clock("path"):
         cut = cutting_passes(con, balls, poses, shallow, setup, tools)
         builder = path_builder(cut, setup, tools, kern, rapid_stock, machine)
+        built = builder.build(cut.passes)
     with clock("verify"):
         done = verify_and_repair(cut.passes, builder.build,
-                                 path_check(mesh, kern, setup, tools, rapid_stock, device, cluster, clock.say))
+                                 path_check(mesh, kern, setup, tools, rapid_stock, device, cluster, clock.say), built)
     summary, detail = finish_summary(mesh, kern, tools, setup, con, scallop, balls, poses, shallow, cut, done,
                                      rapid_stock.summary(), builder.pole_report())
     summary["links"] = {"way": params.links, "direct": builder.direct_links,

@@ -30,6 +30,7 @@ from .finish_pole import POLE_MARGIN, POLE_STEP, gentle_turns
 LINKS = ((True, False, False), (True, True, False), (False, False, False), (False, True, False), (False, False, True),
          (False, True, True))
 NO_LEAD = 2
+LAST_RAPID_WAY = max(k for k, way in enumerate(LINKS) if not way[2])  # the last whose rapid ends above the lead
 LIFTS = (0.0, 2.0, 5.0, 10.0, 20.0)  # mm: the heights a link between passes is tried at before the safe plane
 
 
@@ -57,15 +58,17 @@ class PathBuilder:
     distance (mm) above a lead's end where the rapid stops and the feed begins. ``gentle``: the
     ``singular`` angle (rad) of a 5-axis machine whose C must turn gently (:func:`gentle_turns`), or
     None. Between passes the axis turns where the last pass left the safe plane, then travels;
-    ``direct``: :func:`~meshmill.pathing.verify.rapids_clear`'s call for straight links (None: every
-    link by the safe plane)."""
+    ``check``: :func:`~meshmill.pathing.verify.rapids_clear`'s call, which ways in and out
+    (:meth:`_skip_blocked_ways`) and straight links are tried with (None: none tried, every
+    link by the safe plane); ``direct``: whether passes are linked straight where that passes."""
 
-    def __init__(self, tip, axis, side, safe_z, lead, approach, radius, gentle=None, reach=None, direct=None):
+    def __init__(self, tip, axis, side, safe_z, lead, approach, radius, gentle=None, reach=None, check=None,
+                 direct=True):
         self.tip, self.axis, self.side, self.safe_z, self.lead = tip, axis, side, safe_z, lead
         self.approach, self.radius, self.gentle, self.reach = approach, radius, gentle, reach
-        self.direct = direct
+        self.check, self.direct = check, direct
         self.direct_links = 0  # in the last path built
-        self._known, self._known_for = {}, direct  # the rapids direct has passed or failed
+        self._known, self._known_for = {}, check  # the rapids check has passed or failed
         self._blocks = {}  # the blocks of moves of the last path built (:meth:`build`)
         self._ends = {}  # the rapid ends of its passes (:meth:`_directs`), keyed as the blocks
 
@@ -99,6 +102,36 @@ class PathBuilder:
                     out[k][side] = max(float(tk), self.approach)
         return out
 
+    def _skip_blocked_ways(self, passes):
+        """Moves each pass's ``entry`` and ``exit`` (in place) past the ways of :data:`LINKS` whose
+        rapid ends where the tool itself is not clear (:attr:`check` of the pose ``approach`` above
+        the lead's end: the rapid into it, or out of it, fails verification, so a round of repairs
+        would take the next way), up to :data:`LAST_RAPID_WAY`: the ways that feed are left to the
+        repairs, which take them only after the path's own problems have split or unmerged the
+        pass (taken here at once, 140 of the impeller's passes were dropped that the repairs keep).
+        Each pose is asked once over the builds of a path (:meth:`_clear`'s memory)."""
+        if self.check is None:
+            return
+        todo = [(ps, key, end) for ps in passes for key, end in (("entry", 0), ("exit", -1))]
+        while todo:
+            todo = [(ps, key, end) for ps, key, end in todo if ps[key] < LAST_RAPID_WAY]
+            if not todo:
+                break
+            pts, axes, tools = [], [], []
+            for ps, key, end in todo:
+                lead, vertical, _ = LINKS[ps[key]]
+                i = ps["idx"][end]
+                p = self.tip[i] + (self.lead * self.side[i] if lead else 0.0)
+                pts.append(self._above(p, self.axis[i], vertical))
+                axes.append(self.axis[i])
+                tools.append(ps["tool"])
+            pts, axes = np.array(pts), np.array(axes)
+            ok = self._clear(pts, axes, pts, axes, np.array(tools, np.int64))
+            for (ps, key, end), good in zip(todo, ok):
+                if not good:
+                    ps[key] += 1
+            todo = [t for t, good in zip(todo, ok) if not good]
+
     def _rapid_ends(self, ps, reach):
         """Where the rapids into and out of pass ``ps`` end and start, ``(in, out)`` (each a point
         or None where the entry or exit feeds all the way from or to the safe plane)."""
@@ -119,7 +152,7 @@ class PathBuilder:
         """``{pass number: (m + 1, 3) points}``: the passes reached from the pass before without the
         safe plane (:attr:`direct`), by the first of :data:`LIFTS` whose link passes
         (:meth:`_lifted`)."""
-        if self.direct is None or len(passes) < 2:
+        if self.check is None or not self.direct or len(passes) < 2:
             return {}
         kept, ends = {}, []
         for ps, r in zip(passes, reaches):  # (each pass's, as in the last path built where it is the same)
@@ -160,15 +193,15 @@ class PathBuilder:
         return out
 
     def _clear(self, a, xa, b, xb, tool):
-        """:attr:`direct` of the rapids ``a -> b``, each asked once over the builds of one path
+        """:attr:`check` of the rapids ``a -> b``, each asked once over the builds of one path
         (a round of repairs rebuilds the passes it did not change the same)."""
-        if self._known_for is not self.direct:
-            self._known, self._known_for = {}, self.direct
+        if self._known_for is not self.check:
+            self._known, self._known_for = {}, self.check
         rows = np.ascontiguousarray(np.column_stack([a, xa, b, xb, tool]), np.float64)
         keys = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel().tolist()
         new = [i for i, k in enumerate(keys) if k not in self._known]
         if new:
-            for i, ok in zip(new, self.direct(a[new], xa[new], b[new], xb[new], tool[new])):
+            for i, ok in zip(new, self.check(a[new], xa[new], b[new], xb[new], tool[new])):
                 self._known[keys[i]] = bool(ok)
         return np.array([self._known[k] for k in keys], bool)
 
@@ -258,6 +291,7 @@ class PathBuilder:
         of it. A pass whose block of moves would come out the same as in the last path built (the
         same pass, reaches, links and point before) takes that block again: a round of repairs
         builds only the passes it changed and their neighbours."""
+        self._skip_blocked_ways(passes)
         reaches = self._reaches(passes)
         directs = self._directs(passes, reaches)
         self.direct_links = len(directs)
