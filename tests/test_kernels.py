@@ -91,6 +91,46 @@ def _random_mesh(seed, m=60):
     return V, F
 
 
+def _bvh_depth_and_leaves(bvh):
+    depth, leaves, todo = 0, [], [(0, 1)]
+    while todo:
+        n, d = todo.pop()
+        depth = max(depth, d)
+        if bvh.node_child[n, 0] < 0:
+            leaves.append(n)
+        else:
+            todo += [(int(bvh.node_child[n, 0]), d + 1), (int(bvh.node_child[n, 1]), d + 1)]
+    return depth, leaves
+
+
+def test_the_bvh_holds_every_triangle_once_in_boxes_that_hold_it_and_stays_shallow():
+    # surface-area splits on meshes that tempt them to peel one triangle a level (sizes growing
+    # geometrically, all on one line), on a grid mesh, and on identical triangles (no plane splits)
+    rng = np.random.default_rng(3)
+    size = 2.0 ** np.arange(300.0)  # (a split per triangle: the median takes over at SAH_DEPTH)
+    peel = np.stack([np.c_[size, 0 * size, 0 * size], np.c_[1.5 * size, 0 * size, 0 * size],
+                     np.c_[size, 0.5 * size, 0 * size]], axis=1)
+    same = np.tile([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], (300, 1, 1))
+    V, F = _grid_mesh(2, 200)
+    for tri in (peel, same, V[F], rng.uniform(-50, 50, (3000, 3, 3))):
+        bvh = build_bvh(tri.reshape(-1, 3), np.arange(3 * len(tri)).reshape(-1, 3))
+        depth, leaves = _bvh_depth_and_leaves(bvh)
+        assert depth < STACK_SIZE // 2
+        held = np.concatenate([np.arange(bvh.node_range[n, 0], bvh.node_range[n, 0] + bvh.node_range[n, 1])
+                               for n in leaves])
+        assert np.array_equal(np.sort(held), np.arange(len(tri)))  # every triangle in one leaf
+        assert np.array_equal(np.sort(bvh.order), np.arange(len(tri)))
+        np.testing.assert_array_equal(bvh.tris, tri[bvh.order].reshape(-1, 9))
+        for n in range(len(bvh.node_lo)):  # each box holds the boxes (and so the triangles) below it
+            for c in bvh.node_child[n]:
+                if c >= 0:
+                    assert (bvh.node_lo[n] <= bvh.node_lo[c]).all() and (bvh.node_hi[c] <= bvh.node_hi[n]).all()
+        for n in leaves:
+            a, m = bvh.node_range[n]
+            pts = bvh.tris[a:a + m].reshape(-1, 3)
+            assert m >= 1 and (bvh.node_lo[n] <= pts.min(axis=0)).all() and (pts.max(axis=0) <= bvh.node_hi[n]).all()
+
+
 def test_bvh_point_distance_equals_brute_force():
     for seed in range(5):
         V, F = _random_mesh(seed)
