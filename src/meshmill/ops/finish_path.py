@@ -72,6 +72,14 @@ class PathBuilder:
         self._blocks = {}  # the blocks of moves of the last path built (:meth:`build`)
         self._ends = {}  # the rapid ends of its passes (:meth:`_directs`), keyed as the blocks
 
+    def _way_end(self, ps, key):
+        """``(point, axis, vertical, feed)`` of pass ``ps``'s way in (``key`` ``"entry"``) or out
+        (``"exit"``): where its lead begins (ends), else its first (last) point; the way's retract
+        and whether it feeds all the way (:data:`LINKS`)."""
+        lead, vertical, feed = LINKS[ps[key]]
+        i = ps["idx"][0 if key == "entry" else -1]
+        return self.tip[i] + (self.lead * self.side[i] if lead else 0.0), self.axis[i], vertical, feed
+
     def _reaches(self, passes):
         """Per pass, the distances ``(in, out)`` down the way to the safe plane to which a rapid
         may come where its entry (exit) feeds all the way (None: feed all the way): the stock's
@@ -81,14 +89,11 @@ class PathBuilder:
             return out
         pts, dirs, axes, tools, tops, where = [], [], [], [], [], []
         for k, ps in enumerate(passes):
-            for side, key, end in ((0, "entry", 0), (1, "exit", -1)):
-                lead, vertical, feed = LINKS[ps[key]]
+            for side, key in enumerate(("entry", "exit")):
+                p, u, vertical, feed = self._way_end(ps, key)
                 if not feed or not ps.get(("reach_in", "reach_out")[side], True):
                     continue
-                i = ps["idx"][end]
-                p = self.tip[i] + (self.lead * self.side[i] if lead else 0.0)
-                u = self.axis[i]
-                d = np.array([0.0, 0.0, 1.0]) if vertical or u[2] < 1e-6 else u
+                d = self._dir(u, vertical)
                 pts.append(p)
                 dirs.append(d)
                 axes.append(u)
@@ -112,38 +117,26 @@ class PathBuilder:
         Each pose is asked once over the builds of a path (:meth:`_clear`'s memory)."""
         if self.check is None:
             return
-        todo = [(ps, key, end) for ps in passes for key, end in (("entry", 0), ("exit", -1))]
-        while todo:
-            todo = [(ps, key, end) for ps, key, end in todo if ps[key] < LAST_RAPID_WAY]
-            if not todo:
-                break
-            pts, axes, tools = [], [], []
-            for ps, key, end in todo:
-                lead, vertical, _ = LINKS[ps[key]]
-                i = ps["idx"][end]
-                p = self.tip[i] + (self.lead * self.side[i] if lead else 0.0)
-                pts.append(self._above(p, self.axis[i], vertical))
-                axes.append(self.axis[i])
-                tools.append(ps["tool"])
-            pts, axes = np.array(pts), np.array(axes)
-            ok = self._clear(pts, axes, pts, axes, np.array(tools, np.int64))
-            for (ps, key, end), good in zip(todo, ok):
-                if not good:
-                    ps[key] += 1
+        todo = [(ps, key) for ps in passes for key in ("entry", "exit")]
+        while todo := [(ps, key) for ps, key in todo if ps[key] < LAST_RAPID_WAY]:
+            ends = [self._way_end(ps, key) for ps, key in todo]
+            pts = np.array([self._above(p, u, vertical) for p, u, vertical, _ in ends])
+            axes = np.array([u for _, u, _, _ in ends])
+            ok = self._clear(pts, axes, pts, axes, np.array([ps["tool"] for ps, _ in todo], np.int64))
             todo = [t for t, good in zip(todo, ok) if not good]
+            for ps, key in todo:
+                ps[key] += 1
 
     def _rapid_ends(self, ps, reach):
         """Where the rapids into and out of pass ``ps`` end and start, ``(in, out)`` (each a point
         or None where the entry or exit feeds all the way from or to the safe plane)."""
         ends = []
-        for key, end, r in (("entry", 0, reach[0]), ("exit", -1, reach[1])):
-            lead, vertical, feed = LINKS[ps[key]]
-            i = ps["idx"][end]
-            p = self.tip[i] + (self.lead * self.side[i] if lead else 0.0)
+        for key, r in zip(("entry", "exit"), reach):
+            p, u, vertical, feed = self._way_end(ps, key)
             if not feed:
-                ends.append(self._above(p, self.axis[i], vertical))
+                ends.append(self._above(p, u, vertical))
             elif r is not None:
-                ends.append(p + r * self._dir(self.axis[i], vertical))
+                ends.append(p + r * self._dir(u, vertical))
             else:
                 ends.append(None)
         return ends
@@ -248,11 +241,11 @@ class PathBuilder:
         idx = ps["idx"]
         reach_in, reach_out = reach
         t0, u0 = self.tip[idx[0]], self.axis[idx[0]]
-        t1, u1 = self.tip[idx[-1]], self.axis[idx[-1]]
+        u1 = self.axis[idx[-1]]
         lead_in, vertical_in, feed_in = LINKS[ps["entry"]]
         lead_out, vertical_out, feed_out = LINKS[ps["exit"]]
-        start = t0 + (self.lead * self.side[idx[0]] if lead_in else 0.0)
-        end = t1 + (self.lead * self.side[idx[-1]] if lead_out else 0.0)
+        start = self._way_end(ps, "entry")[0]
+        end = self._way_end(ps, "exit")[0]
         if way is not None:  # from where the pass before left off: straight, or lifted over what lies between
             for j, p in enumerate(way[1:]):
                 add(p, u0 if j >= (len(way) - 1) // 2 else (axes[-1] if axes else prev[1]), True, "direct_in")
