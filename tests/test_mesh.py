@@ -186,3 +186,75 @@ def test_welding_indexes_points_as_unique_rows_do():
     uniq, ref = np.unique(pts, axis=0, return_inverse=True)
     assert count == len(uniq) and np.array_equal(inverse, ref.reshape(-1))
     assert np.array_equal(uniq[inverse], pts)
+
+
+def test_binary_stl_files_are_read_as_trimesh_reads_them(tmp_path):
+    """Binary STL files are read here (not with trimesh, whose import takes longer than reading a
+    large part): the same corners in the same order, as float64 of the file's float32; ASCII files
+    (and binary ones whose length does not match their count) are left to trimesh."""
+    from meshmill.geometry.mesh import read_binary_stl
+
+    stls = sorted(PARTS.glob("*.stl"))
+    if not stls:
+        pytest.skip("shared parts not present")
+    binary = 0
+    for path in stls:
+        got = read_binary_stl(path)
+        theirs = trimesh.load(path, force="mesh", process=False)
+        if got is None:  # an ASCII file
+            assert path.read_bytes()[:5].lower() == b"solid"
+            continue
+        binary += 1
+        assert got[0].dtype == np.float64 and np.array_equal(got[0], theirs.vertices), path.name
+        assert np.array_equal(got[1], theirs.faces), path.name
+    assert binary >= 3
+    solid_header = PARTS / "ktoolcav.stl"  # binary, its header starting with "solid"
+    assert read_binary_stl(solid_header) is not None
+    truncated = tmp_path / "truncated.stl"  # one record short of its count
+    truncated.write_bytes(solid_header.read_bytes()[:-50])
+    assert read_binary_stl(truncated) is None
+
+
+def test_binary_stl_written_here_reads_back_with_its_normals(tmp_path):
+    from meshmill.geometry.mesh import read_binary_stl, write_binary_stl
+
+    s = sphere(5.0, 12, 24)
+    v = np.vstack([s.vertices, [[0, 0, 9], [1, 0, 9], [2, 0, 9]]])  # with a degenerate triangle (a line)
+    f = np.vstack([s.faces, [[len(s.vertices), len(s.vertices) + 1, len(s.vertices) + 2]]])
+    path = tmp_path / "s.stl"
+    write_binary_stl(path, v, f)
+    assert path.stat().st_size == 84 + 50 * len(f)
+    corners, faces = read_binary_stl(path)
+    assert np.array_equal(corners, v[f].reshape(-1, 3).astype(np.float32).astype(np.float64))
+    theirs = trimesh.load(path, force="mesh", process=False)
+    assert np.array_equal(theirs.vertices, corners) and np.array_equal(theirs.faces, faces)
+    stored = np.frombuffer(path.read_bytes()[84:], np.dtype([("n", "<f4", 3), ("c", "<f4", 9), ("a", "<u2")]))["n"]
+    normal = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    np.testing.assert_allclose(stored[:-1], normal[:-1] / np.linalg.norm(normal[:-1], axis=1)[:, None], atol=1e-6)
+    assert np.all(stored[-1] == 0)
+    again = load_mesh(path)  # the degenerate triangle dropped: the sphere, closed
+    assert again.closed and len(again.faces) == len(s.faces) and again.dropped_degenerate == 1
+
+
+def test_vertex_components_join_what_faces_join():
+    """Union-find labels against a breadth-first search over the faces' corners (random soups,
+    repeated corners, vertices no face uses)."""
+    from meshmill.geometry.mesh import vertex_components
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        nv = int(rng.integers(1, 40))
+        faces = rng.integers(0, nv, (int(rng.integers(1, 25)), 3))
+        label = vertex_components(faces, nv)
+        neighbours = [set() for _ in range(nv)]
+        for a, b, c in faces:
+            neighbours[a] |= {b, c}
+            neighbours[b] |= {a, c}
+            neighbours[c] |= {a, b}
+        for start in range(nv):
+            seen, todo = {start}, [start]
+            while todo:
+                for n in neighbours[todo.pop()] - seen:
+                    seen.add(n)
+                    todo.append(n)
+            assert {k for k in range(nv) if label[k] == label[start]} == seen

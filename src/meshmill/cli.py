@@ -10,7 +10,6 @@ exits 1 when it finds problems.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import signal
@@ -33,7 +32,6 @@ _status_line = [False]  # a progress line is open on the terminal (to be ended b
 _run = [None]  # the result files of the command running (RunFiles): earlier results go at once
 _interrupted = [False]  # SIGINT came: whatever exception follows is the interrupt's
 _finished = [False]  # the command has ended (its result written, or its error said): SIGINT has nothing to stop
-_held = [False]  # in a block that must not be cut short: SIGINT is remembered, and raised when it ends
 
 
 def _quiet(args):
@@ -708,7 +706,7 @@ def _on_interrupt(signum, frame):
     if _finished[0]:
         return
     _interrupted[0] = True
-    if not _held[0] and not _in_llvmlite(frame):
+    if not runfiles.held[0] and not _in_llvmlite(frame):
         raise KeyboardInterrupt
 
 
@@ -719,20 +717,6 @@ def _in_llvmlite(frame) -> bool:
             return True
         frame = frame.f_back
     return False
-
-
-@contextlib.contextmanager
-def _uninterrupted():
-    """A block a Ctrl-C must not cut short (it is raised when the block ends): importing trimesh,
-    whose imports catch BaseException, so that a KeyboardInterrupt inside an extension module's
-    initialisation would leave that module half made (and a crash when trimesh touches it)."""
-    _held[0] = True
-    try:
-        yield
-    finally:
-        _held[0] = False
-    if _interrupted[0]:
-        raise KeyboardInterrupt
 
 
 def _caused_by_interrupt(exc) -> bool:
@@ -748,7 +732,7 @@ def _caused_by_interrupt(exc) -> bool:
 def main(argv=None) -> int:
     _status_line[0] = False
     _run[0] = None
-    _interrupted[0] = _finished[0] = _held[0] = False
+    _interrupted[0] = _finished[0] = runfiles.held[0] = False
     previous = signal.signal(signal.SIGINT, _on_interrupt) if _main_thread() else None
     runfiles.interrupted[0] = lambda: _interrupted[0]
     try:
@@ -789,9 +773,6 @@ def _main(argv) -> int:
     try:
         if args.command in FOLDER_OUTPUTS:
             _results([os.path.join(args.out, n) for n in FOLDER_OUTPUTS[args.command]])  # earlier results go now
-        if args.command not in ("post", "time"):  # the commands that read meshes
-            with _uninterrupted():
-                import trimesh  # noqa: F401
         args.options = _options_given(args, args.spec) if args.spec is not None else \
             {k: v for k, v in vars(args).items() if k in ("jobfile", "device", "cluster")}
         return args.func(args)

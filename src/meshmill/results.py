@@ -138,9 +138,9 @@ class SimulateResult(_Saved):
             if self.load is not None:
                 np.savez_compressed(at("load.npz"), **self.load.arrays())
             if self.machined is not None and len(self.machined[1]):
-                import trimesh
+                from .geometry.mesh import write_binary_stl
 
-                trimesh.Trimesh(*self.machined, process=False).export(at("machined.stl"))
+                write_binary_stl(at("machined.stl"), *self.machined)
             write_json(at("deviation.json"), self.deviation)
             write_json(at("summary.json"), self.summary)
 

@@ -9,6 +9,7 @@ does not commit leaves nothing behind (:meth:`RunFiles.abort`).
 """
 from __future__ import annotations
 
+import contextlib
 import os
 
 from .errors import InputError
@@ -17,6 +18,23 @@ from .errors import InputError
 # catches BaseException while it imports can swallow one): the command line sets it; no result
 # of an interrupted run is committed.
 interrupted = [lambda: False]
+# In a block a Ctrl-C must not cut short (:func:`uninterrupted`): the command line's SIGINT
+# handler then only remembers it.
+held = [False]
+
+
+@contextlib.contextmanager
+def uninterrupted():
+    """A block a Ctrl-C must not cut short (it is raised when the block ends): importing trimesh,
+    whose imports catch BaseException, so that a KeyboardInterrupt inside an extension module's
+    initialisation would leave that module half made (and a crash when trimesh touches it)."""
+    held[0] = True
+    try:
+        yield
+    finally:
+        held[0] = False
+    if interrupted[0]():
+        raise KeyboardInterrupt
 
 
 class RunFiles:

@@ -44,9 +44,9 @@ def write_json(path, data):
 
 def write_part(path, mesh):
     """The placed part as a binary STL (mm, work frame), for any program to check a path against."""
-    import trimesh
+    from .geometry.mesh import write_binary_stl
 
-    trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(path, file_type="stl")
+    write_binary_stl(path, mesh.vertices, mesh.faces)
 
 
 @dataclass
@@ -140,9 +140,10 @@ def read_run(folder: str, meshes: dict | None = None) -> Run:
         m = os.path.join(folder, "machined.stl")
         if os.path.exists(m):
             import numpy as np
-            import trimesh
 
-            t = trimesh.load(m, force="mesh")  # processed: the STL's repeated corners merged
+            from .geometry.mesh import import_trimesh
+
+            t = import_trimesh().load(m, force="mesh")  # processed: the STL's repeated corners merged
             run.machined = (np.asarray(t.vertices, float), np.asarray(t.faces, np.int64))
     return run
 

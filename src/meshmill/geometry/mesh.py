@@ -7,8 +7,9 @@ wound mesh is never turned over, closed or open, unless asked (``flip``). A clos
 inside out (negative volume) is refused, pointing to ``flip``; an open surface whose normals
 face mostly away from the spindle (-Z) is named in a warning. Each piece is closed, a solid with
 holes, or a sheet (:mod:`meshmill.geometry.solid`, which builds the solid the checks take as
-material). STL (ASCII and binary, also binary files whose header starts with "solid"), OBJ and PLY
-are read with trimesh.
+material). Binary STL files (also those whose header starts with "solid") are read and written
+here (:func:`read_binary_stl`, :func:`write_binary_stl`: importing trimesh takes longer than reading
+a large part); ASCII STL, OBJ and PLY are read with trimesh.
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ import numba
 import numpy as np
 
 from ..errors import InputError
+from ..runfiles import uninterrupted
 from .placement import Placement, Setup
 from .solid import CLOSED, HOLES, SHEET, bounded_solid
 from ..tolerances import DEGENERATE_AREA, TESSELLATION_ANGLE, TESSELLATION_TOL, WELD_DIGITS
@@ -232,17 +234,34 @@ def _winding_parity(n_faces, pair_a, pair_b, pair_same):
     return flip, comp
 
 
+@numba.njit(cache=True)
+def vertex_components(faces, n_vertices):
+    """``(n_vertices,)`` a label per vertex, the same for vertices joined through faces'
+    corners (``faces (m, 3)``): union-find, each root its smallest vertex."""
+    parent = np.arange(n_vertices)
+    for i in range(faces.shape[0]):
+        for j in range(1, 3):
+            a = faces[i, 0]
+            b = faces[i, j]
+            while parent[a] != a:  # path halving
+                parent[a] = parent[parent[a]]
+                a = parent[a]
+            while parent[b] != b:
+                parent[b] = parent[parent[b]]
+                b = parent[b]
+            if a < b:
+                parent[b] = a
+            elif b < a:
+                parent[a] = b
+    for k in range(n_vertices):  # roots are smaller than their children: one pass ends at them
+        parent[k] = parent[parent[k]]
+    return parent
+
+
 def _drop_strays(v, f, name, notes):
     """Faces ``f`` without the stray fragments: separate bodies (faces joined by shared vertices)
     smaller than ``STRAY_SIZE`` of the part across and ``STRAY_AREA`` of its area, with a warning."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    m = len(f)
-    # faces and vertices as one graph, a face joined to its three vertices
-    graph = coo_matrix((np.ones(3 * m), (np.repeat(np.arange(m), 3), m + f.reshape(-1))), shape=(m + len(v),) * 2)
-    _, label = connected_components(graph, directed=False)
-    n, comp = np.unique(label[:m], return_inverse=True)
+    n, comp = np.unique(vertex_components(f, len(v))[f[:, 0]], return_inverse=True)
     n = len(n)
     if n < 2:
         return f, notes
@@ -341,7 +360,11 @@ def read_mesh(path, flip=False, setup: Setup | None = None) -> Mesh:
         raise InputError(f"{path}: unsupported mesh format '{ext}' (use {', '.join(SUPPORTED)})")
     if os.path.getsize(path) == 0:
         raise InputError(f"{path}: empty file, no triangles")
-    import trimesh
+    if ext == ".stl":
+        arrays = read_binary_stl(path)
+        if arrays is not None:
+            return mesh_from_arrays(*arrays, name, flip, setup)
+    trimesh = import_trimesh()
 
     if ext in BREP:
         if setup is not None and setup.units != "mm":
@@ -362,6 +385,49 @@ def read_mesh(path, flip=False, setup: Setup | None = None) -> Mesh:
     return mesh_from_arrays(loaded.vertices, faces, name, flip, setup)
 
 
+def import_trimesh():
+    """The trimesh module, imported where a Ctrl-C cannot cut its imports short
+    (:func:`meshmill.runfiles.uninterrupted`)."""
+    with uninterrupted():
+        import trimesh
+    return trimesh
+
+
+STL_RECORD = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
+
+
+def read_binary_stl(path):
+    """``(vertices (3 m, 3), faces (m, 3))`` of the binary STL file ``path`` (each triangle's
+    corners as written, unwelded: as trimesh gives them), or ``None`` where the file is not one: its
+    length is not 84 + 50 m bytes for the m triangles its header states (ASCII files, trimesh's).
+    Read here because importing trimesh costs more than reading a large part (0.5 s)."""
+    size = os.path.getsize(path)
+    with open(path, "rb") as fh:
+        head = fh.read(84)
+        if len(head) < 84:
+            return None
+        count = int(np.frombuffer(head, "<u4", 1, 80)[0])
+        if count == 0 or size != 84 + STL_RECORD.itemsize * count:
+            return None
+        records = np.fromfile(fh, STL_RECORD, count)
+    return records["corners"].reshape(-1, 3).astype(np.float64), np.arange(3 * count, dtype=np.int64).reshape(-1, 3)
+
+
+def write_binary_stl(path, vertices, faces):
+    """Write triangles ``faces (m, 3)`` of ``vertices (n, 3)`` mm as a binary STL file (float32,
+    each with its unit normal by the right-hand rule; zero for a degenerate triangle)."""
+    tri = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    records = np.zeros(len(tri), STL_RECORD)
+    records["normal"] = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+    records["corners"] = tri
+    with open(path, "wb") as fh:
+        fh.write(b"meshmill binary STL (mm)".ljust(80, b" "))
+        fh.write(np.uint32(len(tri)).astype("<u4").tobytes())
+        records.tofile(fh)
+
+
 def _read_brep(path, kind):
     """``(vertices (n, 3) mm, faces (m, 3), warnings)`` of a STEP or IGES file, every solid and
     surface tessellated within ``TESSELLATION_TOL`` (OpenCASCADE, through cascadio:
@@ -369,8 +435,7 @@ def _read_brep(path, kind):
     kind of message), not text on our standard output."""
     import io
 
-    import trimesh
-
+    trimesh = import_trimesh()
     try:
         import cascadio
     except ImportError:
