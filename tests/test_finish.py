@@ -795,6 +795,46 @@ def test_ways_whose_rapid_ends_in_the_way_are_skipped_before_the_path_is_built()
     assert sum(asked) == n
 
 
+def test_a_rebuild_looks_again_only_at_the_ways_and_links_of_the_passes_it_changed():
+    """PathBuilder over five passes along y, linked straight: a second build of the same passes
+    computes no way and no link again; with pass 2 replaced by a copy (as a round of repairs makes
+    one), only its two ways and the two links into and out of it; the paths equal a new
+    builder's, and a changed check forgets what the last builds learnt."""
+    from meshmill.ops.finish_path import PathBuilder
+
+    tip = np.array([[10.0 * (k // 2), 5.0 * (k % 2), 10.0] for k in range(10)])
+    axis = np.tile([0.0, 0.0, 1.0], (10, 1))
+    side = np.tile([-1.0, 0.0, 0.0], (10, 1))
+
+    def passes():
+        return [dict(tool=0, idx=np.array([2 * k, 2 * k + 1]), entry=0, exit=0) for k in range(5)]
+
+    def clear(a, xa, b, xb, tool):
+        return np.ones(len(a), bool)
+
+    builder = PathBuilder(tip, axis, side, safe_z=50.0, lead=2.0, approach=1.0, radius=np.array([3.0]), check=clear)
+    ways, links = [], []
+    ways_at, new_directs = builder._ways_at, builder._new_directs
+    builder._ways_at = lambda todo: ways.append(len(todo)) or ways_at(todo)
+    builder._new_directs = lambda ps, ends, ks: links.append(len(ks)) or new_directs(ps, ends, ks)
+    ours = passes()
+    first = builder.build(ours)
+    assert ways == [10] and links == [4] and builder.direct_links == 4
+    again = builder.build(ours)
+    assert ways == [10] and links == [4]
+    ours[2] = dict(ours[2])
+    changed = builder.build(ours)
+    assert ways == [10, 2] and links == [4, 2]
+    fresh = PathBuilder(tip, axis, side, safe_z=50.0, lead=2.0, approach=1.0, radius=np.array([3.0]),
+                        check=clear).build(passes())
+    for tp, owner, role in (first, again, changed):
+        assert np.array_equal(tp.tip, fresh[0].tip) and np.array_equal(tp.rapid, fresh[0].rapid)
+        assert owner == fresh[1] and role == fresh[2]
+    builder.check = lambda a, xa, b, xb, tool: np.ones(len(a), bool)
+    builder.build(ours)
+    assert ways == [10, 2, 10] and links == [4, 2, 4]
+
+
 def test_points_within_the_tolerance_of_a_move_are_merged_and_put_back_where_it_fails():
     """A pass along a line with 0.002 mm of zigzag and one 0.05 mm bump: merged to its two ends and
     the bump (the zigzag is within half the tolerance, the bump is not), every point still counted

@@ -71,6 +71,8 @@ class PathBuilder:
         self._known, self._known_for = {}, check  # the rapids check has passed or failed
         self._blocks = {}  # the blocks of moves of the last path built (:meth:`build`)
         self._ends = {}  # the rapid ends of its passes (:meth:`_directs`), keyed as the blocks
+        self._settled = {}  # its passes' ways as :meth:`_skip_blocked_ways` left them
+        self._links = {}  # its direct links (:meth:`_directs`: points, or None), keyed by the two passes
 
     def _way_end(self, ps, key):
         """``(point, axis, vertical, feed)`` of pass ``ps``'s way in (``key`` ``"entry"``) or out
@@ -114,18 +116,32 @@ class PathBuilder:
         would take the next way), up to :data:`LAST_RAPID_WAY`: the ways that feed are left to the
         repairs, which take them only after the path's own problems have split or unmerged the
         pass (taken here at once, 140 of the impeller's passes were dropped that the repairs keep).
-        Each pose is asked once over the builds of a path (:meth:`_clear`'s memory)."""
+        Each pose is asked once over the builds of a path (:meth:`_clear`'s memory), and a pass
+        whose ways were settled in the last path built is not looked at again."""
         if self.check is None:
             return
-        todo = [(ps, key) for ps in passes for key in ("entry", "exit")]
+        settled = self._settled
+        todo = [(ps, key) for ps in passes if settled.get(id(ps), (None,))[1:] != (ps["entry"], ps["exit"])
+                for key in ("entry", "exit")]
         while todo := [(ps, key) for ps, key in todo if ps[key] < LAST_RAPID_WAY]:
-            ends = [self._way_end(ps, key) for ps, key in todo]
-            pts = np.array([self._above(p, u, vertical) for p, u, vertical, _ in ends])
-            axes = np.array([u for _, u, _, _ in ends])
-            ok = self._clear(pts, axes, pts, axes, np.array([ps["tool"] for ps, _ in todo], np.int64))
+            above, axes, tools = self._ways_at(todo)
+            ok = self._clear(above, axes, above, axes, tools)
             todo = [t for t, good in zip(todo, ok) if not good]
             for ps, key in todo:
                 ps[key] += 1
+        self._settled = {id(ps): (ps, ps["entry"], ps["exit"]) for ps in passes}  # (holding the passes: ids stay)
+
+    def _ways_at(self, todo):
+        """``(above (k, 3), axes (k, 3), tools (k,))`` of the ways ``todo`` ((pass, ``"entry"`` or
+        ``"exit"``) pairs): :meth:`_above` of their :meth:`_way_end`, all at once."""
+        i = np.array([ps["idx"][0 if key == "entry" else -1] for ps, key in todo], np.int64)
+        lead, vertical, _ = np.array(LINKS, bool)[[ps[key] for ps, key in todo]].T
+        p = np.where(lead[:, None], self.tip[i] + self.lead * self.side[i], self.tip[i])
+        u = self.axis[i]
+        straight = vertical | (u[:, 2] < 1e-6)
+        d = np.where(straight[:, None], np.array([0.0, 0.0, 1.0]), u)
+        above = p + np.minimum(self.approach, np.maximum(0.0, (self.safe_z - p[:, 2]) / d[:, 2]))[:, None] * d
+        return above, u, np.array([ps["tool"] for ps, _ in todo], np.int64)
 
     def _rapid_ends(self, ps, reach):
         """Where the rapids into and out of pass ``ps`` end and start, ``(in, out)`` (each a point
@@ -157,8 +173,21 @@ class PathBuilder:
         ks = np.array([k for k in range(1, len(passes)) if passes[k]["tool"] == passes[k - 1]["tool"]
                        and passes[k].get("direct_in", True) and ends[k - 1][1] is not None
                        and ends[k][0] is not None], np.int64)
-        if not len(ks):
-            return {}
+        # a link found (or not) in the last path built between the same two passes, the same
+        keys = {int(k): (id(passes[k - 1]), id(passes[k]), reaches[k - 1][1], reaches[k][0]) for k in ks}
+        links = {keys[k]: self._links[keys[k]] for k in keys if keys[k] in self._links}
+        out = {k: links[keys[k]] for k in keys if links.get(keys[k]) is not None}
+        ks = np.array([k for k in ks if keys[int(k)] not in links], np.int64)
+        if len(ks):
+            found = self._new_directs(passes, ends, ks)
+            out.update(found)
+            links.update({keys[int(k)]: found.get(int(k)) for k in ks})
+        self._links = links  # (the passes are held by the ends: their ids stay theirs)
+        return out
+
+    def _new_directs(self, passes, ends, ks) -> dict:
+        """:meth:`_directs` of the links into passes ``ks (j,)`` from the passes before (``ends``:
+        every pass's rapid ends)."""
         a = np.array([ends[k - 1][1] for k in ks])
         b = np.array([ends[k][0] for k in ks])
         da = np.array([self._dir(self.axis[passes[k - 1]["idx"][-1]], LINKS[passes[k - 1]["exit"]][1]) for k in ks])
@@ -187,9 +216,8 @@ class PathBuilder:
 
     def _clear(self, a, xa, b, xb, tool):
         """:attr:`check` of the rapids ``a -> b``, each asked once over the builds of one path
-        (a round of repairs rebuilds the passes it did not change the same)."""
-        if self._known_for is not self.check:
-            self._known, self._known_for = {}, self.check
+        (a round of repairs rebuilds the passes it did not change the same; :meth:`build` forgets
+        the answers when :attr:`check` changes)."""
         rows = np.ascontiguousarray(np.column_stack([a, xa, b, xb, tool]), np.float64)
         keys = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel().tolist()
         new = [i for i, k in enumerate(keys) if k not in self._known]
@@ -284,6 +312,8 @@ class PathBuilder:
         of it. A pass whose block of moves would come out the same as in the last path built (the
         same pass, reaches, links and point before) takes that block again: a round of repairs
         builds only the passes it changed and their neighbours."""
+        if self._known_for is not self.check:  # what the last builds learnt from another check
+            self._known, self._settled, self._links, self._known_for = {}, {}, {}, self.check
         self._skip_blocked_ways(passes)
         reaches = self._reaches(passes)
         directs = self._directs(passes, reaches)
