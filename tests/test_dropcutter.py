@@ -159,6 +159,28 @@ def test_a_wider_body_that_touches_nothing_keeps_the_cutters_contact():
     assert np.array_equal(c0, c1)
 
 
+@pytest.mark.parametrize("kind", CUTTERS)
+def test_a_point_drops_the_same_alone_in_another_order_or_with_others(kind):
+    """Each point starts from its neighbour's contact (a first lower bound that prunes the
+    search), yet its height and contact are a triangle's, whatever came before it: points 0.05 mm
+    apart along lines over a faceted sphere and a box's edge, dropped in one call, reversed,
+    shuffled and one by one, give the same bits (a waterline's levels or a raster's pieces spread
+    over a cluster's workers then give the one process's path)."""
+    R, r = CUTTERS[kind]
+    s, b = sphere(20.0, 24, 48), box([25, -5, 0], [35, 5, 12])
+    b = _bvh(type(s)(vertices=np.vstack([s.vertices, b.vertices]), faces=np.vstack([s.faces, b.faces + len(s.vertices)])))
+    t = np.arange(-30.0, 40.0, 0.05)
+    xy = np.vstack([np.column_stack([t, np.full(len(t), y)]) for y in (0.0, 3.3, 11.7)])
+    z, cc = cpu.drop_cutter(xy, R, r, -100, b)
+    order = np.random.default_rng(1).permutation(len(xy))
+    for again in (slice(None, None, -1), order):
+        z2, cc2 = cpu.drop_cutter(xy[again], R, r, -100, b)
+        assert np.array_equal(z2, z[again]) and np.array_equal(cc2, cc[again], equal_nan=True)
+    alone = [cpu.drop_cutter(xy[i:i + 1], R, r, -100, b) for i in range(0, len(xy), 11)]
+    assert np.array_equal(np.concatenate([a[0] for a in alone]), z[::11])
+    assert np.array_equal(np.concatenate([a[1] for a in alone]), cc[::11], equal_nan=True)
+
+
 def test_refinement_drops_only_the_new_segments_midpoints():
     """Each round tests the halves of the segments split the round before: the tips are those of
     testing every segment every round, from fewer drops."""

@@ -4,8 +4,9 @@ joins a running one (``dask scheduler`` / ``dask worker``, dask-jobqueue, dask-k
 Without either nothing here runs and Dask is not imported.
 
 The work is split where the kernels are already independent (pieces of a path, by ranges of
-moves); what every piece needs (the part, the tool table) is scattered once to every worker, and
-what a worker builds from it (a BVH) is kept there for the next piece (:func:`worker_cached`). A
+moves); what every piece needs (the part, the tool table) is held on the cluster once
+(:func:`share`), and what a worker builds from it (a BVH) is kept there for the next piece
+(:func:`worker_cached`). A
 piece whose worker dies is computed again elsewhere (Dask's retries); the pieces come back in
 order, so the result is the one process's.
 """
@@ -21,7 +22,7 @@ from .progress import Meter
 
 RETRIES = 3  # times a piece is computed again after its worker died
 PIECES_PER_WORKER = 4  # pieces a worker gets on average (the slow ones then even out)
-_CACHE: dict = {}  # per worker process: what it built from the scattered data, by token
+_CACHE: dict = {}  # per worker process: what it built from the shared data, by token
 
 
 @contextlib.contextmanager
@@ -167,11 +168,28 @@ def workers(client) -> int:
     return max(1, sum(client.nthreads().values()))
 
 
+class _Sealed:
+    """``value`` carried whole in a task's arguments (Dask does not look into it for futures)."""
+
+    def __init__(self, value):
+        self.value = value
+
+
+def _opened(sealed: _Sealed):
+    return sealed.value
+
+
+def hold(client, value):
+    """``value`` held on the cluster as a task's result: a future to pass to tasks, which the
+    workers fetch from each other. Should every worker holding it die, the scheduler makes it
+    again from the task (data scattered to the workers could not be: Dask's memory manager
+    keeps one copy of it, and a dead worker's copy was lost with the tasks waiting on it)."""
+    return client.submit(_opened, _Sealed(value), pure=False, retries=RETRIES)
+
+
 def share(client, shared: dict):
-    """``shared`` (with a ``token`` for :func:`worker_cached`) scattered once to every worker: a
-    future to pass to tasks."""
-    [handle] = client.scatter([dict(shared, token=uuid.uuid4().hex)], broadcast=True)  # a dict alone scatters by key
-    return handle
+    """``shared`` (with a ``token`` for :func:`worker_cached`) held on the cluster (:func:`hold`)."""
+    return hold(client, dict(shared, token=uuid.uuid4().hex))
 
 
 def submit(client, func, *args):
@@ -190,8 +208,7 @@ def wait(futures, progress=None, what="pieces") -> None:
 
 
 def run_pieces(client, func, shared, pieces, progress=None, what="pieces") -> list:
-    """``[func(shared, piece) for piece in pieces]`` on the cluster: ``shared`` scattered once to
-    every worker (:func:`share`), the results in the pieces' order; ``progress`` is told each
+    """``[func(shared, piece) for piece in pieces]`` on the cluster: ``shared`` held once (:func:`share`), the results in the pieces' order; ``progress`` is told each
     time a piece completes."""
     handle = share(client, shared)
     futures = [submit(client, func, handle, piece) for piece in pieces]
@@ -202,7 +219,7 @@ def run_pieces(client, func, shared, pieces, progress=None, what="pieces") -> li
 
 
 def worker_cached(shared: dict, name: str, build):
-    """``build()`` once per worker process for the scattered ``shared`` data: later pieces on the
+    """``build()`` once per worker process for the ``shared`` data: later pieces on the
     same worker reuse it (a BVH, kernels)."""
     key = (shared["token"], name)
     if key not in _CACHE:

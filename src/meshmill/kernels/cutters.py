@@ -23,6 +23,7 @@ NEG = -1.0e300
 NO_BODY = ((), ())  # no shank or holder cylinders: ``body`` of the drop-cutter wrappers
 PLANE_BOUND_NZ = 1e-6  # facets at least this far from vertical bound their triangle's contact by their plane's
 BISECTIONS = 60
+WARM_SLACK = 1e-9  # a neighbour's contact bounds the drop from below less this share of its height (+1 mm)
 
 
 def build(jit):
@@ -220,50 +221,57 @@ def build(jit):
     def mesh_drop(x, y, R, r, floor, sx, sy, sz, node_lo, node_hi, node_child, node_range, tris, stack):
         """Drop the cutter at (x, y) onto the mesh: the highest touching tip z (at least floor) and
         the contact point (NaN when the floor wins). ``(sx, sy, sz)``: a point of the mesh (NaN for
-        none), usually a neighbour's contact: the tip height it gives is a first lower bound, so the
-        search prunes everything below it from the start."""
-        best = floor
-        cx = math.nan
-        cy = math.nan
-        cz = math.nan
+        none), usually a neighbour's contact: the tip height it gives (less ``WARM_SLACK``) is a
+        first lower bound, so the search prunes what lies below it from the start. The height
+        and contact are always a triangle's (the one that point lies on lifts the tool at least
+        as high), so they do not depend on the point given: a point dropped alone, in another
+        order or with other points comes out the same, bit for bit."""
+        warm = floor
         rho = math.sqrt((sx - x) ** 2 + (sy - y) ** 2)
         if rho <= R:  # False for NaN
             z = sz - profile(rho, R, r)
-            if z > best:
-                best = z
-                cx, cy, cz = sx, sy, sz
-        stack[0] = 0
-        sp = 1
-        while sp > 0:
-            sp -= 1
-            n = stack[sp]
-            if node_hi[n, 2] <= best:
-                continue
-            dx = max(node_lo[n, 0] - x, 0.0, x - node_hi[n, 0])
-            dy = max(node_lo[n, 1] - y, 0.0, y - node_hi[n, 1])
-            d2 = dx * dx + dy * dy
-            if d2 > R * R:
-                continue
-            # no point of the box can lift the tip above its top less the cutter's rise there
-            if node_hi[n, 2] - profile(math.sqrt(d2), R, r) <= best:
-                continue
-            left = node_child[n, 0]
-            if left < 0:
-                first = node_range[n, 0]
-                for k in range(first, first + node_range[n, 1]):
-                    z, px, py, pz = triangle_drop(tris, k, x, y, R, r, best)
-                    if z > best:
-                        best = z
-                        cx, cy, cz = px, py, pz
-            else:
-                right = node_child[n, 1]
-                if node_hi[left, 2] > node_hi[right, 2]:  # higher child first
-                    stack[sp] = right
-                    stack[sp + 1] = left
+            warm = max(floor, z - WARM_SLACK * (1.0 + abs(z)))
+        best = warm
+        cx = math.nan
+        cy = math.nan
+        cz = math.nan
+        for attempt in range(2):  # (again from the floor if no triangle came above the warm bound)
+            if attempt == 1:
+                if not math.isnan(cx) or warm == floor:
+                    break
+                best = floor
+            stack[0] = 0
+            sp = 1
+            while sp > 0:
+                sp -= 1
+                n = stack[sp]
+                if node_hi[n, 2] <= best:
+                    continue
+                dx = max(node_lo[n, 0] - x, 0.0, x - node_hi[n, 0])
+                dy = max(node_lo[n, 1] - y, 0.0, y - node_hi[n, 1])
+                d2 = dx * dx + dy * dy
+                if d2 > R * R:
+                    continue
+                # no point of the box can lift the tip above its top less the cutter's rise there
+                if node_hi[n, 2] - profile(math.sqrt(d2), R, r) <= best:
+                    continue
+                left = node_child[n, 0]
+                if left < 0:
+                    first = node_range[n, 0]
+                    for k in range(first, first + node_range[n, 1]):
+                        z, px, py, pz = triangle_drop(tris, k, x, y, R, r, best)
+                        if z > best:
+                            best = z
+                            cx, cy, cz = px, py, pz
                 else:
-                    stack[sp] = left
-                    stack[sp + 1] = right
-                sp += 2
+                    right = node_child[n, 1]
+                    if node_hi[left, 2] > node_hi[right, 2]:  # higher child first
+                        stack[sp] = right
+                        stack[sp + 1] = left
+                    else:
+                        stack[sp] = left
+                        stack[sp + 1] = right
+                    sp += 2
         return best, cx, cy, cz
 
     @jit

@@ -3,7 +3,7 @@
 The lattice's lines are split, per direction, into blocks of tile rows (the cutting kernel's
 tiles, so a block's lines are cut by the moves whose swept boxes touch its tiles). A block lives
 on a worker from start to end: its design and stock lines are cast there (the meshes and their
-BVHs scattered once per worker), cut there, measured there. This process receives only each
+BVHs held once on the cluster, built once per worker), cut there, measured there. This process receives only each
 block's figures (exact-sum expansions and first extremes, :mod:`meshmill.simulation.deviation`),
 the design ends cut away (to bound their depth by the nearest machined end of any block), the
 marching-cubes field's rows (at most :data:`~meshmill.simulation.surface.MAX_NODES`) and the
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import memory
-from ..cluster import PIECES_PER_WORKER, check_workers, share, submit, wait, worker_cached, workers
+from ..cluster import PIECES_PER_WORKER, check_workers, hold, share, submit, wait, worker_cached, workers
 from ..progress import ranges
 from ..kernels.backend import TILE, MeshKernels
 from ..kernels.bvh import build_bvh
@@ -194,7 +194,7 @@ def simulate_on(client, design, toolpath, tools, step, stock, tolerance=0.01, mo
     away, depth = (np.concatenate([p[k] for p in parts]) for k in ("away_points", "away_depth"))
     nearest = None
     if len(away):
-        [points] = client.scatter([(away, depth)], broadcast=True)
+        points = hold(client, (away, depth))
         nearest = np.min(client.gather([submit(client, nearest_block, handle, b, c, points)
                                         for b, c in zip(blocks, cuts)]), axis=0)
     m = join_measures(parts, nearest, step)
@@ -210,7 +210,7 @@ def simulate_on(client, design, toolpath, tools, step, stock, tolerance=0.01, mo
             field[a0 + 1:a0 + 1 + len(slab)] = slab
         verts, faces = field_surface(field, lo, step, n)
         if len(verts):
-            [shared_verts] = client.scatter([verts], broadcast=True)
+            shared_verts = hold(client, verts)
             snaps = client.gather([submit(client, snap_block, handle, b, c, shared_verts)
                                    for p, b, c in zip(pieces, blocks, cuts) if p[0] < 2])
             for (idx, w), p in zip(snaps, [p for p in pieces if p[0] < 2]):
