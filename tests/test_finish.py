@@ -17,8 +17,6 @@ def test_sphere_every_tool_fits(tools):
     assert s["verify"]["ok"] and s["machinable_contours"] == s["contours"]
     # the ball centre sits exactly R off the mesh wherever the CC normal is a facet normal or in
     # the normal cone of a convex edge: no gouge beyond rounding
-    from meshmill.kernels import cpu
-
     dist = d["kern"].mesh_distances(d["ce"])
     assert np.abs(dist - 10.0).max() < 1e-9
 
