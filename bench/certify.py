@@ -3,12 +3,14 @@ path takes to make and the seconds its certificate takes, in one run on this mac
 
     .venv/bin/python bench/certify.py                       # about 3 minutes
     .venv/bin/python bench/certify.py --only finish         # finish, raster, waterline, verify
-    .venv/bin/python bench/certify.py --only finish --finishes impeller
+    .venv/bin/python bench/certify.py --only finish --finishes impeller --repeat 5
 
-Rows (each operation run twice in this process, the second timed, so numba's cache is loaded):
+Rows (each operation run once to load numba's cache, then ``--repeat`` times (1), timed: the row is
+the run of the median verify / generation, with the ratios' range where there are several):
 - ``finish``: the 5-axis finish (``scallop 0.01``, the balls and set-ups of bench/realparts.py) of
   the blade, the dolphin mould and the vase: the summary's stage seconds, generation = every
-  stage but ``verify`` (index, contours, tools, axes, shallow fill, path). And issue 39's
+  stage but ``verify`` (index, contours, tools, axes, shallow fill, path; and what the summary's
+  total holds besides: the part's loading, as the command does it, and the summary's figures). And issue 39's
   impeller (bench/standin_parts.py's stand-in, written to bench/out/parts on first use) as the
   issue ran it: ``--up +Y --scallop 0.01 --machine table-table-ac``, step-down 0.5 mm.
 - ``raster``: mount_rush, B4, stepover and sample 0.1 mm (bench/whole_ops.py's row): ``drop``
@@ -45,12 +47,29 @@ FINISHES["impeller"] = (None, ["--up", "+Y"], 0.5, "table-table-ac")
 from whole_ops import B6_TABLE  # noqa: E402
 
 
-def _twice(run):
+def _runs(run, repeat):
+    """``run()`` once (numba's cache loaded), then ``repeat`` times: those results."""
     run()
-    return run()
+    return [run() for _ in range(repeat)]
 
 
-def finish_rows(work, verify_too, finishes=tuple(FINISHES)):
+def _median_row(label, results) -> tuple[dict, object, float]:
+    """``(row, result, generation s)``: the run of ``results`` (operations' results, whose summary
+    has its stages' ``seconds``) with the median verify / generation; generation = the total
+    less ``verify``; with several runs, the ratios' range too."""
+    secs = [r.summary["seconds"] for r in results]
+    ratios = [s["verify"] / (s["total"] - s["verify"]) for s in secs]
+    k = sorted(range(len(ratios)), key=ratios.__getitem__)[len(ratios) // 2]
+    sec, gen = secs[k], secs[k]["total"] - secs[k]["verify"]
+    row = {"operation": label, "moves": len(results[k].toolpath), "generation_s": round(gen, 2),
+           "verify_s": round(sec["verify"], 2), "verify/generation": round(ratios[k], 2)}
+    if len(ratios) > 1:
+        row["ratio range"] = f"{min(ratios):.2f}-{max(ratios):.2f}"
+    row["stages_s"] = {n: round(v, 2) for n, v in sec.items() if n not in ("total", "load")}
+    return row, results[k], gen
+
+
+def finish_rows(work, verify_too, repeat, finishes=tuple(FINISHES)):
     from meshmill import api
     from meshmill.toolpath.cldata import write_apt
 
@@ -62,57 +81,48 @@ def finish_rows(work, verify_too, finishes=tuple(FINISHES)):
     for name in finishes:
         path, options, step_down, machine = FINISHES[name]
         part = api.load_part(path or written(name), **_setup(options))
-        res = _twice(lambda: api.finish(part, tools, step_down=step_down, scallop=0.01, machine=machine))
-        sec = res.summary["seconds"]
-        gen = sec["total"] - sec["verify"]
-        rows.append({"operation": f"finish {name}", "moves": len(res.toolpath), "generation_s": round(gen, 2),
-                     "verify_s": round(sec["verify"], 2), "verify/generation": round(sec["verify"] / gen, 2),
-                     "stages_s": {k: round(v, 2) for k, v in sec.items() if k not in ("total", "load")}})
+        row, res, gen = _median_row(f"finish {name}", _runs(
+            lambda: api.finish(part, tools, step_down=step_down, scallop=0.01, machine=machine), repeat))
+        rows.append(row)
         if verify_too:
             cl = os.path.join(work, f"{name}.cl")
             write_apt(cl, res.toolpath, tools)
-            rows.append(verify_row(f"verify {name} finish CL", part, cl, tools, gen))
+            rows.append(verify_row(f"verify {name} finish CL", part, cl, tools, gen, repeat))
     return rows
 
 
-def verify_row(label, part, cl, tools, generation_s):
+def verify_row(label, part, cl, tools, generation_s, repeat):
     from meshmill import api
-
-    t = {}
 
     def run():
         t0 = time.perf_counter()
         r = api.verify(part, cl, tools)
-        t["s"] = time.perf_counter() - t0
-        return r
+        return r, time.perf_counter() - t0
 
-    r = _twice(run)
+    runs = _runs(run, repeat)
+    r, s = runs[0][0], sorted(t for _, t in runs)[len(runs) // 2]
     return {"operation": label, "moves": r.report["moves"], "generation_s": round(generation_s, 2),
-            "verify_s": round(t["s"], 2), "verify/generation": round(t["s"] / generation_s, 2),
-            "ok": r.report["ok"]}
+            "verify_s": round(s, 2), "verify/generation": round(s / generation_s, 2), "ok": r.report["ok"]}
 
 
-def raster_rows(work, verify_too):
+def raster_rows(work, verify_too, repeat):
     from meshmill import api
 
     part = api.load_part(os.path.join(PARTS, "mount_rush.stl"))
     tools = api.load_tools(os.path.join(ROOT, "src", "meshmill", "data", "tools.toml"))
-    res = _twice(lambda: api.raster(part, tools, tool="B4", stepover=0.1, sample=0.1))
-    sec = res.summary["seconds"]
-    gen = sec["total"] - sec["verify"]
-    rows = [{"operation": "raster mount_rush B4 0.1/0.1", "moves": len(res.toolpath), "generation_s": round(gen, 2),
-             "verify_s": round(sec["verify"], 2), "verify/generation": round(sec["verify"] / gen, 2),
-             "stages_s": {k: round(v, 2) for k, v in sec.items() if k != "total"}}]
+    row, res, gen = _median_row("raster mount_rush B4 0.1/0.1", _runs(
+        lambda: api.raster(part, tools, tool="B4", stepover=0.1, sample=0.1), repeat))
+    rows = [row]
     if verify_too:
         from meshmill.toolpath.cldata import write_apt
 
         cl = os.path.join(work, "raster.cl")
         write_apt(cl, res.toolpath, tools)
-        rows.append(verify_row("verify mount_rush raster CL", part, cl, tools, gen))
+        rows.append(verify_row("verify mount_rush raster CL", part, cl, tools, gen, repeat))
     return rows
 
 
-def waterline_rows(work, verify_too):
+def waterline_rows(work, verify_too, repeat):
     from meshmill import api
 
     table_file = os.path.join(work, "b6.toml")
@@ -120,19 +130,15 @@ def waterline_rows(work, verify_too):
         fh.write(B6_TABLE)
     part = api.load_part(os.path.join(PARTS, "sphere_on_plate.stl"))
     tools = api.load_tools(table_file)
-    res = _twice(lambda: api.waterline(part, tools, tool="B6", step_down=1.0, sample=0.1))
-    sec = res.summary["seconds"]
-    gen = sec["total"] - sec["verify"]
-    return [{"operation": "waterline sphere_on_plate B6 1/0.1", "moves": len(res.toolpath),
-             "generation_s": round(gen, 2), "verify_s": round(sec["verify"], 2),
-             "verify/generation": round(sec["verify"] / gen, 2),
-             "stages_s": {k: round(v, 2) for k, v in sec.items() if k != "total"}}]
+    return [_median_row("waterline sphere_on_plate B6 1/0.1", _runs(
+        lambda: api.waterline(part, tools, tool="B6", step_down=1.0, sample=0.1), repeat))[0]]
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default="finish,raster,waterline,verify")
     ap.add_argument("--finishes", default=",".join(FINISHES), help="the parts finished (%(default)s)")
+    ap.add_argument("--repeat", type=int, default=1, help="timed runs of each operation (%(default)s)")
     ap.add_argument("--out", default=os.path.join(HERE, "out", "certify.json"))
     a = ap.parse_args()
     only = a.only.split(",")
@@ -141,7 +147,7 @@ def main():
         for name, rows_of in (("finish", finish_rows), ("raster", raster_rows), ("waterline", waterline_rows)):
             if name in only:
                 extra = {"finishes": a.finishes.split(",")} if name == "finish" else {}
-                got = rows_of(work, "verify" in only, **extra)
+                got = rows_of(work, "verify" in only, max(1, a.repeat), **extra)
                 rows += got
                 print(table([{k: v for k, v in r.items() if k != "stages_s"} for r in got]), flush=True)
     print()
