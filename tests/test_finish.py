@@ -797,8 +797,9 @@ def test_a_rebuild_looks_again_only_at_the_ways_and_links_of_the_passes_it_chang
     """PathBuilder over five passes along y, linked straight: a second build of the same passes
     computes no way and no link again; with pass 2 replaced by a copy (as a round of repairs makes
     one), only its two ways and the two links into and out of it; the paths equal a new
-    builder's, and a changed check forgets what the last builds learnt."""
-    from meshmill.ops.finish_path import PathBuilder
+    builder's; and a changed check forgets what the last builds learnt (their blocks included:
+    a pass whose way the new check moves on is built anew)."""
+    from meshmill.ops.finish_path import NO_LEAD, PathBuilder
 
     tip = np.array([[10.0 * (k // 2), 5.0 * (k % 2), 10.0] for k in range(10)])
     axis = np.tile([0.0, 0.0, 1.0], (10, 1))
@@ -828,9 +829,17 @@ def test_a_rebuild_looks_again_only_at_the_ways_and_links_of_the_passes_it_chang
     for tp, owner, role in (first, again, changed):
         assert np.array_equal(tp.tip, fresh[0].tip) and np.array_equal(tp.rapid, fresh[0].rapid)
         assert owner == fresh[1] and role == fresh[2]
-    builder.check = lambda a, xa, b, xb, tool: np.ones(len(a), bool)
-    builder.build(ours)
-    assert ways == [10, 2, 10] and links == [4, 2, 4]
+
+
+    def blocked(a, xa, b, xb, tool):  # the pose above pass 2's lead-in is not clear
+        return ~((np.abs(a[:, 0] - 18.0) < 1e-9) & (np.abs(a[:, 1]) < 1e-9))
+
+    builder.check = blocked
+    tp, owner, role = builder.build(ours)
+    assert ways[2] == 10 and links[2] == 4 and ours[2]["entry"] == NO_LEAD  # both ways with a lead blocked
+    fresh = PathBuilder(tip, axis, side, safe_z=50.0, lead=2.0, approach=1.0, radius=np.array([3.0]),
+                        check=blocked).build(passes())
+    assert np.array_equal(tp.tip, fresh[0].tip) and owner == fresh[1] and role == fresh[2]
 
 
 def test_points_within_the_tolerance_of_a_move_are_merged_and_put_back_where_it_fails():

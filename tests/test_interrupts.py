@@ -147,3 +147,35 @@ def test_the_cluster_workers_are_born_ignoring_sigint():
         child.join(timeout=60)
     assert child.exitcode == 0 and multiprocessing.spawn.get_executable() == python
     assert signal.getsignal(signal.SIGINT) is not signal.SIG_IGN  # this process keeps its own
+
+
+def test_blocks_that_must_not_be_cut_short_nest_and_raise_once_the_last_ends():
+    import threading
+
+    from meshmill import runfiles
+
+    said, before = [False], runfiles.interrupted[0]
+    runfiles.interrupted[0] = lambda: said[0]
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with runfiles.uninterrupted():
+                with runfiles.uninterrupted():
+                    said[0] = True  # a Ctrl-C came while both were held
+                assert runfiles.held[0] == 1  # the inner block's end raises nothing: the outer still holds
+            raise AssertionError("not reached")
+        assert runfiles.held[0] == 0
+        raised = []
+
+        def other():  # another thread's block never raises the main thread's interrupt
+            try:
+                with runfiles.uninterrupted():
+                    pass
+            except KeyboardInterrupt:
+                raised.append(True)
+
+        t = threading.Thread(target=other)
+        t.start()
+        t.join()
+        assert not raised and runfiles.held[0] == 0
+    finally:
+        runfiles.interrupted[0] = before

@@ -258,3 +258,15 @@ def test_vertex_components_join_what_faces_join():
                     seen.add(n)
                     todo.append(n)
             assert {k for k in range(nv) if label[k] == label[start]} == seen
+
+
+def test_a_stl_file_that_cannot_be_read_is_one_clear_error(tmp_path, monkeypatch):
+    import meshmill.geometry.mesh as mesh_module
+
+    def refused(path):
+        raise PermissionError(13, "Permission denied", str(path))
+
+    p = _export(box([0, 0, 0], [1, 1, 1]), tmp_path / "locked.stl")
+    monkeypatch.setattr(mesh_module, "read_binary_stl", refused)
+    with pytest.raises(InputError, match="locked.stl: cannot read \\(Permission denied\\)"):
+        load_mesh(p)

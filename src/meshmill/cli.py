@@ -732,7 +732,8 @@ def _caused_by_interrupt(exc) -> bool:
 def main(argv=None) -> int:
     _status_line[0] = False
     _run[0] = None
-    _interrupted[0] = _finished[0] = runfiles.held[0] = False
+    _interrupted[0] = _finished[0] = False
+    runfiles.held[0] = 0
     previous = signal.signal(signal.SIGINT, _on_interrupt) if _main_thread() else None
     runfiles.interrupted[0] = lambda: _interrupted[0]
     try:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import os
 import uuid
+import warnings
 
 from . import memory
 from .errors import InputError
@@ -183,8 +184,12 @@ def hold(client, value):
     """``value`` held on the cluster as a task's result: a future to pass to tasks, which the
     workers fetch from each other. Should every worker holding it die, the scheduler makes it
     again from the task (data scattered to the workers could not be: Dask's memory manager
-    keeps one copy of it, and a dead worker's copy was lost with the tasks waiting on it)."""
-    return client.submit(_opened, _Sealed(value), pure=False, retries=RETRIES)
+    keeps one copy of it, and a dead worker's copy was lost with the tasks waiting on it). The
+    scheduler keeps the task, the value with it, until the future is released or cancelled
+    (Dask's warning about a large graph is expected here: not said)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Sending large graph")
+        return client.submit(_opened, _Sealed(value), pure=False, retries=RETRIES)
 
 
 def share(client, shared: dict):

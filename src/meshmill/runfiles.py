@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 
 from .errors import InputError
 
@@ -18,22 +19,27 @@ from .errors import InputError
 # catches BaseException while it imports can swallow one): the command line sets it; no result
 # of an interrupted run is committed.
 interrupted = [lambda: False]
-# In a block a Ctrl-C must not cut short (:func:`uninterrupted`): the command line's SIGINT
-# handler then only remembers it.
-held = [False]
+# How many blocks a Ctrl-C must not cut short (:func:`uninterrupted`) are running: while any is,
+# the command line's SIGINT handler only remembers it.
+held = [0]
+_holding = threading.Lock()
 
 
 @contextlib.contextmanager
 def uninterrupted():
-    """A block a Ctrl-C must not cut short (it is raised when the block ends): importing trimesh,
-    whose imports catch BaseException, so that a KeyboardInterrupt inside an extension module's
-    initialisation would leave that module half made (and a crash when trimesh touches it)."""
-    held[0] = True
+    """A block a Ctrl-C must not cut short (raised when the last such block ends, in the main
+    thread): importing trimesh, whose imports catch BaseException, so that a KeyboardInterrupt
+    inside an extension module's initialisation would leave that module half made (and a crash
+    when trimesh touches it). Blocks may nest or run in several threads at once."""
+    with _holding:
+        held[0] += 1
     try:
         yield
     finally:
-        held[0] = False
-    if interrupted[0]():
+        with _holding:
+            held[0] -= 1
+            last = held[0] == 0
+    if last and interrupted[0]() and threading.current_thread() is threading.main_thread():
         raise KeyboardInterrupt
 
 

@@ -361,7 +361,10 @@ def read_mesh(path, flip=False, setup: Setup | None = None) -> Mesh:
     if os.path.getsize(path) == 0:
         raise InputError(f"{path}: empty file, no triangles")
     if ext == ".stl":
-        arrays = read_binary_stl(path)
+        try:
+            arrays = read_binary_stl(path)
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read ({exc.strerror or exc.__class__.__name__})") from None
         if arrays is not None:
             return mesh_from_arrays(*arrays, name, flip, setup)
     trimesh = import_trimesh()
@@ -399,7 +402,8 @@ STL_RECORD = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attri
 def read_binary_stl(path):
     """``(vertices (3 m, 3), faces (m, 3))`` of the binary STL file ``path`` (each triangle's
     corners as written, unwelded: as trimesh gives them), or ``None`` where the file is not one: its
-    length is not 84 + 50 m bytes for the m triangles its header states (ASCII files, trimesh's).
+    length is not 84 + 50 m bytes for the m > 0 triangles its header states (ASCII files, and
+    what trimesh makes of the rest).
     Read here because importing trimesh costs more than reading a large part (0.5 s)."""
     size = os.path.getsize(path)
     with open(path, "rb") as fh:

@@ -313,7 +313,8 @@ class PathBuilder:
         same pass, reaches, links and point before) takes that block again: a round of repairs
         builds only the passes it changed and their neighbours."""
         if self._known_for is not self.check:  # what the last builds learnt from another check
-            self._known, self._settled, self._links, self._known_for = {}, {}, {}, self.check
+            self._known, self._settled, self._links, self._ends, self._blocks = {}, {}, {}, {}, {}
+            self._known_for = self.check
         self._skip_blocked_ways(passes)
         reaches = self._reaches(passes)
         directs = self._directs(passes, reaches)
