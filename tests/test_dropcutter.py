@@ -181,6 +181,19 @@ def test_a_point_drops_the_same_alone_in_another_order_or_with_others(kind):
     assert np.array_equal(np.concatenate([a[1] for a in alone]), cc[::11], equal_nan=True)
 
 
+def test_a_start_point_that_no_triangle_beats_falls_back_to_the_floor():
+    """mesh_drop given a start point above everything (not the mesh's: no triangle lifts the
+    tool to its bound) searches again from the floor: the height and contact of no start."""
+    from meshmill.kernels.cpu import STACK_SIZE, cut
+
+    b = _bvh(sphere(10.0, 12, 24))
+    stack = np.empty(STACK_SIZE, np.int32)
+    for x, y in ((0.0, 0.0), (4.0, 3.0), (20.0, 0.0)):
+        plain = cut.mesh_drop(x, y, 3.0, 3.0, -100.0, math.nan, math.nan, math.nan, *b, stack)
+        high = cut.mesh_drop(x, y, 3.0, 3.0, -100.0, x, y, 50.0, *b, stack)
+        assert plain == high or (math.isnan(plain[1]) and plain[0] == high[0] and math.isnan(high[1]))
+
+
 def test_refinement_drops_only_the_new_segments_midpoints():
     """Each round tests the halves of the segments split the round before: the tips are those of
     testing every segment every round, from fewer drops."""

@@ -235,11 +235,7 @@ def build(jit):
         cx = math.nan
         cy = math.nan
         cz = math.nan
-        for attempt in range(2):  # (again from the floor if no triangle came above the warm bound)
-            if attempt == 1:
-                if not math.isnan(cx) or warm == floor:
-                    break
-                best = floor
+        while True:
             stack[0] = 0
             sp = 1
             while sp > 0:
@@ -272,6 +268,9 @@ def build(jit):
                         stack[sp] = left
                         stack[sp + 1] = right
                     sp += 2
+            if not math.isnan(cx) or warm == floor:
+                break
+            best = warm = floor  # (no triangle came above the warm bound: again from the floor)
         return best, cx, cy, cz
 
     @jit
