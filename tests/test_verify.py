@@ -237,6 +237,18 @@ def test_a_changed_path_reverified_reports_as_a_whole_check(tools, pieces):
     assert check(tp2) == again and check.checked == 0
 
 
+def test_a_moves_key_is_its_point_before_its_point_tool_kind_and_whether_it_is_first():
+    from meshmill.pathing.reverify import move_keys
+
+    rng = np.random.default_rng(4)
+    for n in (0, 1, 2, 7):
+        tp = _path(rng.random((n, 3)), axes=rng.random((n, 3)), rapid=rng.random(n) < 0.5, tool=1)
+        prev = np.maximum(np.arange(n) - 1, 0)
+        want = np.column_stack([tp.tip[prev], tp.axis[prev], tp.tip, tp.axis, tp.tool, tp.rapid,
+                                np.arange(n) == 0]).astype(float).reshape(n, 15)
+        assert np.array_equal(move_keys(tp), want)
+
+
 def test_the_first_point_is_proven_and_never_taken_for_a_move_of_length_zero():
     """A needle's tip 0.05 mm inside a bull-nose's rounded corner, between the spheres its pose
     measure samples: the first point of a path is proven like every interval (not certified

@@ -21,9 +21,22 @@ def move_keys(tp: Toolpath) -> np.ndarray:
     """``(k, 15)`` float64: what decides each move's check (the point before and the move's point,
     tips and axes, its tool, whether it is rapid, and whether it is the path's first: move 0 is
     checked from its own point, unlike a later move of length zero)."""
-    prev = np.maximum(np.arange(len(tp)) - 1, 0)
-    return np.column_stack([tp.tip[prev], tp.axis[prev], tp.tip, tp.axis, tp.tool.astype(float),
-                            tp.rapid.astype(float), (np.arange(len(tp)) == 0).astype(float)])
+    k = len(tp)
+    keys = np.empty((k, 15))
+    if not k:
+        return keys
+    keys[1:, 0:3], keys[1:, 3:6] = tp.tip[:-1], tp.axis[:-1]
+    keys[0, 0:3], keys[0, 3:6] = tp.tip[0], tp.axis[0]
+    keys[:, 6:9], keys[:, 9:12], keys[:, 12], keys[:, 13] = tp.tip, tp.axis, tp.tool, tp.rapid
+    keys[:, 14] = 0.0
+    keys[0, 14] = 1.0
+    return keys
+
+
+def _rows(keys: np.ndarray) -> np.ndarray:
+    """``(k,)``: each row of ``keys`` as one opaque value (its bytes), compared at once."""
+    keys = np.ascontiguousarray(keys)
+    return keys.view(np.dtype((np.void, keys.dtype.itemsize * keys.shape[1]))).reshape(-1)
 
 
 def _hashes(keys: np.ndarray) -> np.ndarray:
@@ -60,7 +73,8 @@ class Reverify:
         order = np.argsort(old_h, kind="stable")
         at = np.minimum(np.searchsorted(old_h[order], new_h), len(order) - 1)
         cand = order[at]
-        same = (old_h[cand] == new_h) & (self.keys[cand] == keys).all(axis=1)
+        # the same bytes (stricter than equal floats: -0.0 is not 0.0 here, so checked again)
+        same = (old_h[cand] == new_h) & (_rows(self.keys)[cand] == _rows(keys))
         found[same] = cand[same]
         return found
 
