@@ -6,9 +6,8 @@ Without either nothing here runs and Dask is not imported.
 The work is split where the kernels are already independent (pieces of a path, by ranges of
 moves); what every piece needs (the part, the tool table) is held on the cluster once
 (:func:`share`), and what a worker builds from it (a BVH) is kept there for the next piece
-(:func:`worker_cached`). A
-piece whose worker dies is computed again elsewhere (Dask's retries); the pieces come back in
-order, so the result is the one process's.
+(:func:`worker_cached`). A piece whose worker dies is computed again elsewhere (Dask's retries);
+the pieces come back in order, so the result is the one process's.
 """
 from __future__ import annotations
 
@@ -213,8 +212,9 @@ def wait(futures, progress=None, what="pieces") -> None:
 
 
 def run_pieces(client, func, shared, pieces, progress=None, what="pieces") -> list:
-    """``[func(shared, piece) for piece in pieces]`` on the cluster: ``shared`` held once (:func:`share`), the results in the pieces' order; ``progress`` is told each
-    time a piece completes."""
+    """``[func(shared, piece) for piece in pieces]`` on the cluster: ``shared`` held once
+    (:func:`share`), the results in the pieces' order; ``progress`` is told each time a piece
+    completes."""
     handle = share(client, shared)
     futures = [submit(client, func, handle, piece) for piece in pieces]
     wait(futures, progress, what)

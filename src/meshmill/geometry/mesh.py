@@ -401,10 +401,10 @@ STL_RECORD = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attri
 
 def read_binary_stl(path):
     """``(vertices (3 m, 3), faces (m, 3))`` of the binary STL file ``path`` (each triangle's
-    corners as written, unwelded: as trimesh gives them), or ``None`` where the file is not one: its
-    length is not 84 + 50 m bytes for the m > 0 triangles its header states (ASCII files, and
-    what trimesh makes of the rest).
-    Read here because importing trimesh costs more than reading a large part (0.5 s)."""
+    corners as written, unwelded: as trimesh gives them), or ``None`` where the file is not one:
+    its length is not 84 + 50 m bytes for the m > 0 triangles its header states (ASCII files; the
+    rest is trimesh's to judge). Read here because importing trimesh costs more (0.5 s) than
+    reading a large part."""
     size = os.path.getsize(path)
     with open(path, "rb") as fh:
         head = fh.read(84)
@@ -414,7 +414,8 @@ def read_binary_stl(path):
         if count == 0 or size != 84 + STL_RECORD.itemsize * count:
             return None
         records = np.fromfile(fh, STL_RECORD, count)
-    return records["corners"].reshape(-1, 3).astype(np.float64), np.arange(3 * count, dtype=np.int64).reshape(-1, 3)
+    corners = records["corners"].reshape(-1, 3).astype(np.float64)
+    return corners, np.arange(3 * count, dtype=np.int64).reshape(-1, 3)
 
 
 def write_binary_stl(path, vertices, faces):

@@ -50,6 +50,12 @@ def _half_area(lo, hi):
 
 
 @numba.njit(cache=True)
+def _bin_of(c, lo, ext):
+    """The bin (of :data:`SAH_BINS` over ``[lo, lo + ext]``) that centroid coordinate ``c`` falls in."""
+    return min(SAH_BINS - 1, int(SAH_BINS * (c - lo) / ext))
+
+
+@numba.njit(cache=True)
 def _sah_split(tri_lo, tri_hi, cent, order, s, e, clo, chi, blo, bhi, count, right_area, right_count):
     """The axis and bin of the split of ``order[s:e]`` with the least surface-area cost
     (triangles times box area on each side), among the :data:`SAH_BINS` - 1 planes per axis;
@@ -66,7 +72,7 @@ def _sah_split(tri_lo, tri_hi, cent, order, s, e, clo, chi, blo, bhi, count, rig
                 bhi[b, j] = -np.inf
         for i in range(s, e):
             t = order[i]
-            b = min(SAH_BINS - 1, int(SAH_BINS * (cent[t, k] - clo[k]) / ext))
+            b = _bin_of(cent[t, k], clo[k], ext)
             count[b] += 1
             for j in range(3):
                 blo[b, j] = min(blo[b, j], tri_lo[t, j])
@@ -154,7 +160,7 @@ def _build(tri_lo, tri_hi, cent, leaf_size):
             j = e - 1
             while i <= j:
                 t = order[i]
-                if min(SAH_BINS - 1, int(SAH_BINS * (cent[t, axis] - clo[axis]) / ext)) <= split:
+                if _bin_of(cent[t, axis], clo[axis], ext) <= split:
                     i += 1
                 else:
                     order[i] = order[j]
