@@ -179,3 +179,59 @@ def test_blocks_that_must_not_be_cut_short_nest_and_raise_once_the_last_ends():
         assert not raised and runfiles.held[0] == 0
     finally:
         runfiles.interrupted[0] = before
+
+
+def test_a_ctrl_c_where_python_would_drop_the_exception_is_remembered_for_the_next_stage():
+    """A SIGINT that lands in a ``__del__``, a weak reference's callback (the import system's
+    module locks: CI saw "Exception ignored in: <function _get_module_lock.<locals>.cb>" and a
+    traceback) or a finaliser raises nothing there (it would be printed and dropped) but is kept."""
+    import gc
+    import weakref
+
+    from meshmill import cli
+
+    namespace = {"signal": signal}
+    # the import system's callback, as Python's frozen module names it
+    exec(compile("def cb(ref):\n    signal.raise_signal(signal.SIGINT)\n    sum(range(10))\n",
+                 "<frozen importlib._bootstrap>", "exec"), namespace)
+
+    class Dying:
+        def __del__(self):
+            signal.raise_signal(signal.SIGINT)
+            sum(range(10))  # the handler runs between bytecodes: here at the latest
+
+    class Target:
+        pass
+
+    def by_del():
+        Dying()
+
+    def by_weakref_callback():
+        t = Target()
+        r = weakref.ref(t, namespace["cb"])  # noqa: F841 (kept alive until t dies)
+        del t
+
+    def by_finalizer():
+        t = Target()
+        weakref.finalize(t, lambda: (signal.raise_signal(signal.SIGINT), sum(range(10))))
+        del t
+
+    dropped, hook = [], sys.unraisablehook
+    previous = signal.signal(signal.SIGINT, cli._on_interrupt)
+    sys.unraisablehook = dropped.append
+    try:
+        for how in (by_del, by_weakref_callback, by_finalizer):
+            cli._interrupted[0] = cli._finished[0] = False
+            how()
+            gc.collect()
+            assert cli._interrupted[0], how.__name__
+            assert not dropped, (how.__name__, [d.exc_type for d in dropped])
+        cli._interrupted[0] = False
+        with pytest.raises(KeyboardInterrupt):  # anywhere else, at once
+            signal.raise_signal(signal.SIGINT)
+            sum(range(10))
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = hook
+        cli._interrupted[0] = False
+        cli._finished[0] = True

@@ -699,21 +699,26 @@ def _flags_of(parser, command):
 
 def _on_interrupt(signum, frame):
     """SIGINT: remember it (whatever exception it leaves, a numba kernel's included, is the
-    interrupt's) and stop the Python code running; once the command has ended, nothing. Within
-    llvmlite (numba compiling a kernel, whose object cache calls back into Python from native
-    code: an exception raised in such a callback is printed with its traceback and dropped) it is
+    interrupt's) and stop the Python code running; once the command has ended, nothing. Where
+    Python would print an exception with its traceback and drop it (:func:`_in_callback`) it is
     only remembered: the next stage of the command raises it (:func:`_progress`)."""
     if _finished[0]:
         return
     _interrupted[0] = True
-    if not runfiles.held[0] and not _in_llvmlite(frame):
+    if not runfiles.held[0] and not _in_callback(frame):
         raise KeyboardInterrupt
 
 
-def _in_llvmlite(frame) -> bool:
-    """Whether ``frame`` or a frame it was called from runs llvmlite's code."""
+def _in_callback(frame) -> bool:
+    """Whether ``frame`` or a frame it was called from is code whose exceptions Python prints and
+    drops ("Exception ignored in ..."): llvmlite's (numba compiling a kernel, whose object cache
+    calls back into Python from native code), a ``__del__``, a weak reference's callback (the
+    import system's module locks, ``weakref.finalize``)."""
     while frame is not None:
-        if f"{os.sep}llvmlite{os.sep}" in frame.f_code.co_filename:
+        code = frame.f_code
+        if f"{os.sep}llvmlite{os.sep}" in code.co_filename or code.co_name == "__del__" \
+                or (code.co_filename.startswith("<frozen importlib") and code.co_name == "cb") \
+                or (code.co_filename.endswith(f"{os.sep}weakref.py") and code.co_name == "__call__"):
             return True
         frame = frame.f_back
     return False
