@@ -207,8 +207,8 @@ def test_a_ctrl_c_where_python_would_drop_the_exception_is_remembered_for_the_ne
         Dying()
 
     def by_weakref_callback():
-        t = Target()
-        r = weakref.ref(t, namespace["cb"])  # noqa: F841 (kept alive until t dies)
+        t, kept = Target(), []
+        kept.append(weakref.ref(t, namespace["cb"]))  # the reference outlives t: its callback runs
         del t
 
     def by_finalizer():
