@@ -21,6 +21,7 @@ import os
 import numpy as np
 
 from ..errors import InputError
+from .decimals import fixed_rows
 from .model import Toolpath
 
 MAX_COORDINATE = 1e6  # mm: a kilometre is no machine's travel
@@ -47,34 +48,49 @@ REFUSED = {
     "COPY": "COPY repeats moves, which this reader does not apply",
 }
 INCH = 25.4  # mm
+GOTO_DECIMALS = (6, 6, 6, 9, 9, 9)  # tip (mm), unit axis
 
 
 def write_apt(path, toolpath: Toolpath, tools, partno="meshmill") -> None:
     """Write ``toolpath`` (tool indices into ``tools``) as an APT CL file: ``SPINDL/rpm`` after a
     tool's ``LOADTL`` where the table gives its speed, ``FEDRAT/f, MMPM`` where a feed move's
-    programmed feed (mm/min, :attr:`Toolpath.feed`) changes."""
-    lines = [f"PARTNO/{partno}", "UNITS/MM", "MULTAX/ON"]
-    current = -1
-    goto = "GOTO/%.6f, %.6f, %.6f, %.9f, %.9f, %.9f"
-    rows = np.hstack([toolpath.tip, toolpath.axis]).tolist()  # python floats: formatted fast
-    fed = np.nan
-    for t, rapid, row, f in zip(toolpath.tool.tolist(), toolpath.rapid.tolist(), rows, toolpath.feed.tolist()):
-        if t != current:
-            lines.append(tools[t].apt_cutter())
-            lines.append(f"LOADTL/{tools[t].number}")
-            if tools[t].rpm > 0:
-                lines.append(f"SPINDL/RPM, {tools[t].rpm:.0f}, CLW")
-            current = t
-            fed = np.nan
-        if rapid:
-            lines.append("RAPID")
-        elif f == f and f != fed:  # (f == f: not NaN)
-            lines.append(f"FEDRAT/{f:.1f}, MMPM")
-            fed = f
-        lines.append(goto % tuple(row))
-    lines.append("FINI")
-    with open(path, "w") as fh:
-        fh.write("\n".join(lines) + "\n")
+    programmed feed (mm/min, :attr:`Toolpath.feed`) changes. The ``GOTO`` lines are written by
+    :func:`~meshmill.toolpath.decimals.fixed_rows`; only the moves that other statements
+    precede are looked at one by one."""
+    n = len(toolpath)
+    rows = np.hstack([toolpath.tip, toolpath.axis])
+    text, ends, odd = fixed_rows(rows, GOTO_DECIMALS, "GOTO/", ", ")
+    tool, rapid, feed = np.asarray(toolpath.tool), np.asarray(toolpath.rapid, bool), np.asarray(toolpath.feed)
+    change = np.ones(n, bool)
+    change[1:] = tool[1:] != tool[:-1]
+    # a FEDRAT where a fed move's feed is not the one the last FEDRAT since the tool's load set
+    fed = np.nonzero(~rapid & ~np.isnan(feed))[0]
+    new_feed = np.ones(len(fed), bool)
+    load = np.cumsum(change)[fed]
+    new_feed[1:] = (load[1:] != load[:-1]) | (feed[fed][1:] != feed[fed][:-1])
+    fedrat = np.zeros(n, bool)
+    fedrat[fed[new_feed]] = True
+    out = [f"PARTNO/{partno}\nUNITS/MM\nMULTAX/ON\n".encode()]
+    done = 0  # moves written so far
+    for i in np.nonzero(change | rapid | fedrat | odd)[0].tolist():
+        out.append(text[ends[done]:ends[i]])
+        head = []
+        if change[i]:
+            t = tools[int(tool[i])]
+            head += [t.apt_cutter(), f"LOADTL/{t.number}"] + ([f"SPINDL/RPM, {t.rpm:.0f}, CLW"] if t.rpm > 0 else [])
+        if rapid[i]:
+            head.append("RAPID")
+        elif fedrat[i]:
+            head.append(f"FEDRAT/{feed[i]:.1f}, MMPM")
+        if odd[i]:  # a number for Python to write
+            head.append("GOTO/" + ", ".join(f"{v:.{d}f}" for v, d in zip(rows[i].tolist(), GOTO_DECIMALS)))
+        out.append(("\n".join(head) + "\n").encode())
+        out.append(text[ends[i]:ends[i + 1]])
+        done = i + 1
+    out.append(text[ends[done]:ends[n]])
+    out.append(b"FINI\n")
+    with open(path, "wb") as fh:
+        fh.write(b"".join(out))
 
 
 def read_text(path, kind, text_kind=None) -> str:

@@ -1,0 +1,96 @@
+"""Numbers as fixed-point decimal text, many at once: the same characters as Python's
+``f"{x:.{d}f}"`` (the exact binary value rounded half to even, ``-`` on every negative number,
+-0.0 and those that round to zero included), written by a compiled loop.
+
+A number is scaled by 10^d in floating point and rounded; that product is within half a unit in
+its last place of the exact one, so the rounding is the exact value's unless the scaled number
+lies that close to a half. Such numbers (and non-finite ones, and those too large to scale
+exactly) are left to Python: :func:`fixed_rows` says which rows hold one.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+_POWERS = np.array([10.0 ** k for k in range(23)])  # exact doubles
+_LARGEST = 2.0 ** 52  # scaled numbers below this are exact integers apart: floor and compare are exact
+
+
+@numba.njit(cache=True)
+def _write_number(x, d, powers, out, at):
+    """Writes ``x`` with ``d`` decimals into ``out`` from ``at``; returns the end, or -1 where
+    Python must do it (not finite, too large, or within rounding error of a half)."""
+    if not math.isfinite(x):
+        return -1
+    s = abs(x) * powers[d]
+    if s >= _LARGEST:
+        return -1
+    whole = math.floor(s)
+    frac = s - whole  # exact
+    if abs(frac - 0.5) <= 4e-16 * max(s, 1.0):  # the exact product may lie on the other side of the half
+        return -1
+    n = np.int64(whole) + (1 if frac > 0.5 else 0)
+    if math.copysign(1.0, x) < 0:
+        out[at] = 45  # '-'
+        at += 1
+    scale = np.int64(powers[d])
+    head, tail = n // scale, n % scale
+    digits = 1
+    while head >= np.int64(10) ** digits:
+        digits += 1
+    for k in range(digits - 1, -1, -1):
+        out[at + k] = 48 + head % 10
+        head //= 10
+    at += digits
+    if d > 0:
+        out[at] = 46  # '.'
+        for k in range(d, 0, -1):
+            out[at + k] = 48 + tail % 10
+            tail //= 10
+        at += d + 1
+    return at
+
+
+@numba.njit(cache=True)
+def _fixed_rows(values, decimals, powers, prefix, sep, out, ends, odd):
+    at = 0
+    for i in range(values.shape[0]):
+        start = at
+        for c in prefix:
+            out[at] = c
+            at += 1
+        for j in range(values.shape[1]):
+            if j > 0:
+                for c in sep:
+                    out[at] = c
+                    at += 1
+            at = _write_number(values[i, j], decimals[j], powers, out, at)
+            if at < 0:
+                odd[i] = True
+                at = start
+                break
+        if not odd[i]:
+            out[at] = 10  # '\n'
+            at += 1
+        ends[i + 1] = at
+    return at
+
+
+def fixed_rows(values, decimals, prefix: str, sep: str) -> tuple[bytes, np.ndarray, np.ndarray]:
+    """``(text, ends, odd)``: row i of ``values (n, m)`` as the ASCII line
+    ``prefix + sep.join(f"{v:.{d}f}" for v, d in zip(row, decimals)) + "\\n"`` in
+    ``text[ends[i]:ends[i + 1]]`` (``ends (n + 1,)``), empty where ``odd[i]`` (``(n,)`` bool): a
+    number of that row is for Python to write. ``decimals (m,)``: 0 to 22."""
+    decimals = np.asarray(decimals, np.int64)
+    values = np.ascontiguousarray(values, np.float64).reshape(len(values), len(decimals))
+    if len(decimals) and not 0 <= decimals.min() <= decimals.max() <= 22:
+        raise ValueError("decimals: 0 to 22")
+    p, s = np.frombuffer(prefix.encode("ascii"), np.uint8), np.frombuffer(sep.encode("ascii"), np.uint8)
+    width = len(p) + 1 + values.shape[1] * (len(s) + 18 + int(decimals.max(initial=0)))
+    out = np.empty(len(values) * width, np.uint8)
+    ends = np.zeros(len(values) + 1, np.int64)
+    odd = np.zeros(len(values), bool)
+    n = _fixed_rows(values, decimals, _POWERS, p, s, out, ends, odd)
+    return out[:n].tobytes(), ends, odd
