@@ -793,6 +793,40 @@ def test_ways_whose_rapid_ends_in_the_way_are_skipped_before_the_path_is_built()
     assert sum(asked) == n
 
 
+def test_a_repair_build_sends_a_changed_pass_whose_rapid_down_fails_to_feed_at_once():
+    """PathBuilder with a stand-in check that refuses every pose around x = 10 and the rapids
+    down to it: the first build leaves the pass there at the last way with a rapid (the repairs
+    may first split it); a rebuild with that pass changed (as repairs make it) sends its ways
+    to the next, which feed from the safe plane, as the next round of repairs would, and asks the
+    rapid down of the way in and the rapid up of the way out; an unchanged pass is left alone."""
+    from meshmill.ops.finish_path import LAST_RAPID_WAY, LINKS, PathBuilder
+
+    tip = np.array([[0.0, 0, 10], [0, 5, 10], [10, 0, 10], [10, 5, 10]])
+    axis = np.tile([0.0, 0.0, 1.0], (4, 1))
+    side = np.tile([0.0, -1.0, 0.0], (4, 1))
+    passes = [dict(tool=0, idx=np.array([0, 1]), entry=0, exit=0), dict(tool=0, idx=np.array([2, 3]), entry=0, exit=0)]
+    rapids = []
+
+    def check(a, xa, b, xb, tool):
+        pose = np.all(a == b, axis=1)
+        near = (np.abs(a[:, 0] - 10.0) < 1.0) | (np.abs(b[:, 0] - 10.0) < 1.0)
+        rapids.extend((tuple(p), tuple(q)) for p, q, n in zip(a.tolist(), b.tolist(), pose) if not n)
+        return ~near
+
+    builder = PathBuilder(tip, axis, side, safe_z=50.0, lead=2.0, approach=1.0, radius=np.array([3.0]), check=check,
+                          direct=False)
+    builder.build(passes)
+    assert [(ps["entry"], ps["exit"]) for ps in passes] == [(0, 0), (LAST_RAPID_WAY, LAST_RAPID_WAY)]
+    assert not rapids
+    passes[1] = dict(passes[1])
+    tp, owner, role = builder.build(passes)
+    assert (passes[1]["entry"], passes[1]["exit"]) == (LAST_RAPID_WAY + 1, LAST_RAPID_WAY + 1)
+    assert LINKS[LAST_RAPID_WAY + 1][2] and passes[0]["entry"] == passes[0]["exit"] == 0
+    assert sorted(rapids) == sorted([((10.0, 0.0, 50.0), (10.0, 0.0, 11.0)), ((10.0, 5.0, 11.0), (10.0, 5.0, 50.0))])
+    fed = [r for i, r in enumerate(role) if owner[i] == 1]
+    assert "approach_in" in fed and not any(tp.rapid[i] and tp.tip[i, 2] < 50.0 for i in range(len(tp)) if owner[i] == 1)
+
+
 def test_a_rebuild_looks_again_only_at_the_ways_and_links_of_the_passes_it_changed():
     """PathBuilder over five passes along y, linked straight: a second build of the same passes
     computes no way and no link again; with pass 2 replaced by a copy (as a round of repairs makes

@@ -115,25 +115,37 @@ class PathBuilder:
         the lead's end: the rapid into it, or out of it, fails verification, so a round of repairs
         would take the next way), up to :data:`LAST_RAPID_WAY`: the ways that feed are left to the
         repairs, which take them only after the path's own problems have split or unmerged the
-        pass (taken here at once, 140 of the impeller's passes were dropped that the repairs keep).
-        Each pose is asked once over the builds of a path (:meth:`_clear`'s memory), and a pass
+        pass (taken in the first build, 140 of the impeller's passes were dropped that the repairs
+        keep). In a repair build, a pass it changed that stands at that last way takes the next
+        where the rapid down to its way in (up from its way out) fails, as the next round would
+        (the impeller's and the dolphin's paths the same, one round fewer).
+        Each rapid is asked once over the builds of a path (:meth:`_clear`'s memory), and a pass
         whose ways were settled in the last path built is not looked at again."""
         if self.check is None:
             return
         settled = self._settled
         todo = [(ps, key) for ps in passes if settled.get(id(ps), (None,))[1:] != (ps["entry"], ps["exit"])
                 for key in ("entry", "exit")]
+        changed = list(todo) if settled else []  # (a repair build's)
         while todo := [(ps, key) for ps, key in todo if ps[key] < LAST_RAPID_WAY]:
-            above, axes, tools = self._ways_at(todo)
+            _, above, axes, tools = self._ways_at(todo)
             ok = self._clear(above, axes, above, axes, tools)
             todo = [t for t, good in zip(todo, ok) if not good]
             for ps, key in todo:
                 ps[key] += 1
+        if last := [(ps, key) for ps, key in changed if ps[key] == LAST_RAPID_WAY]:
+            ends, above, axes, tools = self._ways_at(last)
+            vertical = LINKS[LAST_RAPID_WAY][1]
+            up = np.array([self._up(p, u, vertical) for p, u in zip(ends, axes)])
+            into = np.array([key == "entry" for _, key in last])[:, None]
+            ok = self._clear(np.where(into, up, above), axes, np.where(into, above, up), axes, tools)
+            for ps, key in (t for t, good in zip(last, ok) if not good):
+                ps[key] += 1
         self._settled = {id(ps): (ps, ps["entry"], ps["exit"]) for ps in passes}  # (holding the passes: ids stay)
 
     def _ways_at(self, todo):
-        """``(above (k, 3), axes (k, 3), tools (k,))`` of the ways ``todo`` ((pass, ``"entry"`` or
-        ``"exit"``) pairs): :meth:`_above` of their :meth:`_way_end`, all at once."""
+        """``(ends (k, 3), above (k, 3), axes (k, 3), tools (k,))`` of the ways ``todo`` ((pass,
+        ``"entry"`` or ``"exit"``) pairs): their :meth:`_way_end` and :meth:`_above` it, all at once."""
         i = np.array([ps["idx"][0 if key == "entry" else -1] for ps, key in todo], np.int64)
         lead, vertical, _ = np.array(LINKS, bool)[[ps[key] for ps, key in todo]].T
         p = np.where(lead[:, None], self.tip[i] + self.lead * self.side[i], self.tip[i])
@@ -141,7 +153,7 @@ class PathBuilder:
         straight = vertical | (u[:, 2] < 1e-6)
         d = np.where(straight[:, None], np.array([0.0, 0.0, 1.0]), u)
         above = p + np.minimum(self.approach, np.maximum(0.0, (self.safe_z - p[:, 2]) / d[:, 2]))[:, None] * d
-        return above, u, np.array([ps["tool"] for ps, _ in todo], np.int64)
+        return p, above, u, np.array([ps["tool"] for ps, _ in todo], np.int64)
 
     def _rapid_ends(self, ps, reach):
         """Where the rapids into and out of pass ``ps`` end and start, ``(in, out)`` (each a point
