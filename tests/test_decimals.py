@@ -51,6 +51,10 @@ def test_rounding_signs_and_halves_as_python_writes_them():
         # the non-finite, the too large and the exact halves are left to Python, and no others
         assert all(for_python(x, d) for x in values[odd, 0]), d
         assert all(o for x, o in zip(tricky, odd) if not math.isfinite(x) or is_half(x, d)), d
+    got, wanted, odd = lines_of(np.array(tricky)[:, None], [18])  # the most decimals
+    assert got == wanted
+    with pytest.raises(ValueError, match="0 to 18"):
+        fixed_rows(np.array([[1e-4]]), [19], "", "")
     # 1/128 = 0.0078125 is a half at 6 decimals (Python: to even, 0.007812): left to Python
     assert fixed_rows(np.array([[1 / 128]]), [6], "", "")[2][0]
     assert fixed_rows(np.array([[1 / 128]]), [7], "", "")[0] == b"0.0078125\n"

@@ -827,6 +827,37 @@ def test_a_repair_build_sends_a_changed_pass_whose_rapid_down_fails_to_feed_at_o
     assert "approach_in" in fed and not any(tp.rapid[i] and tp.tip[i, 2] < 50.0 for i in range(len(tp)) if owner[i] == 1)
 
 
+def test_a_repair_build_keeps_a_pass_reached_straight_at_its_way():
+    """As above with straight links allowed, a tilted axis and every rapid touching the safe plane
+    refused: pass 1 is reached straight from pass 0, so its rapid down is never built: its way
+    in stays (and the link with it); its way out, whose rapid up is built, feeds instead."""
+    from meshmill.ops.finish_path import LAST_RAPID_WAY, PathBuilder
+
+    tip = np.array([[0.0, 0, 10], [0, 5, 10], [3, 0, 10], [3, 5, 10]])
+    tilt = np.array([0.3, 0.0, 1.0]) / math.hypot(0.3, 1.0)
+    axis = np.tile(tilt, (4, 1))
+    side = np.tile([-1.0, 0.0, 0.0], (4, 1))
+    above_tips = {(0.0, 0.0), (0.0, 5.0), (3.0, 0.0), (3.0, 5.0)}
+
+    def check(a, xa, b, xb, tool):
+        pose = np.all(a == b, axis=1)
+        at_tip = np.array([(x, y) in above_tips for x, y in a[:, :2].tolist()])
+        return np.where(pose, at_tip, np.maximum(a[:, 2], b[:, 2]) < 49.9)
+
+    passes = [dict(tool=0, idx=np.array([0, 1]), entry=0, exit=0), dict(tool=0, idx=np.array([2, 3]), entry=0, exit=0)]
+    builder = PathBuilder(tip, axis, side, safe_z=50.0, lead=2.0, approach=1.0, radius=np.array([3.0]), check=check)
+    builder.build(passes)
+    assert [(ps["entry"], ps["exit"]) for ps in passes] == [(LAST_RAPID_WAY, LAST_RAPID_WAY)] * 2
+    assert builder.direct_links == 1
+    passes[1] = dict(passes[1])
+    tp, owner, role = builder.build(passes)
+    assert (passes[1]["entry"], passes[1]["exit"]) == (LAST_RAPID_WAY, LAST_RAPID_WAY + 1)
+    assert builder.direct_links == 1 and "direct_in" in role and "link_out" not in role[owner.index(1):]
+    again = PathBuilder(tip, axis, side, safe_z=50.0, lead=2.0, approach=1.0, radius=np.array([3.0]),
+                        check=check).build([dict(ps) for ps in passes])
+    assert np.array_equal(tp.tip, again[0].tip) and role == again[2]  # what a new builder makes of the same ways
+
+
 def test_a_rebuild_looks_again_only_at_the_ways_and_links_of_the_passes_it_changed():
     """PathBuilder over five passes along y, linked straight: a second build of the same passes
     computes no way and no link again; with pass 2 replaced by a copy (as a round of repairs makes

@@ -216,7 +216,7 @@ def test_a_ctrl_c_where_python_would_drop_the_exception_is_remembered_for_the_ne
         weakref.finalize(t, lambda: (signal.raise_signal(signal.SIGINT), sum(range(10))))
         del t
 
-    dropped, hook = [], sys.unraisablehook
+    dropped, hook, state = [], sys.unraisablehook, (cli._interrupted[0], cli._finished[0])
     previous = signal.signal(signal.SIGINT, cli._on_interrupt)
     sys.unraisablehook = dropped.append
     try:
@@ -233,5 +233,4 @@ def test_a_ctrl_c_where_python_would_drop_the_exception_is_remembered_for_the_ne
     finally:
         signal.signal(signal.SIGINT, previous)
         sys.unraisablehook = hook
-        cli._interrupted[0] = False
-        cli._finished[0] = True
+        cli._interrupted[0], cli._finished[0] = state

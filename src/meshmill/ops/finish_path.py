@@ -73,6 +73,7 @@ class PathBuilder:
         self._ends = {}  # the rapid ends of its passes (:meth:`_directs`), keyed as the blocks
         self._settled = {}  # its passes' ways as :meth:`_skip_blocked_ways` left them
         self._links = {}  # its direct links (:meth:`_directs`: points, or None), keyed by the two passes
+        self._changed = set()  # ids of the passes a repair build found changed (:meth:`_skip_blocked_ways`)
 
     def _way_end(self, ps, key):
         """``(point, axis, vertical, feed)`` of pass ``ps``'s way in (``key`` ``"entry"``) or out
@@ -116,8 +117,7 @@ class PathBuilder:
         would take the next way), up to :data:`LAST_RAPID_WAY`: the ways that feed are left to the
         repairs, which take them only after the path's own problems have split or unmerged the
         pass (taken in the first build, 140 of the impeller's passes were dropped that the repairs
-        keep). In a repair build, a pass it changed that stands at that last way takes the next
-        where the rapid down to its way in (up from its way out) fails, as the next round would
+        keep). In a repair build the passes it changed are noted for :meth:`_feed_where_rapids_fail`
         (the impeller's and the dolphin's paths the same, one round fewer).
         Each rapid is asked once over the builds of a path (:meth:`_clear`'s memory), and a pass
         whose ways were settled in the last path built is not looked at again."""
@@ -126,22 +126,33 @@ class PathBuilder:
         settled = self._settled
         todo = [(ps, key) for ps in passes if settled.get(id(ps), (None,))[1:] != (ps["entry"], ps["exit"])
                 for key in ("entry", "exit")]
-        changed = list(todo) if settled else []  # (a repair build's)
+        self._changed = {id(ps) for ps, _ in todo} if settled else set()  # (a repair build's)
         while todo := [(ps, key) for ps, key in todo if ps[key] < LAST_RAPID_WAY]:
             _, above, axes, tools = self._ways_at(todo)
             ok = self._clear(above, axes, above, axes, tools)
             todo = [t for t, good in zip(todo, ok) if not good]
             for ps, key in todo:
                 ps[key] += 1
-        if last := [(ps, key) for ps, key in changed if ps[key] == LAST_RAPID_WAY]:
-            ends, above, axes, tools = self._ways_at(last)
-            vertical = LINKS[LAST_RAPID_WAY][1]
-            up = np.array([self._up(p, u, vertical) for p, u in zip(ends, axes)])
-            into = np.array([key == "entry" for _, key in last])[:, None]
-            ok = self._clear(np.where(into, up, above), axes, np.where(into, above, up), axes, tools)
-            for ps, key in (t for t, good in zip(last, ok) if not good):
-                ps[key] += 1
         self._settled = {id(ps): (ps, ps["entry"], ps["exit"]) for ps in passes}  # (holding the passes: ids stay)
+
+    def _feed_where_rapids_fail(self, passes, directs) -> bool:
+        """(A repair build's.) Moves the ways of the passes :meth:`_skip_blocked_ways` found changed
+        that stand at :data:`LAST_RAPID_WAY` to the next (feeding from the safe plane) where the
+        rapid down from the safe plane into the pass (up out of it) fails :attr:`check`, as the
+        next round of repairs would: only where that rapid is built, not where ``directs`` (of
+        :meth:`_directs`) links the pass straight. Returns whether any way moved."""
+        last = [(k, key) for k, ps in enumerate(passes) if id(ps) in self._changed for key in ("entry", "exit")
+                if ps[key] == LAST_RAPID_WAY and (k if key == "entry" else k + 1) not in directs]
+        if not last:
+            return False
+        ends, above, axes, tools = self._ways_at([(passes[k], key) for k, key in last])
+        up = np.array([self._up(p, u, LINKS[LAST_RAPID_WAY][1]) for p, u in zip(ends, axes)])
+        into = np.array([key == "entry" for _, key in last])[:, None]
+        ok = self._clear(np.where(into, up, above), axes, np.where(into, above, up), axes, tools)
+        for k, key in (t for t, good in zip(last, ok) if not good):
+            passes[k][key] += 1
+            self._settled[id(passes[k])] = (passes[k], passes[k]["entry"], passes[k]["exit"])
+        return not ok.all()
 
     def _ways_at(self, todo):
         """``(ends (k, 3), above (k, 3), axes (k, 3), tools (k,))`` of the ways ``todo`` ((pass,
@@ -177,7 +188,7 @@ class PathBuilder:
             return {}
         kept, ends = {}, []
         for ps, r in zip(passes, reaches):  # (each pass's, as in the last path built where it is the same)
-            key = (id(ps), r[0], r[1])
+            key = (id(ps), ps["entry"], ps["exit"], r[0], r[1])
             got = self._ends.get(key) or (ps, self._rapid_ends(ps, r))
             kept[key] = got
             ends.append(got[1])
@@ -186,7 +197,8 @@ class PathBuilder:
                        and passes[k].get("direct_in", True) and ends[k - 1][1] is not None
                        and ends[k][0] is not None], np.int64)
         # a link found (or not) in the last path built between the same two passes, the same
-        keys = {int(k): (id(passes[k - 1]), id(passes[k]), reaches[k - 1][1], reaches[k][0]) for k in ks}
+        keys = {int(k): (id(passes[k - 1]), passes[k - 1]["exit"], id(passes[k]), passes[k]["entry"],
+                         reaches[k - 1][1], reaches[k][0]) for k in ks}
         links = {keys[k]: self._links[keys[k]] for k in keys if keys[k] in self._links}
         out = {k: links[keys[k]] for k in keys if links.get(keys[k]) is not None}
         ks = np.array([k for k in ks if keys[int(k)] not in links], np.int64)
@@ -330,11 +342,15 @@ class PathBuilder:
         self._skip_blocked_ways(passes)
         reaches = self._reaches(passes)
         directs = self._directs(passes, reaches)
+        if self._changed and self._feed_where_rapids_fail(passes, directs):
+            reaches = self._reaches(passes)
+            directs = self._directs(passes, reaches)
         self.direct_links = len(directs)
         blocks, kept, prev = [], {}, None
         for k, ps in enumerate(passes):
             way, direct_out = directs.get(k), k + 1 in directs
-            key = (id(ps), reaches[k][0], reaches[k][1], None if way is None else way.tobytes(), direct_out,
+            key = (id(ps), ps["entry"], ps["exit"], reaches[k][0], reaches[k][1],
+                   None if way is None else way.tobytes(), direct_out,
                    None if prev is None else (prev[0].tobytes(), prev[1].tobytes()))
             block = self._blocks.get(key)
             if block is None:

@@ -4,8 +4,8 @@
 
 A number is scaled by 10^d in floating point and rounded; that product is within half a unit in
 its last place of the exact one, so the rounding is the exact value's unless the scaled number
-lies that close to a half. Such numbers (and non-finite ones, and those too large to scale
-exactly) are left to Python: :func:`fixed_rows` says which rows hold one.
+lies that close to a half. A row holding such a number (or a non-finite one, or one too large
+to scale exactly) is left to Python whole: :func:`fixed_rows` says which.
 """
 from __future__ import annotations
 
@@ -14,8 +14,9 @@ import math
 import numba
 import numpy as np
 
-_POWERS = np.array([10.0 ** k for k in range(23)])  # exact doubles
-_LARGEST = 2.0 ** 52  # scaled numbers below this are exact integers apart: floor and compare are exact
+MAX_DECIMALS = 18  # 10^d an int64
+_POWERS = np.array([10.0 ** k for k in range(MAX_DECIMALS + 1)])  # exact doubles
+_LARGEST = 2.0 ** 52  # a scaled number below this has its fraction in the double: floor(s), s - floor(s) exact
 
 
 @numba.njit(cache=True)
@@ -82,11 +83,11 @@ def fixed_rows(values, decimals, prefix: str, sep: str) -> tuple[bytes, np.ndarr
     """``(text, ends, odd)``: row i of ``values (n, m)`` as the ASCII line
     ``prefix + sep.join(f"{v:.{d}f}" for v, d in zip(row, decimals)) + "\\n"`` in
     ``text[ends[i]:ends[i + 1]]`` (``ends (n + 1,)``), empty where ``odd[i]`` (``(n,)`` bool): a
-    number of that row is for Python to write. ``decimals (m,)``: 0 to 22."""
+    number of that row is for Python to write. ``decimals (m,)``: 0 to :data:`MAX_DECIMALS`."""
     decimals = np.asarray(decimals, np.int64)
     values = np.ascontiguousarray(values, np.float64).reshape(len(values), len(decimals))
-    if len(decimals) and not 0 <= decimals.min() <= decimals.max() <= 22:
-        raise ValueError("decimals: 0 to 22")
+    if len(decimals) and not 0 <= decimals.min() <= decimals.max() <= MAX_DECIMALS:
+        raise ValueError(f"decimals: 0 to {MAX_DECIMALS}")
     p, s = np.frombuffer(prefix.encode("ascii"), np.uint8), np.frombuffer(sep.encode("ascii"), np.uint8)
     width = len(p) + 1 + values.shape[1] * (len(s) + 18 + int(decimals.max(initial=0)))
     out = np.empty(len(values) * width, np.uint8)
