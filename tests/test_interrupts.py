@@ -234,3 +234,52 @@ def test_a_ctrl_c_where_python_would_drop_the_exception_is_remembered_for_the_ne
         signal.signal(signal.SIGINT, previous)
         sys.unraisablehook = hook
         cli._interrupted[0], cli._finished[0] = state
+
+
+def test_a_ctrl_c_that_python_drops_anywhere_else_is_not_printed_and_still_remembered():
+    """Where :func:`cli._in_callback` does not know the place (any weak reference's callback of
+    ours, here), the handler raises, Python drops the KeyboardInterrupt through
+    ``sys.unraisablehook``: the command's hook keeps it quiet (it is remembered); other dropped
+    exceptions, and a KeyboardInterrupt that is not a Ctrl-C of the command, are still told."""
+    import gc
+    import weakref
+
+    from meshmill import cli
+
+    class Target:
+        pass
+
+    class Failing:
+        def __del__(self):
+            raise ValueError("not an interrupt")
+
+    def on_gone(ref):
+        signal.raise_signal(signal.SIGINT)
+        sum(range(10))
+
+    told, hook, state = [], sys.unraisablehook, (cli._interrupted[0], cli._finished[0])
+    previous = signal.signal(signal.SIGINT, cli._on_interrupt)
+    sys.unraisablehook = cli._quiet_interrupts(told.append)
+    try:
+        cli._interrupted[0] = cli._finished[0] = False
+        t, kept = Target(), []
+        kept.append(weakref.ref(t, on_gone))
+        del t
+        gc.collect()
+        assert cli._interrupted[0] and not told
+        Failing()
+        gc.collect()
+        assert [d.exc_type for d in told] == [ValueError]
+        cli._interrupted[0] = False
+
+        class Interrupting:
+            def __del__(self):
+                raise KeyboardInterrupt
+
+        Interrupting()
+        gc.collect()
+        assert [d.exc_type for d in told] == [ValueError, KeyboardInterrupt]
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = hook
+        cli._interrupted[0], cli._finished[0] = state

@@ -724,6 +724,18 @@ def _in_callback(frame) -> bool:
     return False
 
 
+def _quiet_interrupts(hook):
+    """``sys.unraisablehook`` while a command runs: a KeyboardInterrupt of our Ctrl-C that Python
+    drops where it cannot raise it (a callback, a finaliser: the places :func:`_in_callback` does
+    not know) is not printed (it is remembered: the next stage raises it); anything else goes to
+    ``hook``."""
+    def unraisable(info):
+        if not (_interrupted[0] and info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt)):
+            hook(info)
+
+    return unraisable
+
+
 def _caused_by_interrupt(exc) -> bool:
     seen = set()
     while exc is not None and id(exc) not in seen:
@@ -740,6 +752,8 @@ def main(argv=None) -> int:
     _interrupted[0] = _finished[0] = False
     runfiles.held[0] = 0
     previous = signal.signal(signal.SIGINT, _on_interrupt) if _main_thread() else None
+    hook = sys.unraisablehook
+    sys.unraisablehook = _quiet_interrupts(hook)
     runfiles.interrupted[0] = lambda: _interrupted[0]
     try:
         return _main(argv)
@@ -756,6 +770,7 @@ def main(argv=None) -> int:
         runfiles.interrupted[0] = lambda: False
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = hook
 
 
 def _main_thread() -> bool:
