@@ -907,6 +907,43 @@ def test_a_rebuild_looks_again_only_at_the_ways_and_links_of_the_passes_it_chang
     assert np.array_equal(tp.tip, fresh[0].tip) and owner == fresh[1] and role == fresh[2]
 
 
+def test_a_rebuild_asks_the_stock_reach_only_of_the_passes_it_changed():
+    """PathBuilder whose passes feed from the safe plane (way 4) with a stand-in stock reach (the
+    rapid may come down to 3 mm above each pass end): a second build of the same passes asks no
+    reach again, one with pass 1 replaced by a copy asks its two ways only, and the paths equal
+    a new builder's."""
+    from meshmill.ops.finish_path import LINKS, PathBuilder
+
+    tip = np.array([[10.0 * (k // 2), 5.0 * (k % 2), 10.0] for k in range(6)])
+    axis = np.tile([0.0, 0.0, 1.0], (6, 1))
+    side = np.tile([-1.0, 0.0, 0.0], (6, 1))
+    asked = []
+
+    def reach(p, d, u, tool, top):
+        asked.append(len(p))
+        return np.full(len(p), 3.0)
+
+    def passes():
+        return [dict(tool=0, idx=np.array([2 * k, 2 * k + 1]), entry=4, exit=4) for k in range(3)]
+
+    assert LINKS[4][2]
+
+    def builder():
+        return PathBuilder(tip, axis, side, safe_z=50.0, lead=2.0, approach=1.0, radius=np.array([3.0]), reach=reach)
+
+    b, ours = builder(), passes()
+    first = b.build(ours)
+    assert asked == [6]
+    again = b.build(ours)
+    ours[1] = dict(ours[1])
+    changed = b.build(ours)
+    assert asked == [6, 2]
+    fresh = builder().build(passes())
+    for tp, owner, role in (first, again, changed):
+        assert np.array_equal(tp.tip, fresh[0].tip) and np.array_equal(tp.rapid, fresh[0].rapid) and role == fresh[2]
+    assert np.isclose(fresh[0].tip[:, 2], 13.0).any()  # the rapid down stops where the stock begins
+
+
 def test_points_within_the_tolerance_of_a_move_are_merged_and_put_back_where_it_fails():
     """A pass along a line with 0.002 mm of zigzag and one 0.05 mm bump: merged to its two ends and
     the bump (the zigzag is within half the tolerance, the bump is not), every point still counted

@@ -1,9 +1,15 @@
-"""Runs too large for the memory refuse in one line, with the estimate and what to change."""
+"""Runs too large for the memory refuse in one line, with the estimate and what to change; what
+the garbage collector looks at while an operation runs."""
+import contextlib
+import os
+
 import numpy as np
 import pytest
 
 from meshmill import memory
 from meshmill.errors import InputError
+
+DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "src", "meshmill", "data")
 
 
 def test_available_memory_is_read_and_a_large_estimate_refused():
@@ -60,3 +66,47 @@ def test_a_clear_move_is_verified_whatever_its_length_and_the_step(tmp_path, too
 
     part, cl = _block_and_move(tmp_path, tools_file, 200.0)
     assert main(["verify", str(part), str(cl), "--tools", str(tools_file), "--step", "0.0001"]) == 0
+
+
+def test_objects_alive_when_an_operation_starts_are_left_out_of_collections_until_it_ends():
+    """memory.long_lived: inside, what was alive is frozen (a collection does not walk it), a
+    cycle made inside is still collected inside; nested blocks (a job's operations) unfreeze only
+    when the outermost ends; an API operation runs inside one."""
+    import gc
+    import weakref
+
+    from meshmill import api, memory
+
+    class Node:
+        pass
+
+    assert gc.get_freeze_count() == 0
+    with memory.long_lived():
+        frozen = gc.get_freeze_count()
+        assert frozen > 0
+        a, b = Node(), Node()
+        a.other, b.other = b, a
+        gone = weakref.ref(a)
+        del a, b
+        gc.collect()
+        assert gone() is None  # a cycle made inside the block: collected
+        with memory.long_lived():
+            pass
+        assert gc.get_freeze_count() >= frozen  # the inner block's end unfroze nothing
+    assert gc.get_freeze_count() == 0
+    seen = []
+    original = memory.long_lived
+
+    @contextlib.contextmanager
+    def watched():
+        with original():
+            seen.append(gc.get_freeze_count())
+            yield
+
+    memory.long_lived = watched
+    try:
+        api.load_tools(os.path.join(DATA, "tools.toml"))  # not an operation: no block
+        api.load_part(os.path.join(DATA, "vase.stl"))
+    finally:
+        memory.long_lived = original
+    assert len(seen) == 1 and seen[0] > 0 and gc.get_freeze_count() == 0

@@ -26,6 +26,7 @@ import functools
 import inspect
 import os
 
+from . import memory
 from .errors import InputError, NothingToCut
 from .options import Params
 from .params import (OUTPUTS, AnalyzeParams, ChooseParams, ClearFixturesParams, DexelParams, FinishParams,
@@ -83,7 +84,8 @@ def operation(spec: type[Params], *positional: str):
                 raise InputError(f"{name} got {', '.join(twice)} twice", tuple(twice))
             values.update(kwargs)
             p = spec.checked(values, name)
-            return body(convert(p))
+            with memory.long_lived():
+                return body(convert(p))
 
         call.__signature__ = sig
         call.__doc__ = f"{body.__doc__}\n\n    Parameters:\n" + "\n".join(lines)

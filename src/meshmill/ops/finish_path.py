@@ -74,6 +74,7 @@ class PathBuilder:
         self._settled = {}  # its passes' ways as :meth:`_skip_blocked_ways` left them
         self._links = {}  # its direct links (:meth:`_directs`: points, or None), keyed by the two passes
         self._changed = set()  # ids of the passes a repair build found changed (:meth:`_skip_blocked_ways`)
+        self._reached = {}  # the reaches of the last path built (:meth:`_reaches`), by pass, side and way
 
     def _way_end(self, ps, key):
         """``(point, axis, vertical, feed)`` of pass ``ps``'s way in (``key`` ``"entry"``) or out
@@ -91,23 +92,31 @@ class PathBuilder:
         if self.reach is None:
             return out
         pts, dirs, axes, tools, tops, where = [], [], [], [], [], []
+        known, kept = self._reached, {}
         for k, ps in enumerate(passes):
             for side, key in enumerate(("entry", "exit")):
-                p, u, vertical, feed = self._way_end(ps, key)
-                if not feed or not ps.get(("reach_in", "reach_out")[side], True):
+                if not LINKS[ps[key]][2] or not ps.get(("reach_in", "reach_out")[side], True):
                     continue
+                memo = (id(ps), side, ps[key])
+                if memo in known:  # (the same pass's way in the last path built)
+                    kept[memo] = known[memo]
+                    out[k][side] = kept[memo][1]
+                    continue
+                p, u, vertical, feed = self._way_end(ps, key)
                 d = self._dir(u, vertical)
                 pts.append(p)
                 dirs.append(d)
                 axes.append(u)
                 tools.append(ps["tool"])
                 tops.append(max(0.0, (self.safe_z - p[2]) / d[2]))
-                where.append((k, side))
+                where.append((k, side, memo))
         if pts:
             t = self.reach(np.array(pts), np.array(dirs), np.array(axes), np.array(tools), np.array(tops))
-            for (k, side), tk, top in zip(where, t, tops):
+            for (k, side, memo), tk, top in zip(where, t, tops):
                 if tk < top - self.approach:
                     out[k][side] = max(float(tk), self.approach)
+                kept[memo] = (passes[k], out[k][side])
+        self._reached = kept  # (holding the passes: their ids stay theirs)
         return out
 
     def _skip_blocked_ways(self, passes):
@@ -337,7 +346,7 @@ class PathBuilder:
         same pass, reaches, links and point before) takes that block again: a round of repairs
         builds only the passes it changed and their neighbours."""
         if self._known_for is not self.check:  # what the last builds learnt from another check
-            self._known, self._settled, self._links, self._ends, self._blocks = {}, {}, {}, {}, {}
+            self._known, self._settled, self._links, self._ends, self._blocks, self._reached = {}, {}, {}, {}, {}, {}
             self._known_for = self.check
         self._skip_blocked_ways(passes)
         reaches = self._reaches(passes)
