@@ -21,7 +21,7 @@ import os
 import numpy as np
 
 from ..errors import InputError
-from .decimals import fixed_rows
+from .decimals import fixed_rows, row_text
 from .model import Toolpath
 
 MAX_COORDINATE = 1e6  # mm: a kilometre is no machine's travel
@@ -82,10 +82,9 @@ def write_apt(path, toolpath: Toolpath, tools, partno="meshmill") -> None:
             head.append("RAPID")
         elif fedrat[i]:
             head.append(f"FEDRAT/{feed[i]:.1f}, MMPM")
-        if odd[i]:  # a number for Python to write
-            head.append("GOTO/" + ", ".join(f"{v:.{d}f}" for v, d in zip(rows[i].tolist(), GOTO_DECIMALS)))
-        out.append(("\n".join(head) + "\n").encode())
-        out.append(text[ends[i]:ends[i + 1]])
+        out.append(("\n".join(head) + "\n").encode() if head else b"")
+        out.append(row_text(rows[i].tolist(), GOTO_DECIMALS, "GOTO/", ", ").encode() if odd[i] else
+                   text[ends[i]:ends[i + 1]])
         done = i + 1
     out.append(text[ends[done]:ends[n]])
     out.append(b"FINI\n")

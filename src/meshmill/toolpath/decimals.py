@@ -79,11 +79,17 @@ def _fixed_rows(values, decimals, powers, prefix, sep, out, ends, odd):
     return at
 
 
+def row_text(row, decimals, prefix: str, sep: str) -> str:
+    """Python's line of one row (what :func:`fixed_rows` leaves to Python where ``odd``)."""
+    return prefix + sep.join(f"{v:.{d}f}" for v, d in zip(row, decimals)) + "\n"
+
+
 def fixed_rows(values, decimals, prefix: str, sep: str) -> tuple[bytes, np.ndarray, np.ndarray]:
     """``(text, ends, odd)``: row i of ``values (n, m)`` as the ASCII line
     ``prefix + sep.join(f"{v:.{d}f}" for v, d in zip(row, decimals)) + "\\n"`` in
     ``text[ends[i]:ends[i + 1]]`` (``ends (n + 1,)``), empty where ``odd[i]`` (``(n,)`` bool): a
-    number of that row is for Python to write. ``decimals (m,)``: 0 to :data:`MAX_DECIMALS`."""
+    number of that row is for Python to write (:func:`row_text`). ``decimals (m,)``: 0 to
+    :data:`MAX_DECIMALS`."""
     decimals = np.asarray(decimals, np.int64)
     values = np.ascontiguousarray(values, np.float64).reshape(len(values), len(decimals))
     if len(decimals) and not 0 <= decimals.min() <= decimals.max() <= MAX_DECIMALS:
