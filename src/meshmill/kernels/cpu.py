@@ -179,14 +179,21 @@ def points_inside(points, inside):
 
 
 @numba.njit(parallel=True, cache=True)
-def _drop_cutter(xy, R, r, body_r, body_t, floor, chunk, node_lo, node_hi, node_child, node_range, tris):
+def _drop_cutter(xy, R, r, body_r, body_t, floor, chunk, threads, node_lo, node_hi, node_child, node_range, tris):
+    # numba gives each thread one run of a prange's iterations: the chunks dealt to the
+    # ``threads`` lanes in turn (lane j: chunks j, j + threads, ...) spread each thread's share
+    # over the whole batch, in order, where runs of chunks left one thread the steep half of a
+    # part and the other waiting (a raster's grid 0.46 -> 0.42 s on 2 threads)
     k = xy.shape[0]
     z = np.empty(k)
     cc = np.empty((k, 3))
-    for c in prange((k + chunk - 1) // chunk):
+    n_chunks = (k + chunk - 1) // chunk
+    lanes = max(1, min(threads, n_chunks))
+    for j in prange(lanes):
         stack = np.empty(STACK_SIZE, np.int32)
-        cut.drop_run(c * chunk, min(k, (c + 1) * chunk), xy, R, r, body_r, body_t, floor,
-                     node_lo, node_hi, node_child, node_range, tris, stack, z, cc)
+        for c in range(j, n_chunks, lanes):
+            cut.drop_run(c * chunk, min(k, (c + 1) * chunk), xy, R, r, body_r, body_t, floor,
+                         node_lo, node_hi, node_child, node_range, tris, stack, z, cc)
     return z, cc
 
 
@@ -199,7 +206,7 @@ def drop_cutter(xy, radius, corner_radius, floor, bvh, body=None, chunk=CHUNK):
     body = NO_BODY if body is None else body
     return _drop_cutter(np.ascontiguousarray(xy, np.float64), float(radius), float(corner_radius),
                         np.ascontiguousarray(body[0], np.float64), np.ascontiguousarray(body[1], np.float64),
-                        float(floor), int(chunk), *bvh)
+                        float(floor), int(chunk), numba.get_num_threads(), *bvh)
 
 
 @numba.njit(parallel=True, cache=True)

@@ -250,6 +250,8 @@ def link_heights(ends, z_in, z_out, safe_z: float, clear, spacing: float, high=f
 
 
 REFINE_ROUNDS = 6  # each halves the spacing where the chord leaves the surface
+
+
 def drop_piece(shared: dict, piece) -> np.ndarray:
     """:func:`drop_refined` of one piece ``xy (k, 2)`` of a polyline on a worker of a cluster
     (:func:`meshmill.cluster.run_pieces`); ``shared``: the ``part``, the ``tool`` and the
@@ -294,17 +296,24 @@ def drop_refined_pieces(xy, drop: "ToolDrop", chord_tol, min_step, progress=None
 def drop_refined(xy, drop: ToolDrop, chord_tol, min_step):
     """Drop the tool along the polyline ``xy (k, 2)``, adding midpoints where the tip height
     leaves the chord by more than ``chord_tol``; returns tips ``(m, 3)``. Each round drops only
-    the midpoints of the segments the round before split (the others' were within the chord)."""
-    z = drop(xy)
+    the midpoints of the segments the round before split (the others' were within the chord);
+    the first round's are dropped with the points, in one batch in order along the polyline."""
+    long = np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step
+    idx = np.nonzero(long)[0]
+    at = np.arange(len(xy)) + np.concatenate([[0], np.cumsum(long)])  # each point's place in the batch
+    batch = np.empty((len(xy) + len(idx), 2))
+    batch[at] = xy
+    batch[at[idx] + 1] = mid = 0.5 * (xy[idx] + xy[idx + 1])
+    both = drop(batch)
+    z, zm = both[at], both[at[idx] + 1]
     fresh = np.ones(max(len(xy) - 1, 0), bool)  # segments whose midpoint is not dropped yet
-    for _ in range(REFINE_ROUNDS):
-        if len(xy) < 2:
-            break
-        idx = np.nonzero(fresh & (np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step))[0]
-        if len(idx) == 0:
-            break
-        mid = 0.5 * (xy[idx] + xy[idx + 1])
-        zm = drop(mid)
+    for k in range(REFINE_ROUNDS):
+        if k:
+            idx = np.nonzero(fresh & (np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step))[0]
+            if len(idx) == 0:
+                break
+            mid = 0.5 * (xy[idx] + xy[idx + 1])
+            zm = drop(mid)
         off = np.abs(zm - 0.5 * (z[idx] + z[idx + 1])) > chord_tol
         if not off.any():
             break
