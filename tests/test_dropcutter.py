@@ -229,6 +229,43 @@ def test_refinement_drops_only_the_new_segments_midpoints():
     assert sum(counted) < every
 
 
+@pytest.mark.parametrize("kind", ["ball", "bull", "flat"])
+def test_the_compiled_refinement_gives_the_rounds_tips(kind):
+    """ToolDrop.refined (one compiled pass, each segment refined on its own, depth first) gives the
+    tips of drop_refined's rounds over a plain drop function, bit for bit: lines crossing a post's
+    fillets, its edge and a box whose corners and top lie on the grid, with a shank and holder and
+    a grown tool; polylines of 0-3 points; rows that run out of room (made room for, the same)."""
+    from meshmill.geometry import shapes
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.pathing.dropcutter import REFINE_ROUNDS, ToolDrop, drop_refined
+    from meshmill.tools.table import Tool
+
+    post, b = shapes.post_with_fillet(segments=48), box([20.0, -5.0, 5.0], [30.0, 5.0, 12.0])
+    part = type(post)(vertices=np.vstack([post.vertices, b.vertices]),
+                      faces=np.vstack([post.faces, b.faces + len(post.vertices)]))
+    R, r = CUTTERS[kind]
+    tool = Tool(name="T", type=kind, diameter=2 * R, corner_radius=r, flute_length=8.0, gauge_length=40.0,
+                shank_diameter=2 * R, holder_diameter=30.0, holder_length=40.0, number=1)
+    kern = solid_kernels(part, "cpu")
+    for grow, body_grow in ((0.0, 0.0), (0.5, 1.0)):
+        drop = ToolDrop(tool, kern, float(part.bounds[0, 2]), grow=grow, body_grow=body_grow)
+        for y in (0.0, 3.0, 5.0):
+            xy = np.column_stack([np.linspace(-45.0, 45.0, 91), np.full(91, y)])  # x on whole mm
+            fast = drop.refined(xy, 0.001, 0.01, REFINE_ROUNDS)
+            slow = drop_refined(xy, lambda p: drop(p), 0.001, 0.01)
+            assert np.array_equal(fast, slow) and len(fast) > len(xy)
+            assert np.array_equal(drop_refined(xy, drop, 0.001, 0.01), fast)
+        for k in range(4):
+            assert np.array_equal(drop.refined(xy[:k], 0.001, 0.01, REFINE_ROUNDS),
+                                  drop_refined(xy[:k], lambda p: drop(p), 0.001, 0.01))
+    z, rows = cpu.drop_refined(xy, drop.radius, drop.corner, drop.floor - drop.grow, drop.grow, 0.001, 0.01,
+                               REFINE_ROUNDS, kern.top, drop.body, chunk=4, cap=1)
+    z2, rows2 = cpu.drop_refined(xy, drop.radius, drop.corner, drop.floor - drop.grow, drop.grow, 0.001, 0.01,
+                                 REFINE_ROUNDS, kern.top, drop.body)
+    order, order2 = np.lexsort((rows[:, 1], rows[:, 0])), np.lexsort((rows2[:, 1], rows2[:, 0]))
+    assert np.array_equal(z, z2) and np.array_equal(rows[order], rows2[order2]) and len(rows) > 10
+
+
 @pytest.mark.parametrize("kind", CUTTERS)
 def test_the_drop_meets_the_top_faces_as_it_meets_the_whole_solid(kind):
     """Solid kernels drop onto the faces deciding inside (the mesh's, the caps'), not onto the

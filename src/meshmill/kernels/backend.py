@@ -123,6 +123,16 @@ class MeshKernels:
     def drop_cutter(self, xy, radius, corner_radius, floor, body=None):
         return self.impl.drop_cutter(xy, radius, corner_radius, floor, self.top, body)
 
+    @property
+    def refines(self) -> bool:
+        """Whether :meth:`drop_refined` is compiled here (the CPU's; elsewhere the refinement's
+        rounds drop their midpoints by :meth:`drop_cutter`)."""
+        return hasattr(self.impl, "drop_refined")
+
+    def drop_refined(self, xy, radius, corner_radius, floor, grow, chord_tol, min_step, rounds, body=None):
+        return self.impl.drop_refined(xy, radius, corner_radius, floor, grow, chord_tol, min_step, rounds, self.top,
+                                      body)
+
     def touch_points(self, inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_radius, floor, touch,
                      width, rounds, body=None, inside_contacts=None):
         return self.impl.touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_radius, floor,

@@ -210,6 +210,51 @@ def drop_cutter(xy, radius, corner_radius, floor, bvh, body=None, chunk=CHUNK):
 
 
 @numba.njit(parallel=True, cache=True)
+def _drop_refined(xy, R, r, body_r, body_t, floor, grow, chord_tol, min_step, rounds, chunk, threads, cap,
+                  node_lo, node_hi, node_child, node_range, tris):
+    k = xy.shape[0]
+    z = np.empty(k)
+    n_chunks = max(1, (k - 1 + chunk - 1) // chunk)  # chunks of segments (one of the lone point)
+    lanes = max(1, min(threads, n_chunks))  # dealt to the threads in turn, as in _drop_cutter
+    rows = np.empty((lanes, cap, 5))
+    count = np.zeros(lanes, np.int64)
+    for j in prange(lanes):
+        stack = np.empty(STACK_SIZE, np.int32)
+        pend = np.empty((rounds + 1, 9))
+        for c in range(j, n_chunks, lanes):
+            s1 = min(k - 1, (c + 1) * chunk)
+            count[j] = cut.refine_run(c * chunk, s1, s1 == k - 1, xy, R, r, body_r, body_t, floor, grow, chord_tol,
+                                      min_step, rounds, node_lo, node_hi, node_child, node_range, tris, stack, pend,
+                                      z, rows[j], count[j])
+            if count[j] < 0:
+                break
+    return z, rows, count
+
+
+def drop_refined(xy, radius, corner_radius, floor, grow, chord_tol, min_step, rounds, bvh, body=None, chunk=CHUNK,
+                 cap=None):
+    """Drop a vertical cutter (as :func:`drop_cutter`; heights raised by ``grow``, floor before it)
+    at each of ``xy (k, 2)``, a polyline, and refine each of its segments on its own: its midpoint
+    dropped where it is longer than ``min_step``, kept where its height leaves the chord by more
+    than ``chord_tol``, its halves refined so in turn, ``rounds`` levels deep. Returns the heights
+    ``(k,)`` and the midpoints kept ``(m, 5)``: segment, place along it (0-1), height, x, y, in
+    no particular order. ``cap``: rows a thread holds at first (more are made room for)."""
+    body = NO_BODY if body is None else body
+    xy = np.ascontiguousarray(xy, np.float64)
+    if len(xy) == 0:
+        return np.zeros(0), np.zeros((0, 5))
+    cap = cap or max(1024, len(xy) // max(1, numba.get_num_threads()))
+    while True:
+        z, rows, count = _drop_refined(xy, float(radius), float(corner_radius), np.ascontiguousarray(body[0], np.float64),
+                                       np.ascontiguousarray(body[1], np.float64), float(floor), float(grow),
+                                       float(chord_tol), float(min_step), int(rounds), int(chunk),
+                                       numba.get_num_threads(), cap, *bvh)
+        if (count >= 0).all():
+            return z, np.concatenate([rows[j, :count[j]] for j in range(len(count))])
+        cap *= 4  # (a thread's rows ran out: again with room for more)
+
+
+@numba.njit(parallel=True, cache=True)
 def _touch_points(pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, width, rounds,
                   node_lo, node_hi, node_child, node_range, tris):
     out = pb.copy()

@@ -320,6 +320,86 @@ def build(jit):
             cc[i, 2] = sz
 
     @jit
+    def refine_run(s0, s1, last, xy, R, r, body_r, body_t, floor, grow, chord_tol, min_step, rounds,
+                   node_lo, node_hi, node_child, node_range, tris, stack, pend, z, rows, n):
+        """Drop the tool (its heights raised by ``grow``) at points s0..s1 of the polyline ``xy``
+        in order, into ``z[s0:s1]`` (and ``z[s1]`` where ``last``), and refine each segment s-s+1
+        between them on its own: its midpoint is dropped where it is longer than ``min_step``, and
+        kept where its height leaves the chord by more than ``chord_tol``, its halves refined so in
+        turn, ``rounds`` levels deep. A kept midpoint is the row ``(s, t, z, x, y)`` of ``rows``
+        (t: its place along the segment, 0-1), appended at ``n``; returns the rows' count, -1 where
+        ``rows`` is full. ``pend (rounds + 1, 9)``: the halves waiting."""
+        sx = math.nan
+        sy = math.nan
+        sz = math.nan
+        zb, sx, sy, sz = tool_drop(xy[s0, 0], xy[s0, 1], R, r, body_r, body_t, floor, sx, sy, sz,
+                                   node_lo, node_hi, node_child, node_range, tris, stack)
+        zb += grow
+        z[s0] = zb
+        for s in range(s0, s1):
+            za = zb
+            zb, sx, sy, sz = tool_drop(xy[s + 1, 0], xy[s + 1, 1], R, r, body_r, body_t, floor, sx, sy, sz,
+                                       node_lo, node_hi, node_child, node_range, tris, stack)
+            zb += grow
+            if s + 1 < s1 or last:
+                z[s + 1] = zb
+            # (a, b): x, y, z, t of each end, and the depth
+            pend[0, 0] = xy[s, 0]
+            pend[0, 1] = xy[s, 1]
+            pend[0, 2] = za
+            pend[0, 3] = 0.0
+            pend[0, 4] = xy[s + 1, 0]
+            pend[0, 5] = xy[s + 1, 1]
+            pend[0, 6] = zb
+            pend[0, 7] = 1.0
+            pend[0, 8] = 0.0
+            top = 1
+            while top > 0:
+                top -= 1
+                ax = pend[top, 0]
+                ay = pend[top, 1]
+                bx = pend[top, 4]
+                by = pend[top, 5]
+                dx = bx - ax
+                dy = by - ay
+                if not math.sqrt(dx * dx + dy * dy) > min_step:
+                    continue
+                mx = 0.5 * (ax + bx)
+                my = 0.5 * (ay + by)
+                zm, sx, sy, sz = tool_drop(mx, my, R, r, body_r, body_t, floor, sx, sy, sz,
+                                           node_lo, node_hi, node_child, node_range, tris, stack)
+                zm += grow
+                if not abs(zm - 0.5 * (pend[top, 2] + pend[top, 6])) > chord_tol:
+                    continue
+                if n >= rows.shape[0]:
+                    return -1
+                tm = 0.5 * (pend[top, 3] + pend[top, 7])
+                rows[n, 0] = s
+                rows[n, 1] = tm
+                rows[n, 2] = zm
+                rows[n, 3] = mx
+                rows[n, 4] = my
+                n += 1
+                depth = pend[top, 8] + 1.0
+                if depth >= rounds:
+                    continue
+                # its halves: (a, m) where it was, (m, b) above it
+                for k in range(4):
+                    pend[top + 1, 4 + k] = pend[top, 4 + k]
+                pend[top + 1, 8] = depth
+                pend[top, 4] = mx
+                pend[top, 5] = my
+                pend[top, 6] = zm
+                pend[top, 7] = tm
+                pend[top, 8] = depth
+                pend[top + 1, 0] = mx
+                pend[top + 1, 1] = my
+                pend[top + 1, 2] = zm
+                pend[top + 1, 3] = tm
+                top += 2
+        return n
+
+    @jit
     def touch_point(i, pa, pb, fa, fb, qa, z, R, r, body_r, body_t, floor, touch, width, rounds,
                     node_lo, node_hi, node_child, node_range, tris, stack, out):
         """Where the drop height crosses z between inside point ``pa[i]`` and outside point
@@ -411,4 +491,5 @@ def build(jit):
         out[i, 1] = by
 
     return namespace(profile=profile, contact_reach=contact_reach, edge_drop=edge_drop, triangle_drop=triangle_drop,
-                     mesh_drop=mesh_drop, tool_drop=tool_drop, drop_run=drop_run, touch_point=touch_point)
+                     mesh_drop=mesh_drop, tool_drop=tool_drop, drop_run=drop_run, refine_run=refine_run,
+                     touch_point=touch_point)

@@ -121,6 +121,17 @@ class ToolDrop:
             contact[higher] = cd[higher]
         return z + self.grow, contact
 
+    def refined(self, xy: np.ndarray, chord_tol: float, min_step: float, rounds: int):
+        """:func:`drop_refined` in one compiled pass where the kernels offer it and no disk is
+        dropped besides the cutter (else None): the tips ``(m, 3)``."""
+        if self.disks or not self.kern.refines:
+            return None
+        z, rows = self.kern.drop_refined(xy, self.radius, self.corner, self.floor - self.grow, self.grow, chord_tol,
+                                         min_step, rounds, self.body)
+        rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]
+        at = rows[:, 0].astype(np.int64) + 1
+        return np.column_stack([np.insert(xy, at, rows[:, 3:5], axis=0), np.insert(z, at, rows[:, 2])])
+
     def bounds(self, xy: np.ndarray, delta: float):
         """(For ``grow`` 0.) Upper and lower bounds ``(k,), (k,)`` of the drop height anywhere within ``delta`` mm of
         each of ``xy (k, 2)``.
@@ -297,7 +308,13 @@ def drop_refined(xy, drop: ToolDrop, chord_tol, min_step):
     """Drop the tool along the polyline ``xy (k, 2)``, adding midpoints where the tip height
     leaves the chord by more than ``chord_tol``; returns tips ``(m, 3)``. Each round drops only
     the midpoints of the segments the round before split (the others' were within the chord);
-    the first round's are dropped with the points, in one batch in order along the polyline."""
+    the first round's are dropped with the points, in one batch in order along the polyline.
+    A :class:`ToolDrop` does it all in one compiled pass where it can (:meth:`ToolDrop.refined`:
+    the same tips); ``drop`` may be any function of ``xy`` giving heights."""
+    if isinstance(drop, ToolDrop):
+        tips = drop.refined(np.asarray(xy, np.float64), chord_tol, min_step, REFINE_ROUNDS)
+        if tips is not None:
+            return tips
     long = np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step
     idx = np.nonzero(long)[0]
     at = np.arange(len(xy)) + np.concatenate([[0], np.cumsum(long)])  # each point's place in the batch
