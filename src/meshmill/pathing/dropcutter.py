@@ -26,11 +26,15 @@ def stock_check(solid, allowance: float, clearance: float, device) -> StockCheck
     return StockCheck(allowance=allowance, clearance=clearance)
 
 
-def body_grow(solid, allowance: float) -> float:
+def body_grow(solid, allowance: float, tolerance: float) -> float:
     """How far a 3-axis operation's shank and holder keep from the design: out of the material
     ``allowance`` mm on it (a ``solid`` stock mesh is left to the check and repair of
-    :func:`verified_path`)."""
-    return 0.0 if solid is not None else float(allowance)
+    :func:`verified_path`), and half the ``tolerance`` more. The check lets them into the stock
+    by the tolerance; kept out by half of it, a shank that rests on the stock between two points
+    of a pass (the chord within half the tolerance of its drop) is proven clear at once, where one
+    just touching had its moves halved until the chord came within the tolerance (the raster of
+    bench/whole_ops.py: poses refined 7 294 -> 2 479, its verification 1.16 -> 0.99 s)."""
+    return (0.0 if solid is not None else float(allowance)) + 0.5 * float(tolerance)
 
 
 def safe_height(mesh, solid, allowance: float, clearance: float) -> float:
@@ -60,7 +64,7 @@ def stock_for(mesh, params, device):
             raise InputError("rest needs a stock to measure depths from: a mesh, a box, or a saved or in-process stock "
                              "(not the part offset)", ("rest", "stock"))
         rest_kern = check.kern if surface is solid else solid_kernels(surface, device)
-    return params, check, body_grow(solid, allowance), safe_height(mesh, solid, allowance, params.clearance), rest_kern
+    return params, check, body_grow(solid, allowance, params.tolerance), safe_height(mesh, solid, allowance, params.clearance), rest_kern
 
 
 def pick_tool(tools, name):
