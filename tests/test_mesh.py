@@ -131,6 +131,13 @@ def test_consistently_wound_open_part_keeps_its_winding():
     from meshmill.kernels.backend import solid_kernels
     inside = solid_kernels(m).points_inside(np.array([[0.0, 0, 6], [0, 0, 11.99], [0, 0, 12.01], [8.5, 0, 1]]))
     assert inside.tolist() == [True, True, False, False]
+    # the boundary loops found on load are the faces' (the solid takes them, moved with the mesh)
+    from meshmill.geometry.solid import boundary_loops
+
+    for mesh in (m, m.transformed(offset=[1.0, 2.0, 3.0])):
+        loops, loop_piece = boundary_loops(mesh.faces, mesh.piece)
+        assert len(loops) == len(mesh.loops[0]) == 2 and np.array_equal(loop_piece, mesh.loops[1])
+        assert all(np.array_equal(a, b) for a, b in zip(loops, mesh.loops[0]))
 
 
 def test_open_surface_facing_down_is_named_and_flip_turns_it():

@@ -49,6 +49,7 @@ class Mesh:
     warnings: list = field(default_factory=list)
     piece: np.ndarray | None = None  # (m,) connected piece of each face (across manifold edges)
     piece_kind: np.ndarray | None = None  # (p,) int8 per piece: CLOSED, HOLES or SHEET
+    loops: tuple | None = None  # the boundary loops of ``faces`` (geometry.solid.boundary_loops), found on load
     placement: Placement | None = None  # how the file was set up into the work frame (None: as read)
     source: str = ""  # the file it was read from (absolute path; "" for arrays)
     load_seconds: float = 0.0  # reading and checking it took
@@ -88,7 +89,7 @@ class Mesh:
         v = v if offset is None else v + np.asarray(offset, float)
         return Mesh(vertices=np.ascontiguousarray(v), faces=self.faces, closed=self.closed,
                     dropped_degenerate=self.dropped_degenerate, flipped=self.flipped, turned_faces=self.turned_faces,
-                    piece=self.piece, piece_kind=self.piece_kind, placement=self.placement)
+                    piece=self.piece, piece_kind=self.piece_kind, loops=self.loops, placement=self.placement)
 
     def solid(self, floor: float | None = None):
         """The :class:`~meshmill.geometry.solid.Solid` this mesh bounds, sheets down to ``floor``
@@ -320,7 +321,7 @@ def _orient(mesh: Mesh, name: str, flip: bool) -> None:
         mesh.warnings.append(f"{name}: flip: every face turned over (normals reversed)")
     mesh.faces = F.astype(np.int32)
     mesh.piece = comp
-    loops, loop_piece = boundary_loops(mesh.faces, comp)
+    mesh.loops = loops, loop_piece = boundary_loops(mesh.faces, comp)
     mesh.piece_kind, volume, up, area = piece_kinds(mesh.vertices, mesh.faces, comp, loops, loop_piece)
     solid = mesh.piece_kind != SHEET
     if solid.any() and volume[solid].sum() < 0.0:

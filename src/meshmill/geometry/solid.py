@@ -157,7 +157,10 @@ def bounded_solid(mesh, floor: float) -> Solid:
     piece = mesh.piece if mesh.piece is not None else np.zeros(len(F), np.int64)
     kind = mesh.piece_kind if mesh.piece_kind is not None else np.zeros(1, np.int8)
     face_kind = kind[piece]
-    loops, loop_piece = boundary_loops(F, piece) if not mesh.closed else ([], np.zeros(0, np.int64))
+    if mesh.closed:
+        loops, loop_piece = [], np.zeros(0, np.int64)
+    else:
+        loops, loop_piece = mesh.loops if mesh.loops is not None else boundary_loops(F, piece)
     cap_v, cap_f, _ = _cap_faces(V, [loop for loop, p in zip(loops, loop_piece) if kind[p] == HOLES])
     Vc = np.vstack([V, cap_v]) if len(cap_v) else V
     inside_faces = np.vstack([F, cap_f]) if len(cap_f) else F
