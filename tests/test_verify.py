@@ -317,6 +317,25 @@ def test_a_move_is_certified_in_one_test_and_still_halved_where_it_must():
     assert fig["certified"][list(fig["move"]).index(1)] >= 1
 
 
+def test_pieces_of_a_move_whose_tool_was_proven_whole_are_tested_for_the_shank_alone():
+    """_Measure.clear's ``proven``: intervals whose tool is known proven against the design (the
+    pieces of a move proven whole, its shank failing) are not tested against it again: a move
+    over the ridge's apex 0.0004 mm too low fails its proof, and passes it given as proven; the
+    rest of the report (``tool_ok``) says which intervals the design proved."""
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.pathing.verify import StockCheck, _Measure
+
+    ball = tool_from_entry(dict(name="B1", type="ball", diameter=1, flute_length=4, gauge_length=30), 1, "t")
+    meas = _Measure(solid_kernels(_ridge()), [ball], 0.0005, StockCheck())
+    z = 10 - 0.001 * np.sqrt(2) - 0.0004
+    ta, tb = np.array([[-5.05, 0, z], [-5.05, 0, 12.0]]), np.array([[4.95, 0, z], [4.95, 0, 12.0]])
+    up, tool, feed = np.tile(UP, (2, 1)), np.zeros(2, np.int64), np.zeros(2, bool)
+    ok, tool_ok = meas.clear(ta, up, tb, up, tool, feed)
+    assert ok.tolist() == [False, True] and tool_ok.tolist() == [False, True]
+    ok, tool_ok = meas.clear(ta, up, tb, up, tool, feed, proven=np.array([True, False]))
+    assert ok.tolist() == [True, True] and tool_ok.tolist() == [True, True]
+
+
 def test_a_tool_thinner_than_the_tolerance_through_the_material_is_found():
     """A part whose radius is within the tolerance is proven of nothing (its sweep shrunk by the
     tolerance is empty): a 0.016 mm ball fed through a block between two clean poses outside it

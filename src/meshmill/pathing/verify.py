@@ -105,7 +105,7 @@ def rapid_reach(kern, tools, tol: float, stock: StockCheck, points, dirs, axes, 
         i = np.nonzero(live)[0]
         lo = np.maximum(0.0, t[i] - s[i])
         ok = meas.clear(points[i] + t[i, None] * dirs[i], axes[i], points[i] + lo[:, None] * dirs[i], axes[i],
-                        tool[i], np.ones(len(i), bool))
+                        tool[i], np.ones(len(i), bool))[0]
         t[i[ok]] = lo[ok]
         s[i[ok]] = np.minimum(step, 2.0 * s[i[ok]])
         s[i[~ok]] *= 0.5
@@ -308,31 +308,48 @@ class _Measure:
         body = np.where(~cut, segs, 0.0).max(axis=1)
         return end, body, ring, segs, in_stock
 
-    def clear(self, ta, xa, tb, xb, tool, rapid, slack=None):
-        """``(k,) bool``: intervals certified within the tolerance (rapids: out of the stock; the
-        shank and holder of feed moves: out of the stock too), less ``slack (k,)`` mm where given
-        (:func:`pairing_slack`; the kernels prove limits of 0 and more only: an interval whose
-        slack reaches the tolerance is not certified)."""
+    def clear(self, ta, xa, tb, xb, tool, rapid, slack=None, proven=None):
+        """``(ok, tool_ok)``, (k,) bool each: intervals certified within the tolerance (rapids: out
+        of the stock; the shank and holder of feed moves: out of the stock too), less ``slack (k,)``
+        mm where given (:func:`pairing_slack`; the kernels prove limits of 0 and more only: an
+        interval whose slack reaches the tolerance is not certified); and those whose tool is
+        certified against the design (rapids: and the stock), the feed moves' shank and holder
+        against the stock left. ``proven (k,) bool``: intervals whose tool is known to be so (the
+        pieces of a move whose proof covered it whole: their poses are the move's), not tested
+        again."""
         if slack is not None and (slack >= self.tol).any():
             ok = np.zeros(len(ta), bool)
+            part = np.zeros(len(ta), bool) if proven is None else proven.copy()
             sel = np.nonzero(slack < self.tol)[0]
             if len(sel):
-                ok[sel] = self.clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel], rapid[sel], slack[sel])
-            return ok
+                ok[sel], part[sel] = self.clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel], rapid[sel], slack[sel],
+                                                None if proven is None else proven[sel])
+            return ok, part
         lim = np.full(len(ta), self.tol) if slack is None else self.tol - slack
-        ok = self.kern.intervals_clear(ta, xa, tb, xb, self._design_tool(tool, rapid), self._grow(rapid, False), lim,
-                                       self.rings, self.segs, self.base)
-        if self.stock.kern is not None and (ok & rapid).any():
-            sel = np.nonzero(ok & rapid)[0]
+        fresh = np.ones(len(ta), bool) if proven is None else ~proven
+        if fresh.all():
+            ok = self.kern.intervals_clear(ta, xa, tb, xb, self._design_tool(tool, rapid), self._grow(rapid, False),
+                                           lim, self.rings, self.segs, self.base)
+        else:
+            ok = proven.copy()
+            sel = np.nonzero(fresh)[0]
+            if len(sel):
+                ok[sel] = self.kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel],
+                                                    self._design_tool(tool[sel], rapid[sel]),
+                                                    self._grow(rapid[sel], False), lim[sel], self.rings, self.segs,
+                                                    self.base)
+        if self.stock.kern is not None and (ok & rapid & fresh).any():
+            sel = np.nonzero(ok & rapid & fresh)[0]
             ok[sel] = self.stock.kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel],
                                                       self._grow(rapid[sel], True), lim[sel], self.rings, self.segs,
                                                       self.base)
+        part = ok.copy()
         for kern, grow in self.body_stocks:
             sel = np.nonzero(ok & ~rapid)[0]
             if len(sel):
                 ok[sel] = kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel], np.full(len(sel), grow),
                                                lim[sel], self.no_rings, self.body_segs, self.body_segs[0])
-        return ok
+        return ok, part
 
 
 def verify_toolpath(kern, tp: Toolpath, tools, tol: float = GOUGE_TOL, step: float = DEFAULT_STEP,
@@ -425,12 +442,13 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
     last = mv[~bad_move[mv]]
     before = np.maximum(last - 1, 0)
     certified = np.zeros(len(tp), np.int64)
-    ok = meas.clear(tp.tip[before], tp.axis[before], tp.tip[last], tp.axis[last], tp.tool[last], tp.rapid[last])
+    ok, part = meas.clear(tp.tip[before], tp.axis[before], tp.tip[last], tp.axis[last], tp.tool[last], tp.rapid[last])
     certified += np.bincount(last[ok], minlength=len(tp))
     im = last[~ok]
     ta, xa, tb, xb = tp.tip[before[~ok]], tp.axis[before[~ok]], tp.tip[im], tp.axis[im]
     fa, fb = np.zeros(len(im)), np.ones(len(im))
     it, ir = tp.tool[im], tp.rapid[im]
+    iw = part[~ok]  # the tool proven against the design over the whole move: its pieces' too
     unresolved = []  # (move, tip, bound) of intervals too short to halve that stay unproven
     refined = []  # the moves of the poses measured in halving
     for _ in range(MAX_ROUNDS):  # the intervals here failed their proof, their moves not found bad
@@ -443,22 +461,22 @@ def verify_moves(kern, tp: Toolpath, tools, tol: float, step: float, stock: Stoc
             unresolved.append((int(im[k]), ta[k], float(span[k])))
             bad_move[im[k]] = True
         live = ~short
-        ta, xa, fa, tb, xb, fb, im, it, ir = (a[live] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
+        ta, xa, fa, tb, xb, fb, im, it, ir, iw = (a[live] for a in (ta, xa, fa, tb, xb, fb, im, it, ir, iw))
         memory.check(2 * POSE_BYTES * len(im), f"{2 * len(im):,} pieces of moves halved", "use a larger tolerance",
                      ("tolerance",))
         fm = 0.5 * (fa + fb)
         tm, xm = move_poses(tp, im, fm)
         refined.append(im)
         measure(tm, xm, it, im, ir)
-        ta, xa, fa, tb, xb, fb, im, it, ir = (np.concatenate([a, b]) for a, b in
-                                              ((ta, tm), (xa, xm), (fa, fm), (tm, tb), (xm, xb), (fm, fb),
-                                               (im, im), (it, it), (ir, ir)))
+        ta, xa, fa, tb, xb, fb, im, it, ir, iw = (np.concatenate([a, b]) for a, b in
+                                                  ((ta, tm), (xa, xm), (fa, fm), (tm, tb), (xm, xb), (fm, fb),
+                                                   (im, im), (it, it), (ir, ir), (iw, iw)))
         alive = ~bad_move[im]
-        ta, xa, fa, tb, xb, fb, im, it, ir = (a[alive] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
-        ok = meas.clear(ta, xa, tb, xb, it, ir, pairing_slack(tp, im, fa, fb))
+        ta, xa, fa, tb, xb, fb, im, it, ir, iw = (a[alive] for a in (ta, xa, fa, tb, xb, fb, im, it, ir, iw))
+        ok, part = meas.clear(ta, xa, tb, xb, it, ir, pairing_slack(tp, im, fa, fb), iw)
         certified += np.bincount(im[ok], minlength=len(tp))
         todo = ~ok
-        ta, xa, fa, tb, xb, fb, im, it, ir = (a[todo] for a in (ta, xa, fa, tb, xb, fb, im, it, ir))
+        ta, xa, fa, tb, xb, fb, im, it, ir, iw = (a[todo] for a in (ta, xa, fa, tb, xb, fb, im, it, ir, part))
     else:
         for k in range(len(im)):
             unresolved.append((int(im[k]), ta[k], float(np.linalg.norm(tb[k] - ta[k]))))
