@@ -117,3 +117,33 @@ def test_cl_file_as_written_move_by_move(tmp_path, tools, seed):
     empty = Toolpath(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0, np.int64))
     write_apt(tmp_path / "e.cl", empty, tools)
     assert (tmp_path / "e.cl").read_text() == move_by_move(empty, tools)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(["", "-", "+"]), st.integers(0, 10 ** 15 - 1), st.integers(0, 22),
+                          st.sampled_from(["", " ", "  "])), min_size=1, max_size=30))
+def test_plain_decimals_read_as_python_reads_them(items):
+    """read_fixed gives the double of Python's ``float`` for every plain decimal (at most 15
+    digits, 22 after the point; signs, spaces, leading zeros, -0) bit for bit, from a compiled
+    loop (a quotient of two exact doubles, correctly rounded)."""
+    from meshmill.toolpath.decimals import read_fixed
+
+    texts = []
+    for sign, m, d, pad in items:
+        digits = str(m).rjust(d + 1, "0")
+        texts.append(pad + sign + (digits[:-d] + "." + digits[-d:] if d else digits) + pad)
+    got = read_fixed(",".join(texts), len(texts))
+    want = np.array([float(t) for t in texts])
+    assert got is not None and np.array_equal(got.view(np.int64), want.view(np.int64))
+
+
+def test_what_is_not_a_plain_decimal_is_left_to_python():
+    """Exponents, 16 significant digits, 23 decimals, empty items, words, tabs, underscores, a
+    count that does not match: None (the caller reads them with Python, and says what is wrong)."""
+    from meshmill.toolpath.decimals import read_fixed
+
+    for text, count in [("1e5", 1), ("1234567890123456", 1), ("0." + "0" * 22 + "1", 1), ("1,,2", 3), ("", 1),
+                        ("-", 1), (".", 1), ("nan", 1), ("inf", 1), ("1\t", 1), ("1_0", 1), ("1,2", 3),
+                        ("1,2", 1), ("1.5.2", 1), ("--1", 1), ("1 2", 1), ("é", 1)]:
+        assert read_fixed(text, count) is None, text
+    assert read_fixed("1234567890.12345, -.5, 7.", 3).tolist() == [1234567890.12345, -0.5, 7.0]

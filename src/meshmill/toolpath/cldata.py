@@ -21,7 +21,7 @@ import os
 import numpy as np
 
 from ..errors import InputError
-from .decimals import fixed_rows, row_text
+from .decimals import fixed_rows, read_fixed, row_text
 from .model import Toolpath
 
 MAX_COORDINATE = 1e6  # mm: a kilometre is no machine's travel
@@ -193,7 +193,10 @@ def _gotos(args, name, lines, scales) -> tuple[np.ndarray, np.ndarray]:
     k = len(args)
     try:
         counts = np.fromiter((a.count(",") for a in args), np.int64, k) + 1
-        flat = np.array(",".join(args).split(","), dtype=np.float64) if k else np.zeros(0)
+        joined = ",".join(args)
+        flat = read_fixed(joined, int(counts.sum())) if k else np.zeros(0)  # (plain decimals: compiled)
+        if flat is None:
+            flat = np.array(joined.split(","), dtype=np.float64)
     except ValueError:
         counts = flat = None
     if flat is not None and np.isin(counts, (3, 6)).all():

@@ -6,6 +6,10 @@ A number is scaled by 10^d in floating point and rounded; that product is within
 its last place of the exact one, so the rounding is the exact value's unless the scaled number
 lies that close to a half. A row holding such a number (or a non-finite one, or one too large
 to scale exactly) is left to Python whole: :func:`fixed_rows` says which.
+
+Read back (:func:`read_fixed`): a plain decimal of at most 15 digits is an integer over a power of
+ten, both exact doubles, whose quotient is the correctly rounded value Python's ``float`` gives;
+anything else is left to Python.
 """
 from __future__ import annotations
 
@@ -101,3 +105,71 @@ def fixed_rows(values, decimals, prefix: str, sep: str) -> tuple[bytes, np.ndarr
     odd = np.zeros(len(values), bool)
     n = _fixed_rows(values, decimals, _POWERS, p, s, out, ends, odd)
     return out[:n].tobytes(), ends, odd
+
+
+_EXACT_DIGITS = 15  # an integer of this many digits is an exact double (below 2^53)
+_EXACT_POWER = 22  # 10^22 is the largest power of ten that is an exact double
+
+
+@numba.njit(cache=True)
+def _read_fixed(text, powers, out):
+    """The comma-separated numbers of ``text`` (ASCII bytes) into ``out``; returns how many, or
+    -1 where one is not ``[spaces][-|+]digits[.digits][spaces]`` with at most 15 digits (and at
+    most 22 after the point), or there are more than ``out`` holds."""
+    n = 0
+    i = 0
+    size = text.shape[0]
+    while True:
+        while i < size and text[i] == 32:
+            i += 1
+        neg = False
+        if i < size and (text[i] == 45 or text[i] == 43):
+            neg = text[i] == 45
+            i += 1
+        m = 0
+        seen = False  # a digit at all
+        digits = 0  # significant ones (m's)
+        decimals = 0
+        point = False
+        while i < size:
+            c = text[i]
+            if 48 <= c <= 57:
+                seen = True
+                if digits > 0 or c != 48:
+                    digits += 1
+                m = m * 10 + (c - 48)
+                if point:
+                    decimals += 1
+            elif c == 46 and not point:
+                point = True
+            else:
+                break
+            i += 1
+        while i < size and text[i] == 32:
+            i += 1
+        if not seen or digits > _EXACT_DIGITS or decimals > _EXACT_POWER or n >= out.shape[0]:
+            return -1
+        if i < size and text[i] != 44:
+            return -1
+        v = m / powers[decimals]  # both exact: the quotient is the decimal's correctly rounded double
+        out[n] = -v if neg else v
+        n += 1
+        if i >= size:
+            return n
+        i += 1
+
+
+def read_fixed(text: str, count: int):
+    """``(count,)`` float64: the comma-separated numbers of ``text``, each the double Python's
+    ``float`` gives, or None where one is not a plain fixed-point decimal of at most 15 digits
+    (then Python must read them) or there are not ``count`` of them."""
+    try:
+        raw = np.frombuffer(text.encode("ascii"), np.uint8)
+    except UnicodeEncodeError:
+        return None
+    out = np.empty(count)
+    n = _read_fixed(raw, _POWERS_READ, out)
+    return out if n == count else None
+
+
+_POWERS_READ = np.array([10.0 ** k for k in range(_EXACT_POWER + 1)])  # exact doubles
