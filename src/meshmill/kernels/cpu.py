@@ -245,7 +245,8 @@ def drop_refined(xy, radius, corner_radius, floor, grow, chord_tol, min_step, ro
         return np.zeros(0), np.zeros((0, 5))
     cap = cap or max(1024, len(xy) // max(1, numba.get_num_threads()))
     while True:
-        z, rows, count = _drop_refined(xy, float(radius), float(corner_radius), np.ascontiguousarray(body[0], np.float64),
+        z, rows, count = _drop_refined(xy, float(radius), float(corner_radius),
+                                       np.ascontiguousarray(body[0], np.float64),
                                        np.ascontiguousarray(body[1], np.float64), float(floor), float(grow),
                                        float(chord_tol), float(min_step), int(rounds), int(chunk),
                                        numba.get_num_threads(), cap, *bvh)

@@ -64,7 +64,8 @@ def stock_for(mesh, params, device):
             raise InputError("rest needs a stock to measure depths from: a mesh, a box, or a saved or in-process stock "
                              "(not the part offset)", ("rest", "stock"))
         rest_kern = check.kern if surface is solid else solid_kernels(surface, device)
-    return params, check, body_grow(solid, allowance, params.tolerance), safe_height(mesh, solid, allowance, params.clearance), rest_kern
+    return (params, check, body_grow(solid, allowance, params.tolerance),
+            safe_height(mesh, solid, allowance, params.clearance), rest_kern)
 
 
 def pick_tool(tools, name):
@@ -311,30 +312,23 @@ def drop_refined_pieces(xy, drop: "ToolDrop", chord_tol, min_step, progress=None
 def drop_refined(xy, drop: ToolDrop, chord_tol, min_step):
     """Drop the tool along the polyline ``xy (k, 2)``, adding midpoints where the tip height
     leaves the chord by more than ``chord_tol``; returns tips ``(m, 3)``. Each round drops only
-    the midpoints of the segments the round before split (the others' were within the chord);
-    the first round's are dropped with the points, in one batch in order along the polyline.
+    the midpoints of the segments the round before split (the others' were within the chord).
     A :class:`ToolDrop` does it all in one compiled pass where it can (:meth:`ToolDrop.refined`:
     the same tips); ``drop`` may be any function of ``xy`` giving heights."""
     if isinstance(drop, ToolDrop):
         tips = drop.refined(np.asarray(xy, np.float64), chord_tol, min_step, REFINE_ROUNDS)
         if tips is not None:
             return tips
-    long = np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step
-    idx = np.nonzero(long)[0]
-    at = np.arange(len(xy)) + np.concatenate([[0], np.cumsum(long)])  # each point's place in the batch
-    batch = np.empty((len(xy) + len(idx), 2))
-    batch[at] = xy
-    batch[at[idx] + 1] = mid = 0.5 * (xy[idx] + xy[idx + 1])
-    both = drop(batch)
-    z, zm = both[at], both[at[idx] + 1]
+    z = drop(xy)
     fresh = np.ones(max(len(xy) - 1, 0), bool)  # segments whose midpoint is not dropped yet
-    for k in range(REFINE_ROUNDS):
-        if k:
-            idx = np.nonzero(fresh & (np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step))[0]
-            if len(idx) == 0:
-                break
-            mid = 0.5 * (xy[idx] + xy[idx + 1])
-            zm = drop(mid)
+    for _ in range(REFINE_ROUNDS):
+        if len(xy) < 2:
+            break
+        idx = np.nonzero(fresh & (np.linalg.norm(xy[1:] - xy[:-1], axis=1) > min_step))[0]
+        if len(idx) == 0:
+            break
+        mid = 0.5 * (xy[idx] + xy[idx + 1])
+        zm = drop(mid)
         off = np.abs(zm - 0.5 * (z[idx] + z[idx + 1])) > chord_tol
         if not off.any():
             break

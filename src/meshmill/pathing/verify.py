@@ -327,17 +327,12 @@ class _Measure:
             return ok, part
         lim = np.full(len(ta), self.tol) if slack is None else self.tol - slack
         fresh = np.ones(len(ta), bool) if proven is None else ~proven
-        if fresh.all():
-            ok = self.kern.intervals_clear(ta, xa, tb, xb, self._design_tool(tool, rapid), self._grow(rapid, False),
-                                           lim, self.rings, self.segs, self.base)
-        else:
-            ok = proven.copy()
-            sel = np.nonzero(fresh)[0]
-            if len(sel):
-                ok[sel] = self.kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel],
-                                                    self._design_tool(tool[sel], rapid[sel]),
-                                                    self._grow(rapid[sel], False), lim[sel], self.rings, self.segs,
-                                                    self.base)
+        ok = np.zeros(len(ta), bool) if proven is None else proven.copy()
+        sel = slice(None) if proven is None else np.nonzero(fresh)[0]  # (all: views, no copies)
+        if fresh.any():
+            ok[sel] = self.kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel],
+                                                self._design_tool(tool[sel], rapid[sel]), self._grow(rapid[sel], False),
+                                                lim[sel], self.rings, self.segs, self.base)
         if self.stock.kern is not None and (ok & rapid & fresh).any():
             sel = np.nonzero(ok & rapid & fresh)[0]
             ok[sel] = self.stock.kern.intervals_clear(ta[sel], xa[sel], tb[sel], xb[sel], tool[sel],

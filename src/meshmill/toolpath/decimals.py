@@ -19,7 +19,9 @@ import numba
 import numpy as np
 
 MAX_DECIMALS = 18  # 10^d an int64
-_POWERS = np.array([10.0 ** k for k in range(MAX_DECIMALS + 1)])  # exact doubles
+_EXACT_DIGITS = 15  # an integer of this many digits is an exact double (below 2^53)
+_EXACT_POWER = 22  # 10^22 is the largest power of ten that is an exact double
+_POWERS = np.array([10.0 ** k for k in range(_EXACT_POWER + 1)])  # exact doubles
 _LARGEST = 2.0 ** 52  # a scaled number below this has its fraction in the double: floor(s), s - floor(s) exact
 
 
@@ -107,9 +109,6 @@ def fixed_rows(values, decimals, prefix: str, sep: str) -> tuple[bytes, np.ndarr
     return out[:n].tobytes(), ends, odd
 
 
-_EXACT_DIGITS = 15  # an integer of this many digits is an exact double (below 2^53)
-_EXACT_POWER = 22  # 10^22 is the largest power of ten that is an exact double
-
 
 @numba.njit(cache=True)
 def _read_fixed(text, powers, out):
@@ -168,8 +167,5 @@ def read_fixed(text: str, count: int):
     except UnicodeEncodeError:
         return None
     out = np.empty(count)
-    n = _read_fixed(raw, _POWERS_READ, out)
+    n = _read_fixed(raw, _POWERS, out)
     return out if n == count else None
-
-
-_POWERS_READ = np.array([10.0 ** k for k in range(_EXACT_POWER + 1)])  # exact doubles
