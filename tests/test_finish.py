@@ -377,6 +377,41 @@ def test_axis_search_keeps_a_shank_bottom_hovering_over_the_part_out_of_the_allo
     assert in_stock[0] == pytest.approx(0.2, abs=1e-6)
 
 
+@pytest.mark.parametrize("into, vertical", [(0.008, False), (0.004, True)])
+def test_an_axis_keeps_the_flutes_within_half_the_tolerance(into, vertical):
+    """A ball on a floor, a wall beside it from 1 mm above its centre, ``into`` mm nearer the axis
+    than the flutes' radius: the vertical axis puts the flutes into the wall by that much. The
+    axis search (:func:`axis_cylinders`) takes it only within half the tolerance (the moves between
+    poses may take the rest); else the chosen axis keeps them so, as verification's exact measure
+    of the pose says."""
+    from meshmill.geometry.mesh import mesh_from_arrays
+    from meshmill.geometry.shapes import box
+    from meshmill.kernels.backend import solid_kernels
+    from meshmill.kernels.cpu import dev
+    from meshmill.ops.finish import axis_cylinders, finish_setup
+    from meshmill.pathing.verify import StockCheck, _Measure
+    from meshmill.tools.table import Tool
+
+    parts = [box([-20, -20, -5], [20, 20, 0]), box([3.0 - into, -20, 4], [20, 20, 11])]
+    m = mesh_from_arrays(np.vstack([p.vertices for p in parts]), np.vstack([p.faces + 8 * i for i, p in
+                                                                            enumerate(parts)]), "wall")
+    kern = solid_kernels(m, "cpu")
+    ball = Tool(name="B6", type="ball", diameter=6.0, corner_radius=3.0, flute_length=15.0, gauge_length=40.0,
+                shank_diameter=6.0, holder_diameter=25.0, holder_length=30.0, number=1)
+    setup = finish_setup(m, [ball], FinishParams(tolerance=0.01, step_down=1.0))
+    cand, tilt = tilt_candidates(30.0, 5.0)
+    feed, side = np.array([[0.0, -1.0, 0.0]]), np.array([[-1.0, 0.0, 0.0]])  # the outward side away from the wall
+    ce = np.array([[0.0, 0.0, 3.0]])
+    found = kern.axis_search(ce, feed, side, np.array([0]), cand, tilt, 0.0, np.array([3.0]), axis_cylinders(setup),
+                             np.array([0, 1]))[0]
+    assert (found == 0) == vertical and found >= 0
+    meas = _Measure(kern, [ball], 0.01, StockCheck())
+    axes = np.array([[0.0, 0.0, 1.0], dev.tilted_axis(*feed[0], *side[0], *cand[found])])
+    end, *_ = meas.depths(ce - 3.0 * axes, axes, np.zeros(2, np.int64), np.zeros(2, bool))
+    assert end[0] == pytest.approx(into, abs=1e-9)  # the vertical axis: the flutes that deep
+    assert end[1] <= 0.005 + 1e-12
+
+
 def test_no_move_swings_the_axis_past_the_pole_of_the_machine(tmp_path, tools_file, capsys):
     from meshmill.cli import main
     from meshmill.ops.finish_pole import POLE_MARGIN, POLE_STEP, _pole_distance, around_pole
