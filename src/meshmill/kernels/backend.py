@@ -172,10 +172,12 @@ class DexelKernels:
             raise ValueError("these dexel kernels were bound without a mesh index")
         return self.impl.cast_lines(a, lu, lv, step, nu, nv, self.index, first_row)
 
-    def line_hits(self, a, us, vs, bvh):
-        """``(w (k, MAX_HITS) mm, NaN-padded and unsorted; n (k,))``: where the lines along axis
-        ``a`` through ``(us[i], vs[i])`` cross the mesh of ``bvh`` (``BVH.arrays``), on the CPU."""
-        return self.host.line_hits(a, us, vs, bvh)
+    def solid_lines(self, a, lines, lu, lv, step, nv, bvh, inside, first_row=0):
+        """``(dense (k, cap, 2), count (k,), uneven (k,) bool)``: the material of the solid
+        ``inside`` holds on the grid ``lines`` along axis ``a``, decided between the crossings of
+        its check mesh (``bvh``) by its inside test (see
+        :func:`meshmill.kernels.cpu_dexel.solid_lines`), on the CPU."""
+        return self.host.solid_lines(a, lines, lu, lv, step, nv, bvh, inside, first_row)
 
     def points_inside(self, points, inside):
         """``(k,) bool``: whether each of ``points (k, 3)`` lies in the material of a

@@ -15,7 +15,7 @@ from numba import prange
 
 from . import carve, raycast, sweep
 from .carve import BODY, TILE
-from .cpu import device
+from .cpu import clr, device
 from .geom import STACK_SIZE
 from .raycast import MAX_HITS
 
@@ -25,28 +25,95 @@ crv = carve.build(device, numba.njit(fastmath=False, cache=True, inline="always"
 subtract = crv.subtract
 material_outside = crv.material_outside
 LINE_CHUNK = 256  # lines cast in order by one thread
+SOLID_CHUNK = 8  # lines decided point by point in order by one thread (a few cost most)
+SOLID_ROOM = 1 << 24  # bytes of intervals those lines start with (a line with more is decided again)
 
 
-@numba.njit(cache=True)
-def _hits_of_lines(a, us, vs, node_lo, node_hi, node_child, node_range, tris):
-    k = us.shape[0]
-    w = np.full((k, MAX_HITS), np.nan)
-    n = np.zeros(k, np.int64)
-    stack = np.empty(STACK_SIZE, np.int32)
-    hw = np.empty(MAX_HITS)
-    hs = np.empty(MAX_HITS, np.int64)
-    for i in range(k):
-        m = ray.bvh_line_hits(a, us[i], vs[i], node_lo, node_hi, node_child, node_range, tris, stack, hw, hs)
-        n[i] = m
-        for j in range(min(m, MAX_HITS)):
-            w[i, j] = hw[j]
-    return w, n
+@numba.njit(parallel=True, cache=True)
+def _solid_lines(a, lines, line0, lu, lv, step, nv, cap, node_lo, node_hi, node_child, node_range, tris,
+                 in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor):
+    k = lines.shape[0]
+    out = np.zeros((k, cap, 2))
+    count = np.zeros(k, np.int64)
+    uneven = np.zeros(k, np.bool_)
+    u, v = (a + 1) % 3, (a + 2) % 3
+    for c in prange((k + SOLID_CHUNK - 1) // SOLID_CHUNK):
+        stack = np.empty(STACK_SIZE, np.int32)
+        hw = np.empty(MAX_HITS)
+        hs = np.empty(MAX_HITS, np.int64)
+        p = np.empty(3)
+        for i in range(c * SOLID_CHUNK, min(k, (c + 1) * SOLID_CHUNK)):
+            p[u] = lu + ((line0 + lines[i]) // nv + 0.5) * step
+            p[v] = lv + ((line0 + lines[i]) % nv + 0.5) * step
+            m = ray.bvh_line_hits(a, p[u], p[v], node_lo, node_hi, node_child, node_range, tris, stack, hw, hs)
+            if m > MAX_HITS:
+                count[i] = -2
+                continue
+            for j in range(1, m):  # sorted as the cast sorts them (entries first at equal w)
+                w = hw[j]
+                sd = hs[j]
+                q = j - 1
+                while q >= 0 and (hw[q] > w or (hw[q] == w and hs[q] > sd)):
+                    hw[q + 1] = hw[q]
+                    hs[q + 1] = hs[q]
+                    q -= 1
+                hw[q + 1] = w
+                hs[q + 1] = sd
+            depth = 0
+            for j in range(m):
+                depth -= hs[j]
+                if depth < 0:
+                    uneven[i] = True
+            uneven[i] = uneven[i] or depth != 0
+            d = 0  # the distinct crossings, kept at the front of hw
+            for j in range(m):
+                if d == 0 or hw[j] - hw[d - 1] > 1e-9:  # (else the same crossing: an edge or vertex of two faces)
+                    hw[d] = hw[j]
+                    d += 1
+            for j in range(d - 1):  # the material between two crossings, where it cannot change
+                p[a] = 0.5 * (hw[j] + hw[j + 1])
+                hs[j] = clr.inside(p[0], p[1], p[2], in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor, stack)
+            n = 0
+            j = 0
+            while j < d - 1:
+                if hs[j] == 0:
+                    j += 1
+                    continue
+                e = j
+                while e + 1 < d - 1 and hs[e + 1] != 0:
+                    e += 1
+                if n < cap:
+                    out[i, n, 0] = hw[j]
+                    out[i, n, 1] = hw[e + 1]
+                n += 1
+                j = e + 1
+            count[i] = n
+    return out, count, uneven
 
 
-def line_hits(a, us, vs, bvh):
-    """Where the lines along axis ``a`` through ``(us[i], vs[i])`` cross the mesh of ``bvh``
-    (``BVH.arrays``): ``(w (k, MAX_HITS) mm, NaN-padded and unsorted; n (k,) hit counts)``."""
-    return _hits_of_lines(int(a), np.ascontiguousarray(us, np.float64), np.ascontiguousarray(vs, np.float64), *bvh)
+def solid_lines(a, lines, lu, lv, step, nv, bvh, inside, first_row=0):
+    """The material of the solid ``inside`` holds (a :attr:`~meshmill.geometry.solid.Solid.inside`:
+    the winding of its closed pieces and caps, the parity of its sheets) on the grid ``lines``
+    (ids ``i*nv + j`` from the lattice row ``first_row``) along axis ``a``: decided between every
+    two crossings of its check mesh (``bvh``: its BVH arrays), where it cannot change, by the
+    inside test at their middle. ``(dense (k, cap, 2), count (k,), uneven (k,) bool)``: the
+    intervals, their count (-2: more crossings than a line holds), and the lines whose crossings
+    do not balance by the mesh's winding (shells that intersect or are wound inside out)."""
+    in_bvh, kind, floor = inside[:5], inside[5], inside[6]
+    lines = np.ascontiguousarray(lines, np.int64)
+
+    def run(which, cap):
+        return _solid_lines(int(a), which, int(first_row) * int(nv), float(lu), float(lv), float(step), int(nv), cap,
+                            *bvh, *in_bvh, np.ascontiguousarray(kind, np.int8), float(floor))
+
+    cap = max(4, min(32, SOLID_ROOM // (16 * max(1, len(lines)))))
+    out, count, uneven = run(lines, cap)
+    over = np.nonzero(count > cap)[0]  # lines with more intervals than that: again, with room for them
+    if len(over):
+        more, count[over], _ = run(lines[over], int(count[over].max()))
+        out = np.concatenate([out, np.zeros((len(out), more.shape[1] - cap, 2))], axis=1)
+        out[over] = more
+    return out, count, uneven
 
 
 @numba.njit(parallel=True, cache=True)
