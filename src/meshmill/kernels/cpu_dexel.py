@@ -49,16 +49,7 @@ def _solid_lines(a, lines, line0, lu, lv, step, nv, cap, node_lo, node_hi, node_
             if m > MAX_HITS:
                 count[i] = -2
                 continue
-            for j in range(1, m):  # sorted as the cast sorts them (entries first at equal w)
-                w = hw[j]
-                sd = hs[j]
-                q = j - 1
-                while q >= 0 and (hw[q] > w or (hw[q] == w and hs[q] > sd)):
-                    hw[q + 1] = hw[q]
-                    hs[q + 1] = hs[q]
-                    q -= 1
-                hw[q + 1] = w
-                hs[q + 1] = sd
+            ray.sort_hits(hw, hs, m)
             depth = 0
             for j in range(m):
                 depth -= hs[j]

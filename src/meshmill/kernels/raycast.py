@@ -81,12 +81,10 @@ def build(jit):
         return (1 if s2 > 0.0 else -1), w
 
     @jit
-    def intervals_from_hits(hw, hs, n, out, row, cap):
-        """Sort the ``n`` hits ``hw (w), hs (side)`` along the line and write the material
-        intervals (depth > 0) into ``out[row, :cap, 2]``. Entries sort before exits at equal w, so
-        touching pieces merge. Returns the interval count (may exceed cap: only cap are written),
-        or -1 when the crossings do not balance (the mesh is not closed along this line)."""
-        for i in range(1, n):  # insertion sort: few hits a line
+    def sort_hits(hw, hs, n):
+        """Sort the ``n`` hits ``hw (w), hs (side)`` along the line, entries before exits at equal
+        w (insertion sort: few hits a line)."""
+        for i in range(1, n):
             w = hw[i]
             s = hs[i]
             j = i - 1
@@ -96,6 +94,14 @@ def build(jit):
                 j -= 1
             hw[j + 1] = w
             hs[j + 1] = s
+
+    @jit
+    def intervals_from_hits(hw, hs, n, out, row, cap):
+        """Sort the ``n`` hits ``hw (w), hs (side)`` along the line and write the material
+        intervals (depth > 0) into ``out[row, :cap, 2]``. Entries sort before exits at equal w, so
+        touching pieces merge. Returns the interval count (may exceed cap: only cap are written),
+        or -1 when the crossings do not balance (the mesh is not closed along this line)."""
+        sort_hits(hw, hs, n)
         depth = 0
         count = 0
         start = 0.0
@@ -221,6 +227,6 @@ def build(jit):
         edges included); an any-hit query through the BVH."""
         return any_hit((ox, oy, oz, dx, dy, dz, tmin), False, node_lo, node_hi, node_child, node_range, tris, stack)
 
-    return namespace(edge_side=edge_side, hit=hit, intervals_from_hits=intervals_from_hits,
+    return namespace(edge_side=edge_side, hit=hit, sort_hits=sort_hits, intervals_from_hits=intervals_from_hits,
                      bvh_line_hits=bvh_line_hits, cast_bvh_line=cast_bvh_line, box_line_hits=box_line_hits,
                      cast_box_line=cast_box_line, ray_blocked=ray_blocked)

@@ -328,7 +328,8 @@ def tool_axes(con, balls: Balls, setup: FinishSetup, work: ContourWork) -> Poses
     """The :class:`Poses` of the CC points ``con`` with their ``balls``: per point the first
     collision-free axis of :func:`tilt_candidates` (:func:`axis_cylinders`: the flutes within half
     the tolerance, shank and holder ``setup.body_clearance`` from the part; the predecessor's when
-    free and at most a step more tilted); a point without one tries the smaller balls (not with ``whole_contours``)."""
+    free and at most a step more tilted); a point without one tries the smaller balls (not with
+    ``whole_contours``)."""
     params, radii, kern = setup.params, setup.radii, work.kern
     side = np.cross(con.feed, [0.0, 0.0, 1.0])
     cand, cand_tilt = tilt_candidates(params.max_tilt, params.tilt_step)

@@ -162,16 +162,14 @@ def material_mesh(mesh, floor=None):
 
 def uneven_lines_warning(odd: dict | None, mesh) -> list[str]:
     """The one-line warning of a model of ``mesh`` whose lines crossed its surface an odd number of
-    times or where their parity was contradicted (``odd``: how many along each axis, its
-    ``info["uneven_lines"]``): only where every piece of the mesh is closed, where it means shells
-    that intersect or overlap (an open sheet's solid
+    times (``odd``: how many along each axis, its ``info["uneven_lines"]``): only where every piece
+    of the mesh is closed, where it means shells that intersect or overlap (an open sheet's solid
     is decided point by point by construction: its lines graze the curtains under its edges)."""
     if not odd or not mesh.closed:
         return []
     lines = ", ".join(f"{k} along {axis}" for axis, k in odd.items())
-    return [f"{lines} grid line(s) cross the surface so that the parity of their crossings does not tell the "
-            "material (self-intersecting or overlapping shells): their material was decided point by point, by "
-            "the winding of the solid"]
+    return [f"{lines} grid line(s) cross the surface an odd number of times (self-intersecting or overlapping "
+            "shells): their material was decided point by point, by the winding of the solid"]
 
 
 def parity_may_differ(source) -> bool:
