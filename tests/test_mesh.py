@@ -277,3 +277,24 @@ def test_a_stl_file_that_cannot_be_read_is_one_clear_error(tmp_path, monkeypatch
     monkeypatch.setattr(mesh_module, "read_binary_stl", refused)
     with pytest.raises(InputError, match="locked.stl: cannot read \\(Permission denied\\)"):
         load_mesh(p)
+
+
+def test_a_sheet_edge_three_of_its_faces_share_hangs_a_curtain():
+    """A sheet whose piece kept an edge of three faces (a flap folded over, as mount_rush.stl has):
+    the count of its faces above a point changes by one across that edge, so its material ends
+    there. The check mesh must hold that wall (distances to the solid's boundary are taken to it),
+    as it holds the curtain under an edge of one face."""
+    from meshmill.geometry.mesh import Mesh
+    from meshmill.geometry.solid import SHEET, boundary_edges
+    from meshmill.kernels.backend import solid_kernels
+
+    v = np.array([[0, 0, 5], [0, 2, 5], [-2, 1, 5], [2, 1, 5], [1.5, 1, 6.0]])  # e0, e1, left, right, flap
+    f = np.array([[0, 1, 2], [0, 3, 1], [0, 1, 4]], np.int32)
+    m = Mesh(vertices=v, faces=f, closed=False, piece=np.zeros(3, np.int64), piece_kind=np.array([SHEET], np.int8))
+    edges, _ = boundary_edges(f, m.piece, odd=True)
+    assert {tuple(sorted(e)) for e in edges.tolist()} == {(0, 1), (0, 2), (1, 2), (0, 3), (1, 3), (0, 4), (1, 4)}
+    kern = solid_kernels(m, "cpu", 0.0)
+    left, right = np.array([[-0.05, 1.0, 3.0]]), np.array([[0.05, 1.0, 3.0]])
+    assert kern.points_inside(left)[0] and not kern.points_inside(right)[0]  # one face above, then two
+    assert kern.mesh_distances(right)[0] == pytest.approx(0.05, abs=1e-9)
+    assert kern.mesh_distances(left)[0] == pytest.approx(0.05, abs=1e-9)

@@ -59,17 +59,21 @@ class Solid:
         return self.floor <= float(self.vertices[:, 2].min())
 
 
-def boundary_edges(faces: np.ndarray, piece: np.ndarray):
-    """Edges used by one face of their piece: ``(k, 2)`` vertex pairs in the direction that face
-    traverses them, and the piece of each ``(k,)``."""
+def boundary_edges(faces: np.ndarray, piece: np.ndarray, odd: bool = False):
+    """Edges used by one face of their piece (``odd``: by an odd number of them, once each):
+    ``(k, 2)`` vertex pairs in the direction that face (the first of them) traverses them, and the
+    piece of each ``(k,)``."""
     F = faces.astype(np.int64)
     directed = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     face_piece = np.repeat(piece, 3)
     lo, hi = directed.min(axis=1), directed.max(axis=1)
     # (piece, edge) as one integer key (np.unique over rows sorts 10x slower)
     _, edge = np.unique(lo * (int(hi.max()) + 1) + hi, return_inverse=True)
-    _, inv, counts = np.unique(face_piece.astype(np.int64) * (int(edge.max()) + 1) + edge.reshape(-1),
-                               return_inverse=True, return_counts=True)
+    _, first, inv, counts = np.unique(face_piece.astype(np.int64) * (int(edge.max()) + 1) + edge.reshape(-1),
+                                      return_index=True, return_inverse=True, return_counts=True)
+    if odd:
+        keep = first[counts % 2 == 1]
+        return directed[keep], face_piece[keep]
     single = counts[inv.reshape(-1)] == 1
     return directed[single], face_piece[single]
 
@@ -171,7 +175,9 @@ def bounded_solid(mesh, floor: float) -> Solid:
         n = len(Vc)
         low = V.copy()
         low[:, 2] = floor  # vertex i dropped to the floor is vertex n + i
-        edges, edge_piece = boundary_edges(F, piece)
+        # under every edge where the count of a sheet's faces above changes: used by one face of
+        # it, or by three (a non-manifold edge its piece kept: mount_rush.stl has them)
+        edges, edge_piece = boundary_edges(F, piece, odd=True)
         edges = edges[kind[edge_piece] == SHEET]
         curtain = np.concatenate([np.column_stack([edges[:, 0], edges[:, 1], edges[:, 1] + n]),
                                   np.column_stack([edges[:, 0], edges[:, 1] + n, edges[:, 0] + n])])
