@@ -43,6 +43,7 @@ from meshmill.kernels.backend import solid_kernels  # noqa: E402
 from meshmill.machine.pathfile import read_toolpath  # noqa: E402
 from meshmill.ops.simulate import simulate  # noqa: E402
 from meshmill.pathing.verify import StockCheck, verify_toolpath  # noqa: E402
+from meshmill.simulation.stock import Stock  # noqa: E402
 from meshmill.tools.table import load_tools  # noqa: E402
 
 TOOLS = """# bench/safety.py: a roughing end mill, balls and a bull-nose, with holders (mm)
@@ -175,20 +176,11 @@ def measure(part_file, op, cl, tools, sim_step):
            "verify_s": round(time.perf_counter() - t, 1)}
     if op == "plunge":
         row["plunge_past_flutes"] = plunges_past_flutes(tp, tools, lo, hi)
-    design = part if part.closed else None
-    if design is None:  # an open part: simulate the closed solid it bounds
-        from meshmill.geometry.mesh import mesh_from_arrays
-
-        s = part.solid()
-        try:
-            design = mesh_from_arrays(s.vertices, s.faces, "bounded solid")
-        except Exception:  # noqa: BLE001 (a bench: say it and go on)
-            design = None
-    if design is not None and sim_step:
+    if sim_step:  # (an open part: the solid it bounds, as simulate models it)
         t = time.perf_counter()
         try:
-            kw = dict(stock="box") if op == "plunge" else dict(allowance=ALLOWANCE)
-            _, sim, *_ = simulate(design, tp, tools, sim_step, **kw)
+            stock = Stock.of("box") if op == "plunge" else Stock.offset(ALLOWANCE)
+            _, sim, *_ = simulate(part, tp, tools, sim_step, stock)
             row.update(sim_rapid_cuts=sim["rapid_moves_cutting"], sim_collisions=sim["colliding_moves"],
                        sim_s=round(time.perf_counter() - t, 1))
         except Exception as exc:  # noqa: BLE001
