@@ -109,7 +109,6 @@ def fixed_rows(values, decimals, prefix: str, sep: str) -> tuple[bytes, np.ndarr
     return out[:n].tobytes(), ends, odd
 
 
-
 @numba.njit(cache=True)
 def _read_fixed(text, powers, out):
     """The comma-separated numbers of ``text`` (ASCII bytes) into ``out``; returns how many, or
