@@ -283,6 +283,45 @@ def test_aligned_sweep_matches_the_bisection_and_the_poses(k):
     assert checked > 60
 
 
+def test_a_flat_end_swept_with_a_fixed_axis_is_met_in_closed_form():
+    """A flat end mill or a shank swept along a move with a fixed axis (``Disk + Parallelogram``)
+    against a line, in closed form: the interval the bisection on the distance to the swept core
+    finds (which accepts points 1e-9 mm off the tool: where the line grazes the rim it is up to
+    sqrt(2 R 1e-9) longer), and both ends on the tool at some pose (the reference distance, over
+    4001 poses); axes along the line, across it and tilted, moves along the axis, none and
+    random, flat tools of no height, and lines exactly through the rim."""
+    rng = np.random.default_rng(11)
+    checked = 0
+    for i in range(600):
+        x = rng.normal(size=3)
+        if i % 5 == 0:
+            x = np.zeros(3)
+            x[rng.integers(0, 3)] = rng.choice([-1.0, 1.0])
+        elif i % 5 == 1:
+            x[rng.integers(0, 3)] = 0.0
+        x /= np.linalg.norm(x)
+        R, H = rng.choice([1.0, 3.0, 12.5]), rng.choice([0.0, 2.0, 30.0])
+        c = np.round(rng.uniform(-2, 2, 3), 1)
+        D = np.round(rng.normal(size=3) * rng.choice([0.0, 0.5, 3.0]), 1) if i % 7 else rng.uniform(-3, 3) * x
+        if i % 3 == 0:  # through the rim of the first pose's bottom
+            e = np.cross(x, rng.normal(size=3))
+            u0, v0 = (c + R * e / np.linalg.norm(e))[:2]
+        else:
+            u0, v0 = c[:2] + rng.uniform(-R - 4, R + 4, 2)
+        lo, hi = swp.flat_sweep(u0, v0, *c, *D, *x, H, R)
+        blo, bhi = swp.rounded_sweep(u0, v0, *c, *D, *x, H, R, 0.0)
+        if lo > hi or blo > bhi:  # both miss, or one grazes
+            assert (lo > hi or hi - lo < 1e-6) and (blo > bhi or bhi - blo < 2e-4), (i, lo, hi, blo, bhi)
+            continue
+        assert blo - 1e-7 <= lo <= blo + 2e-4 and bhi - 2e-4 <= hi <= bhi + 1e-7, (i, lo, hi, blo, bhi)
+        tips = c + np.linspace(0, 1, 4001)[:, None] * D
+        for end in (lo, hi):
+            gap = tool_gap(np.array([[u0, v0, end]]) - tips, np.zeros(3), x, R, 0.0, H)
+            assert gap.min() <= 1e-9 + np.linalg.norm(D) / 4000, (i, end, gap.min())
+        checked += 1
+    assert checked > 200
+
+
 def slot_removed(tool, depth, step=0.1):
     d = dexelize(box((0, 0, 0), (40, 20, 10)), step)
     tip = np.array([[-10, 10, 10 - depth], [50, 10, 10 - depth]], float)
@@ -793,9 +832,9 @@ def test_a_turning_flat_or_bull_nose_cuts_what_its_exact_sweep_holds():
 
 def test_a_turning_shank_is_found_in_material_wherever_its_exact_sweep_is():
     """A turning cylinder (a shank or holder: flat, on its tip) against a line: the closed-form
-    bound that spares the search over its poses (the cylinder held at its first axis, grown by
-    what the turn moves) never hides material its exact sweep holds: the longest piece found is
-    the exact sweep's, on lines through material in random pieces."""
+    bound that spares the search over its poses (the cylinder held at its middle axis, grown by
+    what half the turn moves) never hides material its exact sweep holds: the longest piece found
+    is the exact sweep's, on lines through material in random pieces."""
     from meshmill.kernels.cpu_dexel import crv
 
     rng = np.random.default_rng(3)
@@ -817,6 +856,29 @@ def test_a_turning_shank_is_found_in_material_wherever_its_exact_sweep_is():
         checked += 1
         found += exact > 0
     assert found > 50 and checked - found > 50  # both kinds of lines were tried
+
+
+def test_a_turning_shank_is_found_by_the_far_rim_of_its_first_pose():
+    """The bound a turning cylinder is first tested with (held at the middle axis, grown by what
+    half the turn moves its points) holds its first pose's rim on the side the axis turns away
+    from, where the turn moves it out of that cylinder the most: material in 2e-4 mm of a line
+    just inside that rim is met (with half the growth it was not)."""
+    from meshmill.kernels.cpu_dexel import crv
+
+    R, F = 5.0, 40.0
+    for turn in (0.05, 0.2):
+        for k in range(8):
+            phi = 2 * math.pi * k / 8  # the direction the axis turns in, about the still tip
+            side = np.array([math.cos(phi), math.sin(phi), 0.0])
+            xa = math.cos(turn / 2) * np.array([0.0, 0.0, 1.0]) - math.sin(turn / 2) * side
+            xb = math.cos(turn / 2) * np.array([0.0, 0.0, 1.0]) + math.sin(turn / 2) * side
+            out = -side - (-side @ xa) * xa  # across xa, away from the middle axis
+            p = 1e-3 * xa + (F - 2e-3) * xa + (R - 1e-3) * out / np.linalg.norm(out)
+            iv = np.array([[p[2] - 1e-4, p[2] + 1e-4]])
+            arrays = [a[None] for a in (np.zeros(3), np.zeros(3), xa, xb)] + [
+                np.array([R]), np.array([0.0]), np.array([F]), np.array([1], np.int64)]
+            got = crv.touch_line(0, 0, p[0], p[1], -100.0, 100.0, iv, np.array([0, 1]), np.array([1]), *arrays)
+            assert got == pytest.approx(2e-4, abs=1e-12), (turn, k, got)
 
 
 def _wavy_path(rng, n, tool_of):

@@ -307,6 +307,7 @@ def build(jit, inline=None):
                 # in it (grown by a quarter of its ruled surface's twist, which its strips may miss)
                 g = R + 0.25 * (F + 2.0 * R) * turn / strips[m] + 1e-9
                 lower = g
+                X0 = XA
                 X1 = XB
                 Rs = g
                 rs = g
@@ -316,26 +317,29 @@ def build(jit, inline=None):
                 if turn == 0.0:
                     continue
                 # a turning cylinder's sweep is searched over its poses; it lies within the
-                # cylinder held at the first axis along the move (exact in closed form), grown by
-                # how far the turn moves any of its points from there: 2 asin(turn / 2) (F + R),
-                # the angle times the farthest point's distance from the tip
-                d = 2.0 * math.asin(min(1.0, 0.5 * turn)) * (F + R) + 1e-9
+                # cylinder held at the middle axis along the move (exact in closed form), grown by
+                # how far the turn moves any of its points from there: asin(turn / 2) (F + R), the
+                # angle to the middle axis (half the turn's at most: the normalised interpolation
+                # keeps to the arc) times the farthest point's distance from the tip
+                d = math.asin(min(1.0, 0.5 * turn)) * (F + R) * (1.0 + 1e-9) + 1e-9
                 lower = d
-                X1 = XA
+                X0 = (mu, mv, mw)
+                X1 = X0
                 Rs = R + d
                 rs = corner[m]
                 Fs = F + 2.0 * d
                 sub = 1
             else:
                 lower = 0.0
+                X0 = XA
                 X1 = XB
                 Rs = R
                 rs = corner[m]
                 Fs = F
                 sub = strips[m]
-            qa = (pa[m, 0] - lower * XA[0], pa[m, 1] - lower * XA[1], pa[m, 2] - lower * XA[2])
+            qa = (pa[m, 0] - lower * X0[0], pa[m, 1] - lower * X0[1], pa[m, 2] - lower * X0[2])
             qb = (pb[m, 0] - lower * X1[0], pb[m, 1] - lower * X1[1], pb[m, 2] - lower * X1[2])
-            lo, hi = swp.tool_move(u0, v0, qa, qb, XA, X1, Rs, rs, Fs, sub)
+            lo, hi = swp.tool_move(u0, v0, qa, qb, X0, X1, Rs, rs, Fs, sub)
             if stage < 2 and (lo >= hi or not material_outside(iv, base, n, lo, hi, 1.0, 0.0)):
                 return 0.0
         best = 0.0

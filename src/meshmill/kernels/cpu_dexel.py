@@ -334,6 +334,16 @@ def cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_st
                redo, row0, probe, load)
 
 
+@numba.njit(cache=True, inline="always")
+def _line_extent(iv, off, count, line):
+    """``(start, end)`` of the material of ``line`` (its first interval's start, its last's end;
+    inf, -inf: none)."""
+    n = count[line]
+    if n == 0:
+        return np.inf, -np.inf
+    return iv[off[line], 0], iv[off[line] + n - 1, 1]
+
+
 @numba.njit(parallel=True, cache=True)
 def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_start, tile_moves,
                pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane, box, kind, group, gbound, gbox,
@@ -351,40 +361,81 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_s
         # goes, so the line stays so for the group's later moves)
         tested = np.full(TILE * TILE, -1, np.int64)
         clear_at = np.zeros(TILE * TILE, np.bool_)
+        # where the material of each line of the item starts and ends (kept as the item's moves
+        # cut it; material only goes, so a value not yet updated holds it still), and of each
+        # row's lines together (made again when one of its lines was cut): a move skips the rows
+        # and lines whose material lies outside its box along the lines (most of those a shank or
+        # holder covers), which :func:`~meshmill.kernels.carve.cut_line` and ``touch_line`` would
+        # find at their first test, reading the line's intervals
+        ext_lo = np.full(TILE * TILE, np.inf)
+        ext_hi = np.full(TILE * TILE, -np.inf)
+        row_lo = np.full(TILE, np.inf)
+        row_hi = np.full(TILE, -np.inf)
+        stale = np.zeros(TILE, np.bool_)
+        for i in range(ti * TILE + (comb - ti * TILE) % split, min(nu, ti * TILE + TILE), split):
+            r = i - ti * TILE
+            for j in range(tj * TILE, min(nv, tj * TILE + TILE)):
+                at = r * TILE + j - tj * TILE
+                ext_lo[at], ext_hi[at] = _line_extent(iv, off, count, (i - row0) * nv + j)
+                row_lo[r] = min(row_lo[r], ext_lo[at])
+                row_hi[r] = max(row_hi[r], ext_hi[at])
         for s in range(tile_start[t], tile_start[t + 1]):
             m = tile_moves[s]
             g = group[m]
+            body = kind[m] & BODY
+            if body and hit[m]:
+                continue
+            wlo = box[m, 4]
+            whi = box[m, 5]
             i0, i1, j0, j1 = _tile_lines(box, m, lu, lv, step, nu, nv, ti, tj, comb, split)
             for i in range(i0, i1 + 1, split):
+                r = i - ti * TILE
+                if stale[r]:
+                    stale[r] = False
+                    row_lo[r] = np.inf
+                    row_hi[r] = -np.inf
+                    for at in range(r * TILE, r * TILE + TILE):
+                        row_lo[r] = min(row_lo[r], ext_lo[at])
+                        row_hi[r] = max(row_hi[r], ext_hi[at])
+                if row_lo[r] >= whi or row_hi[r] <= wlo:
+                    continue
                 u0 = lu + (i + 0.5) * step
                 for j in range(j0, j1 + 1):
                     line = (i - row0) * nv + j
                     if redo[line] > 0 or (some and (todo[line] == 0 or s < todo[line] - 1)):
                         continue
+                    at = r * TILE + j - tj * TILE
+                    if ext_lo[at] >= whi or ext_hi[at] <= wlo:
+                        continue
                     v0 = lv + (j + 0.5) * step
                     if g >= 0:
-                        at = (i - ti * TILE) * TILE + j - tj * TILE
                         if tested[at] != g:
                             tested[at] = g
                             clear_at[at] = crv.group_clear(g, line, u0, v0, iv, off, count, gbound, gbox)
                         if clear_at[at]:
                             continue
-                    if kind[m] & BODY:
-                        if not hit[m] and crv.touch_line(m, line, u0, v0, box[m, 4], box[m, 5], iv, off, count, pa,
-                                                         pb, xa, xb, radius, corner, flutes, strips) > hit_min:
+                    if body:
+                        if crv.touch_line(m, line, u0, v0, wlo, whi, iv, off, count, pa, pb, xa, xb, radius, corner,
+                                          flutes, strips) > hit_min:
                             hit[m] = 1
+                            break
                         continue
-                    removed, first, last = crv.cut_line(m, line, u0, v0, box[m, 4], box[m, 5], iv, off, count,
+                    removed, first, last = crv.cut_line(m, line, u0, v0, wlo, whi, iv, off, count,
                                                         pa, pb, xa, xb, radius, corner, flutes, strips, chord, plane,
                                                         measure)
                     if removed < 0.0:
                         redo[line] = s + 1
-                    elif removed > hit_min:
-                        hit[m] = 1
-                        if measure:
-                            ax_lo, ax_hi, lat_lo, lat_hi = crv.load_extents(m, u0, v0, first, last, probe)
-                            load[me, m, 0] += removed
-                            load[me, m, 1] = max(load[me, m, 1], ax_hi)
-                            load[me, m, 2] = min(load[me, m, 2], lat_lo)
-                            load[me, m, 3] = max(load[me, m, 3], lat_hi)
-                            load[me, m, 4] = min(load[me, m, 4], ax_lo)
+                    elif removed > 0.0:
+                        ext_lo[at], ext_hi[at] = _line_extent(iv, off, count, line)
+                        stale[r] = True
+                        if removed > hit_min:
+                            hit[m] = 1
+                            if measure:
+                                ax_lo, ax_hi, lat_lo, lat_hi = crv.load_extents(m, u0, v0, first, last, probe)
+                                load[me, m, 0] += removed
+                                load[me, m, 1] = max(load[me, m, 1], ax_hi)
+                                load[me, m, 2] = min(load[me, m, 2], lat_lo)
+                                load[me, m, 3] = max(load[me, m, 3], lat_hi)
+                                load[me, m, 4] = min(load[me, m, 4], ax_lo)
+                if body and hit[m]:
+                    break

@@ -36,6 +36,7 @@ from .geom import namespace
 
 INF = 1.0e300
 BISECT_TOL = 1e-9  # mm along the line
+FACE_SLACK = 1e-12  # mm: a line this near a flat end's plane and along it lies in it
 GOLDEN = 0.6180339887498949
 SEARCH_SAMPLES = 16  # poses sampled along a turning piece before the golden-section search
 SEARCH_TOL = 1e-6  # mm: the golden-section search stops when its poses differ by this at most
@@ -321,6 +322,105 @@ def build(jit):
         return lo, level_edge(ohi, ihi, u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2)
 
     @jit
+    def near_range(pu, pv, pw, qu, qv, qw, rho):
+        """``(lo, hi)``: the t where ``|p + t q| <= rho`` (q may be 0: all t or none)."""
+        qq = qu * qu + qv * qv + qw * qw
+        pq = pu * qu + pv * qv + pw * qw
+        c = pu * pu + pv * pv + pw * pw - rho * rho
+        if qq <= 1e-24:
+            if c <= 0.0:
+                return -INF, INF
+            return INF, -INF
+        disc = pq * pq - qq * c
+        if disc < 0.0:
+            return INF, -INF
+        k = -(pq + math.copysign(math.sqrt(disc), pq))
+        if k == 0.0:
+            return 0.0, 0.0
+        t0 = k / qq
+        t1 = c / k
+        return min(t0, t1), max(t0, t1)
+
+    @jit
+    def flat_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho):
+        """Line against ``Disk(rho) + Parallelogram(c; D, H x)`` (a flat end mill or a shank swept
+        with a fixed axis), in closed form. A line point at w is in it where some
+        ``alpha, s in [0, 1] x [0, H]`` along D and up x leave it within rho of the axis: with
+        ``s = (q - c).x - alpha D.x``, the (w, alpha) that do form an ellipse (the distance
+        across x, quadratic) cut by two strips (alpha and s), convex; its lowest and highest w
+        lie where an edge of the strips crosses the ellipse or at the ellipse's own extremes."""
+        # q(w) - c = d + w e, e the line's direction; across x: a + w b + alpha g (g: -D across x)
+        du = u0 - cu
+        dv = v0 - cv
+        dw = -cw
+        dx = du * xu + dv * xv + dw * xw
+        Dx = Du * xu + Dv * xv + Dw * xw
+        au = du - dx * xu
+        av = dv - dx * xv
+        aw = dw - dx * xw
+        bu = -xw * xu
+        bv = -xw * xv
+        bw = 1.0 - xw * xw
+        gu = -(Du - Dx * xu)
+        gv = -(Dv - Dx * xv)
+        gw = -(Dw - Dx * xw)
+        along = abs(xw) > 1e-12  # s changes along the line
+        lo = INF
+        hi = -INF
+        for edge in range(2):  # the edges alpha = 0, 1: w within the ellipse and the strip of s
+            alpha = float(edge)
+            w0, w1 = near_range(au + alpha * gu, av + alpha * gv, aw + alpha * gw, bu, bv, bw, rho)
+            s = dx - alpha * Dx  # s at w = 0
+            if along:
+                z0 = -s / xw
+                z1 = (H - s) / xw
+                w0 = max(w0, min(z0, z1))
+                w1 = min(w1, max(z0, z1))
+            elif s < -FACE_SLACK or s > H + FACE_SLACK:  # a line in the end's plane meets it
+                continue
+            if w0 <= w1:
+                lo = min(lo, w0)
+                hi = max(hi, w1)
+        for edge in range(2):  # the edges s = 0, H: alpha within [0, 1] and the ellipse
+            top = H * edge
+            if along:
+                # w = w0 + alpha wa
+                w0 = (top - dx) / xw
+                wa = Dx / xw
+                t0, t1 = near_range(au + w0 * bu, av + w0 * bv, aw + w0 * bw, gu + wa * bu, gv + wa * bv,
+                                    gw + wa * bw, rho)
+                t0 = max(t0, 0.0)
+                t1 = min(t1, 1.0)
+                if t0 <= t1:
+                    lo = min(lo, w0 + min(t0 * wa, t1 * wa))
+                    hi = max(hi, w0 + max(t0 * wa, t1 * wa))
+            elif abs(Dx) > 1e-12:
+                alpha = (dx - top) / Dx
+                if 0.0 <= alpha <= 1.0:
+                    w0, w1 = near_range(au + alpha * gu, av + alpha * gv, aw + alpha * gw, bu, bv, bw, rho)
+                    if w0 <= w1:
+                        lo = min(lo, w0)
+                        hi = max(hi, w1)
+        # the ellipse's own lowest and highest w, where the alpha nearest them lies in the strips
+        gg = gu * gu + gv * gv + gw * gw
+        if gg > 1e-24:
+            ka = (au * gu + av * gv + aw * gw) / gg
+            kb = (bu * gu + bv * gv + bw * gw) / gg
+            w0, w1 = near_range(au - ka * gu, av - ka * gv, aw - ka * gw, bu - kb * gu, bv - kb * gv, bw - kb * gw,
+                                rho)
+            if w0 <= w1 and w1 < INF:
+                for end in range(2):
+                    w = w1 if end else w0
+                    alpha = -(ka + w * kb)
+                    s = dx + w * xw - alpha * Dx
+                    if 0.0 <= alpha <= 1.0 and 0.0 <= s <= H:
+                        lo = min(lo, w)
+                        hi = max(hi, w)
+        if lo > hi:
+            return INF, -INF
+        return lo, hi
+
+    @jit
     def aligned_at(s, u0, v0, cu, cv, cw, Du, Dv, Dw, k, sgn, H, rho, r, upper):
         """:func:`aligned_sweep`'s function of the pose s (the line meets the tool there): the
         lower end of the line's interval with the tool at s (``upper``: minus the upper end)."""
@@ -439,7 +539,10 @@ def build(jit):
     @jit
     def fixed_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r):
         """Line against ``Disk(rho) + Parallelogram(c; D, H x) + Ball(r)`` (rho > 0): in closed
-        form per pose when x lies along a coordinate axis of the line frame, else by bisection."""
+        form when r = 0 (a flat end), or per pose when x lies along a coordinate axis of the line
+        frame, else by bisection."""
+        if r <= 0.0:
+            return flat_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho)
         if xu == 0.0 and xv == 0.0:
             return aligned_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, 2, 1.0 if xw > 0.0 else -1.0, H, rho, r)
         if xw == 0.0 and (xu == 0.0 or xv == 0.0):
@@ -825,7 +928,7 @@ def build(jit):
         return lo, hi
 
     return namespace(sphere=sphere, capsule=capsule, pgram_ball=pgram_ball, core_dist2=core_dist2,
-                     rounded_sweep=rounded_sweep, aligned_sweep=aligned_sweep, aligned_poses=aligned_poses,
+                     rounded_sweep=rounded_sweep, flat_sweep=flat_sweep, aligned_sweep=aligned_sweep, aligned_poses=aligned_poses,
                      aligned_at=aligned_at, fixed_sweep=fixed_sweep, pose=pose, flute_plane=flute_plane,
                      flute_range=flute_range, pose_at=pose_at, stand=stand,
                      turning_search=turning_search, tool_move=tool_move)
