@@ -27,8 +27,8 @@ BULL = Tool("R6", "bull", 6.0, 1.0, 12.0, 40.0, 6.0)
 
 
 def tool_gap(p, tip, x, R, r, F, axes=None):
-    """Reference: how far points p (k, 3) lie outside the cutter model at one pose (<= 0 inside);
-    with ``axes (k, 3)`` one pose per point instead."""
+    """Reference: how far points p (k, 3) lie outside the cutter model at one pose (inside: minus
+    how deep, within the core's depth); with ``axes (k, 3)`` one pose per point instead."""
     q = p - tip
     a = q @ x if axes is None else np.einsum("ij,ij->i", q, axes)
     x = x if axes is None else axes
@@ -36,7 +36,9 @@ def tool_gap(p, tip, x, R, r, F, axes=None):
     H = max(0.0, F - 2 * r)
     ax = a - r
     gap = np.maximum(0, np.maximum(-ax, ax - H))
-    return np.sqrt(np.maximum(0, rad - (R - r)) ** 2 + gap ** 2) - r
+    # inside the core (the disk swept up H), minus how deep: a signed distance for flat ends too
+    depth = np.maximum(0, np.minimum(np.minimum((R - r) - rad, ax), H - ax))
+    return np.sqrt(np.maximum(0, rad - (R - r)) ** 2 + gap ** 2) - depth - r
 
 
 def inside_tool(p, tip, x, R, r, F):
@@ -283,16 +285,18 @@ def test_aligned_sweep_matches_the_bisection_and_the_poses(k):
     assert checked > 60
 
 
-def test_a_flat_end_swept_with_a_fixed_axis_is_met_in_closed_form():
-    """A flat end mill or a shank swept along a move with a fixed axis (``Disk + Parallelogram``)
-    against a line, in closed form: the interval the bisection on the distance to the swept core
-    finds (which accepts points 1e-9 mm off the tool: where the line grazes the rim it is up to
-    sqrt(2 R 1e-9) longer), and both ends on the tool at some pose (the reference distance, over
-    4001 poses); axes along the line, across it and tilted, moves along the axis, none and
-    random, flat tools of no height, and lines exactly through the rim."""
+@pytest.mark.parametrize("corner", [0.0, 0.5])
+def test_a_flat_or_bull_nose_swept_with_a_fixed_axis_meets_a_line_where_its_poses_do(corner):
+    """A flat end mill or a shank (``Disk + Parallelogram``, in closed form) and a bull-nose (the
+    same thickened by its corner radius, by bisection on the distance to that core) swept along a
+    move with a fixed axis, against a line: both ends lie
+    on the tool at some pose, and every point of the line that some pose holds lies between them
+    (the reference signed distance of 1001 poses); axes along the line, across it and tilted, moves
+    along the axis, none, short and long (whose sides the line may cross between the poses), tools
+    of no height, and lines exactly through the rim."""
     rng = np.random.default_rng(11)
     checked = 0
-    for i in range(600):
+    for i in range(120):
         x = rng.normal(size=3)
         if i % 5 == 0:
             x = np.zeros(3)
@@ -301,25 +305,33 @@ def test_a_flat_end_swept_with_a_fixed_axis_is_met_in_closed_form():
             x[rng.integers(0, 3)] = 0.0
         x /= np.linalg.norm(x)
         R, H = rng.choice([1.0, 3.0, 12.5]), rng.choice([0.0, 2.0, 30.0])
+        r = corner * R
         c = np.round(rng.uniform(-2, 2, 3), 1)
-        D = np.round(rng.normal(size=3) * rng.choice([0.0, 0.5, 3.0]), 1) if i % 7 else rng.uniform(-3, 3) * x
+        D = np.round(rng.normal(size=3) * rng.choice([0.0, 0.5, 3.0, 12.0]), 1) if i % 7 else rng.uniform(-3, 3) * x
         if i % 3 == 0:  # through the rim of the first pose's bottom
             e = np.cross(x, rng.normal(size=3))
-            u0, v0 = (c + R * e / np.linalg.norm(e))[:2]
+            u0, v0 = (c + (R - r) * e / np.linalg.norm(e))[:2]
         else:
             u0, v0 = c[:2] + rng.uniform(-R - 4, R + 4, 2)
-        lo, hi = swp.flat_sweep(u0, v0, *c, *D, *x, H, R)
-        blo, bhi = swp.rounded_sweep(u0, v0, *c, *D, *x, H, R, 0.0)
-        if lo > hi or blo > bhi:  # both miss, or one grazes
-            assert (lo > hi or hi - lo < 1e-6) and (blo > bhi or bhi - blo < 2e-4), (i, lo, hi, blo, bhi)
+        if r > 0.0:
+            lo, hi = swp.rounded_sweep(u0, v0, *c, *D, *x, H, R - r, r)
+        else:
+            lo, hi = swp.flat_sweep(u0, v0, *c, *D, *x, H, R)
+        tips = c - r * x + np.linspace(0, 1, 1001)[:, None] * D
+        w = np.linspace(-64, 64, 6401)
+        line = np.column_stack([np.full(len(w), u0), np.full(len(w), v0), w])
+        held = np.zeros(len(w), bool)
+        for tip in tips[::25]:
+            held |= tool_gap(line, tip, x, R, r, H + 2 * r) < -1e-6
+        if lo > hi:
+            assert not held.any(), i
             continue
-        assert blo - 1e-7 <= lo <= blo + 2e-4 and bhi - 2e-4 <= hi <= bhi + 1e-7, (i, lo, hi, blo, bhi)
-        tips = c + np.linspace(0, 1, 4001)[:, None] * D
+        assert (w[held] >= lo - 1e-9).all() and (w[held] <= hi + 1e-9).all(), (i, lo, hi)
         for end in (lo, hi):
-            gap = tool_gap(np.array([[u0, v0, end]]) - tips, np.zeros(3), x, R, 0.0, H)
-            assert gap.min() <= 1e-9 + np.linalg.norm(D) / 4000, (i, end, gap.min())
+            gap = tool_gap(np.array([[u0, v0, end]]) - tips, np.zeros(3), x, R, r, H + 2 * r)
+            assert -1e-9 <= gap.min() <= 2e-9 + np.linalg.norm(D) / 2000, (i, end, gap.min())  # on the surface
         checked += 1
-    assert checked > 200
+    assert checked > 40
 
 
 def slot_removed(tool, depth, step=0.1):

@@ -333,7 +333,10 @@ def build(jit):
             return INF, -INF
         disc = pq * pq - qq * c
         if disc < 0.0:
-            return INF, -INF
+            # a line that touches (in exact arithmetic) touches: rounding may leave it 1e-12 short
+            if disc < -1e-12 * max(pq * pq, qq * rho * rho * qq):
+                return INF, -INF
+            disc = 0.0
         k = -(pq + math.copysign(math.sqrt(disc), pq))
         if k == 0.0:
             return 0.0, 0.0
@@ -542,7 +545,18 @@ def build(jit):
         form when r = 0 (a flat end), or per pose when x lies along a coordinate axis of the line
         frame, else by bisection."""
         if r <= 0.0:
-            return flat_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho)
+            # grown by the distance the bisection took points within on every side (a side the
+            # line touches along the move is met along the touch, as one exactly in the plane of
+            # an end), within the ball sweep of radius rho that holds the tool
+            t = BISECT_TOL
+            lo, hi = flat_sweep(u0, v0, cu - t * xu, cv - t * xv, cw - t * xw, Du, Dv, Dw, xu, xv, xw, H + 2.0 * t,
+                                rho + t)
+            olo, ohi = pgram_ball(u0, v0, cu, cv, cw, Du, Dv, Dw, H * xu, H * xv, H * xw, rho)
+            lo = max(lo, olo)
+            hi = min(hi, ohi)
+            if lo > hi:
+                return INF, -INF
+            return lo, hi
         if xu == 0.0 and xv == 0.0:
             return aligned_sweep(u0, v0, cu, cv, cw, Du, Dv, Dw, 2, 1.0 if xw > 0.0 else -1.0, H, rho, r)
         if xw == 0.0 and (xu == 0.0 or xv == 0.0):
@@ -928,7 +942,8 @@ def build(jit):
         return lo, hi
 
     return namespace(sphere=sphere, capsule=capsule, pgram_ball=pgram_ball, core_dist2=core_dist2,
-                     rounded_sweep=rounded_sweep, flat_sweep=flat_sweep, aligned_sweep=aligned_sweep, aligned_poses=aligned_poses,
+                     rounded_sweep=rounded_sweep, flat_sweep=flat_sweep, aligned_sweep=aligned_sweep,
+                     aligned_poses=aligned_poses,
                      aligned_at=aligned_at, fixed_sweep=fixed_sweep, pose=pose, flute_plane=flute_plane,
                      flute_range=flute_range, pose_at=pose_at, stand=stand,
                      turning_search=turning_search, tool_move=tool_move)
