@@ -75,6 +75,25 @@ def test_ctrl_c_at_any_moment_of_a_command(path, tmp_path):
         if rc == 130:
             assert not any(os.path.exists(out / n) for n in ("summary.json", "deviation.json", "machined.stl")), when
     assert stopped >= 5
+    # into folders that were not there: they go again with the run
+    rc, lines, sent = interrupted([*argv[:-1], str(tmp_path / "new" / "sim")], "cutting ")
+    assert sent and ends_interrupted(rc, lines, sent) and not (tmp_path / "new").exists()
+
+
+def test_a_run_that_fails_leaves_no_folder_it_made(tmp_path):
+    from meshmill.cli import main
+
+    bad = tmp_path / "bad.cl"
+    bad.write_text("GOTO/abc\n")  # refused once the run has begun (its output folder made)
+    out = tmp_path / "new" / "sim"
+    argv = ["simulate", "--design", os.path.join(DATA, "vase.stl"), "--toolpath", str(bad), "--tools",
+            os.path.join(DATA, "tools.toml"), "--step", "0.5", "--out", str(out)]
+    assert main(argv) == 2
+    assert not (tmp_path / "new").exists()
+    out.mkdir(parents=True)
+    (out / "notes.txt").write_text("mine")  # a folder that was there, with a file of the user's, stays
+    assert main(argv) == 2
+    assert os.listdir(out) == ["notes.txt"]
 
 
 @pytest.mark.slow

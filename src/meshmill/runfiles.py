@@ -50,12 +50,19 @@ class RunFiles:
         self.paths = [os.path.abspath(os.fspath(p)) for p in paths]
         self.partial = {}
         self.done = False
+        self.created = []  # the folders this run made, deepest first (abort removes them while empty)
         for p in self.paths:
             folder = os.path.dirname(p)
+            missing = []
+            up = folder
+            while not os.path.isdir(up) and os.path.dirname(up) != up:
+                missing.append(up)
+                up = os.path.dirname(up)
             try:
                 os.makedirs(folder, exist_ok=True)
             except OSError as exc:
                 raise InputError(f"{folder}: cannot create the output folder ({exc.strerror})") from None
+            self.created += missing
             if os.path.isdir(p):
                 raise InputError(f"{p}: is a folder, not a file to write")
         self.clear()
@@ -94,7 +101,8 @@ class RunFiles:
         self.done = True
 
     def abort(self):
-        """Remove the temporary files of a run that did not complete."""
+        """Remove the temporary files of a run that did not complete, and the folders it made for
+        them where they hold nothing else."""
         for part in self.partial.values():
             try:
                 if os.path.exists(part):
@@ -102,3 +110,8 @@ class RunFiles:
             except OSError:
                 pass
         self.partial.clear()
+        for folder in self.created:
+            try:
+                os.rmdir(folder)
+            except OSError:  # not empty (or gone)
+                pass
