@@ -50,7 +50,7 @@ class RunFiles:
         self.paths = [os.path.abspath(os.fspath(p)) for p in paths]
         self.partial = {}
         self.done = False
-        self.created = []  # the folders this run made, deepest first (abort removes them while empty)
+        self.created = []  # the folders this run made (abort removes them while empty)
         for p in self.paths:
             folder = os.path.dirname(p)
             missing = []
@@ -110,7 +110,7 @@ class RunFiles:
             except OSError:
                 pass
         self.partial.clear()
-        for folder in self.created:
+        for folder in sorted(self.created, key=len, reverse=True):  # the deepest first
             try:
                 os.rmdir(folder)
             except OSError:  # not empty (or gone)

@@ -363,22 +363,20 @@ def _cut_tiles(lu, lv, step, nu, nv, iv, off, count, tiles, combs, split, tile_s
         clear_at = np.zeros(TILE * TILE, np.bool_)
         # where the material of each line of the item starts and ends (kept as the item's moves
         # cut it; material only goes, so a value not yet updated holds it still), and of each
-        # row's lines together (made again when one of its lines was cut): a move skips the rows
-        # and lines whose material lies outside its box along the lines (most of those a shank or
-        # holder covers), which :func:`~meshmill.kernels.carve.cut_line` and ``touch_line`` would
-        # find at their first test, reading the line's intervals
+        # row's lines together (made when a move first needs it, and again after one of its lines
+        # was cut): a move skips the rows and lines whose material lies outside its box along the
+        # lines (most of those a shank or holder covers), which
+        # :func:`~meshmill.kernels.carve.cut_line` and ``touch_line`` would find at their first
+        # test, reading the line's intervals
         ext_lo = np.full(TILE * TILE, np.inf)
         ext_hi = np.full(TILE * TILE, -np.inf)
-        row_lo = np.full(TILE, np.inf)
-        row_hi = np.full(TILE, -np.inf)
-        stale = np.zeros(TILE, np.bool_)
+        row_lo = np.empty(TILE)
+        row_hi = np.empty(TILE)
+        stale = np.ones(TILE, np.bool_)
         for i in range(ti * TILE + (comb - ti * TILE) % split, min(nu, ti * TILE + TILE), split):
-            r = i - ti * TILE
             for j in range(tj * TILE, min(nv, tj * TILE + TILE)):
-                at = r * TILE + j - tj * TILE
+                at = (i - ti * TILE) * TILE + j - tj * TILE
                 ext_lo[at], ext_hi[at] = _line_extent(iv, off, count, (i - row0) * nv + j)
-                row_lo[r] = min(row_lo[r], ext_lo[at])
-                row_hi[r] = max(row_hi[r], ext_hi[at])
         for s in range(tile_start[t], tile_start[t + 1]):
             m = tile_moves[s]
             g = group[m]
