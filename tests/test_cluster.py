@@ -184,7 +184,7 @@ def test_waterline_levels_on_a_cluster_are_the_same_path(client):
 
 def test_rough_heights_on_a_cluster_are_the_same_path(client):
     """The grid's drop heights in pieces of rows; the levels after them as in one process."""
-    part = shapes.post_with_fillet(segments=48)
+    part = shapes.post_with_fillet(height=10.0, plate_radius=20.0, segments=48)
     kw = dict(tool="F4", engagement=1.0, step_down=5.0, allowance=0.2, stock=api.Stock.box(2.0), device="cpu")
     one = api.rough(part, TOOLS, **kw)
     many = api.rough(part, TOOLS, cluster=client, **kw)

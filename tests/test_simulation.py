@@ -92,25 +92,25 @@ def test_swept_interval_matches_dense_sampling(tool, turn):
             assert (gap <= SWEEP_TOL + np.linalg.norm(pb - pa) / 4000 + 1e-6).all()
 
 
-def _tool_points(tip, x, R, r, F, n=48):
-    """Points ``(k, 3)`` of a cutter's surface at one pose: its corner torus at the bottom and its
-    rounded top at F (the model of ``tool_gap``), on ``n`` meridians."""
-    e1 = np.cross(x, [1.0, 0.0, 0.0] if abs(x[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(x, e1)
+def _tool_boxes(tips, x, R, r, F):
+    """Boxes ``(k, 2, 3)`` (lowest, highest corner) of a cutter's surface at ``k`` poses (tips and
+    unit axes ``(k, 3)``): its corner torus at the bottom and its rounded top at F (the model of
+    ``tool_gap``) as 13 circles around the axis, each circle's box exact."""
+    x = np.atleast_2d(x)
+    tips = np.atleast_2d(tips)
     alpha = np.linspace(0.0, math.pi, 13)
     rad = (R - r) + r * np.sin(alpha)
     h = np.where(alpha <= math.pi / 2, r, max(r, F - r)) - r * np.cos(alpha)
-    psi = np.linspace(0.0, 2 * math.pi, n, endpoint=False)
-    ring = np.cos(psi)[:, None] * e1 + np.sin(psi)[:, None] * e2
-    return (tip + h[:, None, None] * x + rad[:, None, None] * ring[None]).reshape(-1, 3)
+    centre = tips[:, None] + h[None, :, None] * x[:, None]  # (k, 13, 3)
+    half = rad[None, :, None] * np.sqrt(np.maximum(0.0, 1.0 - x * x))[:, None]  # a circle's reach along each axis
+    return np.stack([(centre - half).min(axis=1), (centre + half).max(axis=1)], axis=1)
 
 
 @pytest.mark.parametrize("degrees", [60.0, 120.0, 170.0])
 def test_a_move_turning_far_is_cut_in_pieces_of_equal_turns_within_their_boxes(degrees):
     """A move whose axis turns far is split in pieces of equal turns whose ends are poses of the
-    move; the tool at 401 poses of the move (tip linear, axis by the normalised interpolation)
-    lies in the box of one of its pieces, and at 41 poses of each piece in that piece's box
+    move; the tool at 2001 poses of the move (tip linear, axis by the normalised interpolation)
+    lies in the box of one of its pieces, and at 101 poses of each piece in that piece's box
     (shanks and holders too, within their own tolerance). Equal steps of the interpolation instead turn the middle pieces
     up to 2 tan(θ/2)/θ times more, and their tool leaves their boxes."""
     from meshmill.simulation import cut as cutting
@@ -144,12 +144,12 @@ def test_a_move_turning_far_is_cut_in_pieces_of_equal_turns_within_their_boxes(d
         lift = float((moves.pa[0] - tp.tip[0]) @ xa)  # a body's cylinder starts up the axis
         delta = theta / len(moves)
         reach, H = math.hypot(lift + F, R), max(0.0, lift + F - 2 * r)
-        for t in np.linspace(0, 1, 401):
-            x = xa + t * (xb - xa)
-            x /= np.linalg.norm(x)
-            pts = _tool_points(tp.tip[0] + t * (tp.tip[1] - tp.tip[0]) + lift * x, x, R, r, F)
-            inside = np.all((pts[None] >= boxes[:, None, 0] - 1e-9) & (pts[None] <= boxes[:, None, 1] + 1e-9),
-                            axis=(1, 2))
+        ts = np.linspace(0, 1, 2001)
+        xs = xa + ts[:, None] * (xb - xa)
+        xs /= np.linalg.norm(xs, axis=1, keepdims=True)
+        poses = _tool_boxes(tp.tip[0] + ts[:, None] * (tp.tip[1] - tp.tip[0]) + lift * xs, xs, R, r, F)
+        for t, x, pose in zip(ts, xs, poses):
+            inside = np.all((pose[0] >= boxes[:, 0] - 1e-9) & (pose[1] <= boxes[:, 1] + 1e-9), axis=1)
             assert inside.any(), (degrees, ti, t)
             # the piece holding this axis, at the same tip: its axis is near enough that the tool's
             # farthest point is within its tolerance of here, less the piece's chord sag
@@ -161,12 +161,12 @@ def test_a_move_turning_far_is_cut_in_pieces_of_equal_turns_within_their_boxes(d
             off = math.acos(min(1.0, x @ y / np.linalg.norm(y)))
             tol = cutting.BODY_SWEEP_TOL if ti == 3 else SWEEP_TOL
             assert reach * off + (R + H) * delta ** 2 / 8 <= tol * (1 + 1e-6), (degrees, ti, t)
+        ss = np.linspace(0, 1, 101)[:, None]
         for m in range(len(moves)):
-            for s in np.linspace(0, 1, 41):
-                x = moves.xa[m] + s * (moves.xb[m] - moves.xa[m])
-                x /= np.linalg.norm(x)
-                pts = _tool_points(moves.pa[m] + s * (moves.pb[m] - moves.pa[m]), x, R, r, F)
-                assert np.all(pts >= boxes[m, 0] - 1e-9) and np.all(pts <= boxes[m, 1] + 1e-9), (degrees, ti, m, s)
+            x = moves.xa[m] + ss * (moves.xb[m] - moves.xa[m])
+            x /= np.linalg.norm(x, axis=1, keepdims=True)
+            pose = _tool_boxes(moves.pa[m] + ss * (moves.pb[m] - moves.pa[m]), x, R, r, F)
+            assert np.all(pose[:, 0] >= boxes[m, 0] - 1e-9) and np.all(pose[:, 1] <= boxes[m, 1] + 1e-9), (degrees, ti, m)
 
 
 def test_a_pose_of_a_flat_or_bull_nose_meets_a_line_where_its_points_are():

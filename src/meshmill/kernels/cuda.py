@@ -38,6 +38,13 @@ def _blocks(n, threads=THREADS):
     return max(1, (n + threads - 1) // threads)
 
 
+def _grid(n):
+    """``(blocks, threads)`` of a launch of ``n`` threads: blocks of THREADS, or one block of whole
+    warps when fewer (no idle threads for numba's simulator to interpret)."""
+    threads = min(THREADS, 32 * _blocks(n, 32))
+    return _blocks(n, threads), threads
+
+
 class Staging:
     """Device buffers kept from call to call, one per kernel argument (``key``), dtype and shape
     past the first axis: a call copies its host arrays into them and reads its results back from
@@ -107,7 +114,7 @@ def mesh_distances(points, bvh, cap=1e150):
     """As :func:`meshmill.kernels.cpu.mesh_distances`."""
     cap = min(cap, 1e150)
     out = STAGE.empty("md.out", (len(points),))
-    _mesh_distances[_blocks(len(points)), THREADS](*_s("md", points), cap * cap, *bvh, out)
+    _mesh_distances[_grid(len(points))](*_s("md", points), cap * cap, *bvh, out)
     return out.copy_to_host()
 
 
@@ -123,7 +130,7 @@ def _largest_ball(cc, nrm, radii, tol, node_lo, node_hi, node_child, node_range,
 def largest_ball(cc, normals, radii, tol, bvh):
     """As :func:`meshmill.kernels.cpu.largest_ball`."""
     out = STAGE.empty("lb.out", (len(cc),), np.int32)
-    _largest_ball[_blocks(len(cc)), THREADS](*_s("lb", cc, normals, radii), float(tol), *bvh, out)
+    _largest_ball[_grid(len(cc))](*_s("lb", cc, normals, radii), float(tol), *bvh, out)
     return out.copy_to_host()
 
 
@@ -152,9 +159,9 @@ def axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body
     """As :func:`meshmill.kernels.cpu.axis_search`: one thread per point, then one per contour."""
     args = (*_s("as", ce, feed, side), STAGE.put("as.tool", tool, np.int32), *_s("asc", candidates, radius, *body))
     choice = STAGE.empty("as.out", (len(ce),), np.int32)
-    _axis_search[_blocks(len(ce)), THREADS](*args, *bvh, choice)
+    _axis_search[_grid(len(ce))](*args, *bvh, choice)
     n_contours = len(offsets) - 1
-    _keep_previous[_blocks(n_contours), THREADS](choice, STAGE.put("as.off", offsets, np.int64),
+    _keep_previous[_grid(n_contours)](choice, STAGE.put("as.off", offsets, np.int64),
                                                  STAGE.put("as.tilt", cand_tilt), float(slack), *args, *bvh)
     return choice.copy_to_host()
 
@@ -177,7 +184,7 @@ def pose_penetration(tip, axis, tool, grow, rings, segs, base, bvh, inside, stop
     ring = STAGE.zeros("pp.ring", (k,))
     depth = STAGE.zeros("pp.depth", (k, np.shape(segs[2])[1]))
     ring_t, ring_rho, ring_r, ring_n = rings
-    _pose_penetration[_blocks(k), THREADS](*_s("pp", tip, axis), STAGE.put("pp.tool", tool, np.int32),
+    _pose_penetration[_grid(k)](*_s("pp", tip, axis), STAGE.put("pp.tool", tool, np.int32),
                                            *_s("ppg", grow, ring_t, ring_rho, ring_r),
                                            STAGE.put("pp.n", ring_n, np.asarray(ring_n).dtype),
                                            *_s("pps", *segs, base), *bvh, *inside, float(stop), ring, depth)
@@ -200,7 +207,7 @@ def intervals_clear(tip_a, axis_a, tip_b, axis_b, tool, grow, limit, rings, segs
     """As :func:`meshmill.kernels.cpu.intervals_clear`."""
     k = len(tip_a)
     out = STAGE.empty("ic.out", (k,), np.bool_)
-    _intervals_clear[_blocks(k), THREADS](*_s("ic", tip_a, axis_a, tip_b, axis_b), STAGE.put("ic.tool", tool, np.int32),
+    _intervals_clear[_grid(k)](*_s("ic", tip_a, axis_a, tip_b, axis_b), STAGE.put("ic.tool", tool, np.int32),
                                           *_s("icg", grow, limit, *rings[:3], *segs, base), *bvh, out)
     return out.copy_to_host()
 
@@ -217,7 +224,7 @@ def _points_inside(p, in_lo, in_hi, in_child, in_range, in_tris, in_kind, floor,
 def points_inside(points, inside):
     """As :func:`meshmill.kernels.cpu.points_inside`."""
     out = STAGE.empty("pi.out", (len(points),), np.bool_)
-    _points_inside[_blocks(len(points)), THREADS](*_s("pi", points), *inside, out)
+    _points_inside[_grid(len(points))](*_s("pi", points), *inside, out)
     return out.copy_to_host()
 
 
@@ -238,7 +245,7 @@ def drop_cutter(xy, radius, corner_radius, floor, bvh, body=None, chunk=CHUNK):
     z = STAGE.empty("dc.z", (k,))
     cc = STAGE.empty("dc.cc", (k, 3))
     d_xy, body_r, body_t = _s("dc", xy, *body[:2])
-    _drop_cutter[_blocks(_blocks(k, chunk)), THREADS](d_xy, float(radius), float(corner_radius), body_r, body_t,
+    _drop_cutter[_grid(_blocks(k, chunk))](d_xy, float(radius), float(corner_radius), body_r, body_t,
                                                       float(floor), int(chunk), *bvh, z, cc)
     return z.copy_to_host(), cc.copy_to_host()
 
@@ -261,7 +268,7 @@ def touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_r
         inside_contacts = np.full((len(inside_xy), 3), np.nan)
     out = STAGE.put("tp.out", outside_xy)
     pa, pb, fa, fb, qa, body_r, body_t = _s("tp", inside_xy, outside_xy, f_inside, f_outside, inside_contacts, *body[:2])
-    _touch_points[_blocks(len(inside_xy)), THREADS](pa, pb, fa, fb, qa, float(z), float(radius), float(corner_radius),
+    _touch_points[_grid(len(inside_xy))](pa, pb, fa, fb, qa, float(z), float(radius), float(corner_radius),
                                                     body_r, body_t, float(floor), float(touch), float(width),
                                                     int(rounds), *bvh, out)
     return out.copy_to_host()
@@ -279,7 +286,7 @@ def _rays_blocked(origins, d, tmin, node_lo, node_hi, node_child, node_range, tr
 def rays_blocked(origins, direction, tmin, bvh):
     """As :func:`meshmill.kernels.cpu.rays_blocked`."""
     out = STAGE.empty("rb.out", (len(origins),), np.uint8)
-    _rays_blocked[_blocks(len(origins)), THREADS](*_s("rb", origins, direction), float(tmin), *bvh, out)
+    _rays_blocked[_grid(len(origins))](*_s("rb", origins, direction), float(tmin), *bvh, out)
     return out.copy_to_host().astype(bool)
 
 
@@ -301,7 +308,7 @@ def cast_lines(a, lu, lv, step, nu, nv, bvh, first_row=0):
     while True:
         out = cuda.device_array((n_lines, cap, 2), np.float64)
         count = cuda.device_array(n_lines, np.int64)
-        _cast_bvh[_blocks(n_lines), THREADS](a, int(first_row) * int(nv), float(lu), float(lv), float(step), int(nu),
+        _cast_bvh[_grid(n_lines)](a, int(first_row) * int(nv), float(lu), float(lv), float(step), int(nu),
                                             int(nv), cap, *bvh, out, count)
         c = count.copy_to_host()
         need = int(c.max(initial=0))
@@ -372,7 +379,7 @@ def move_constants(pa, pb, xa, xb, corner, flutes):
     k = len(pa)
     chord = STAGE.empty("mc.chord", (k, 6))
     plane = STAGE.empty("mc.plane", (k, 4))
-    _move_constants[_blocks(k), THREADS](*_s("mc", pa, pb, xa, xb, corner, flutes), chord, plane)
+    _move_constants[_grid(k)](*_s("mc", pa, pb, xa, xb, corner, flutes), chord, plane)
     return chord.copy_to_host(), plane.copy_to_host()
 
 
