@@ -60,3 +60,15 @@ def test_extras_are_imported_only_when_needed():
             "print(sorted(m for m in ('plotly', 'PyNomad') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_a_kernel_runs_without_importing_scipy_linalg_and_blas_still_works():
+    """numba's BLAS probe (scipy.linalg, 0.15 s of every command) is skipped: a cached kernel loads
+    without it, and afterwards scipy.linalg imports and np.dot compiles against its BLAS."""
+    code = ("import sys, numpy as np, numba\n"
+            "from meshmill.simulation.dexel import dexelize\nfrom meshmill.geometry.shapes import box\n"
+            "dexelize(box((0, 0, 0), (1, 1, 1)), 0.25)\nprint('scipy.linalg' in sys.modules)\n"
+            "import scipy.linalg\nprint(scipy.linalg.solve(np.eye(2), np.ones(2)).tolist())\n"
+            "print(numba.njit(lambda a, b: np.dot(a, b))(np.arange(3.0), np.arange(3.0)))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False", "[1.0,", "1.0]", "5.0"]

@@ -7,6 +7,7 @@ functions it calls from other files, so a changed ``geom.py`` would leave stale 
 """
 import hashlib
 import os
+import sys
 
 import numba
 
@@ -30,3 +31,22 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
 # at 100 % after the result is written; numba #10556). An explicit NUMBA_THREADING_LAYER wins.
 if not os.environ.get("NUMBA_THREADING_LAYER") and not os.environ.get("NUMBA_THREADING_LAYER_PRIORITY"):
     numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
+
+
+def _arraymath_without_blas_probe():
+    """Import numba's array functions without their BLAS probe. When numba first compiles or
+    loads a function it imports ``numba.np.arraymath``, which imports ``scipy.linalg`` only to
+    learn whether ``np.correlate`` may call BLAS: 0.15 s of every command (5 % of a raster), for
+    a function no kernel here calls. The probe finds no BLAS (that one function then loops
+    itself); ``scipy.linalg`` stays importable, and ``np.dot`` and the like, which ask for BLAS
+    when they are compiled, still find it."""
+    if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
+        return  # probed already, or scipy.linalg already paid for
+    sys.modules["scipy.linalg.cython_blas"] = None  # an import of it raises ImportError
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        del sys.modules["scipy.linalg.cython_blas"]
+
+
+_arraymath_without_blas_probe()
