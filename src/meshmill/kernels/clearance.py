@@ -230,6 +230,30 @@ def build(jit):
         return tris_search((q, box), cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack)[0]
 
     @jit
+    def plane_beyond(tris, t, ax, ay, az, bx, by, bz, r, slack):
+        """Whether points a and b lie on one side of triangle t's plane, both farther than ``r +
+        slack`` from it: then every point of segment a-b is farther than r from the triangle.
+        ``slack`` covers the rounding of the normal and of coordinates (False for a sliver whose
+        normal is not known to a millionth)."""
+        e1x = tris[t, 3] - tris[t, 0]
+        e1y = tris[t, 4] - tris[t, 1]
+        e1z = tris[t, 5] - tris[t, 2]
+        e2x = tris[t, 6] - tris[t, 0]
+        e2y = tris[t, 7] - tris[t, 1]
+        e2z = tris[t, 8] - tris[t, 2]
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
+        nn2 = nx * nx + ny * ny + nz * nz
+        if not nn2 > 1e-12 * (e1x * e1x + e1y * e1y + e1z * e1z) * (e2x * e2x + e2y * e2y + e2z * e2z):
+            return False
+        nn = math.sqrt(nn2)
+        da = ((ax - tris[t, 0]) * nx + (ay - tris[t, 1]) * ny + (az - tris[t, 2]) * nz) / nn
+        db = ((bx - tris[t, 0]) * nx + (by - tris[t, 1]) * ny + (bz - tris[t, 2]) * nz) / nn
+        far = r + slack + 1e-9 * (abs(tris[t, 0]) + abs(tris[t, 1]) + abs(tris[t, 2]))
+        return (da >= far and db >= far) or (da <= -far and db <= -far)
+
+    @jit
     def capsule_reach(q, best):
         # the capsule's radius, and how near its middle a triangle must come to lower best: no point
         # of the segment is nearer a triangle than its middle less ``pad`` (half its length, and the
@@ -247,6 +271,8 @@ def build(jit):
     @jit
     def segment_leaf(q, tris, t, best, reach):
         ax, ay, az, bx, by, bz, ux, uy, uz, length, mx, my, mz, pad = q
+        if plane_beyond(tris, t, ax, ay, az, bx, by, bz, reach[0], 1e-9 * (1.0 + abs(mx) + abs(my) + abs(mz) + pad)):
+            return best  # both ends farther than the reach on one side of the triangle's plane
         if point_tri(mx, my, mz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5], tris[t, 6],
                      tris[t, 7], tris[t, 8]) > reach[1]:
             return best  # a cheap bound first
