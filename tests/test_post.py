@@ -587,6 +587,21 @@ def test_a_tilt_swing_keeps_the_whole_tool_above_the_clearance(clearance):
     assert any("below the path's highest tip" in w for w in report["warnings"])
 
 
+def test_a_rapid_whose_great_circle_needs_a_tilt_beyond_travel_is_refused_at_its_move():
+    """A rapid turning the rotaries follows the great circle between its axes, pose by pose from
+    the start: both ends 118 deg from +Z (within A's -120), the circle between them dips to 126.9
+    deg, which no tilt of the trunnion reaches: one line naming that rapid (CL move 3), not a pose
+    of the circle counted as a move of its own."""
+    machine = load_machine("table-table-ac")
+    tool = Tool("B6", "ball", 6.0, 3.0, 20.0, 40.0, 6.0, holder_diameter=30.0, holder_length=40.0, number=1)
+    s, c = np.sin(np.radians(118.0)), np.cos(np.radians(118.0))
+    axis = np.array([[s, 0, c], [s, 0, c], [0, s, c], [0, s, c]])
+    tip = np.array([[0.0, 0, 50], [0, 0, 40], [0, 0, 60], [0, 5, 40]])
+    tp = Toolpath(tip=tip, axis=axis, rapid=np.array([True, False, True, False]), tool=np.zeros(4, np.int64))
+    with pytest.raises(InputError, match=r"^move 3: A -120\.8664 is beyond its travel \[-120, 30\]"):
+        post_program(tp, [tool], machine)
+
+
 def test_a_head_table_tool_without_holder_is_warned():
     machine = load_machine("head-table-bc")
     tp = Toolpath(np.array([[0.0, 0, 5], [5.0, 0, 0]]), np.tile(UP, (2, 1)), np.array([True, False]), np.zeros(2, int))

@@ -241,17 +241,18 @@ def _dogleg_corner(joints, machine, before=None):
 
 # --- 5-axis ----------------------------------------------------------------------------------------
 
-def _solve(machine, tp, first, tip, axis, tool_length, tcp, start):
+def _solve(machine, tp, first, tip, axis, tool_length, tcp, start, within=False):
     """:func:`~meshmill.machine.motion.inverse` of the poses ``tip (m, 3)``, ``axis (m, 3)``
-    of CL moves ``first``, ``first + 1``, ...: ``(joints (m, n) rounded as written, rewound (m,))``;
-    a pose beyond the travel is an InputError naming its CL move."""
+    of CL moves ``first``, ``first + 1``, ... (``within``: all of them poses within CL move
+    ``first``), each solved next to the one before: ``(joints (m, n) rounded as written, rewound
+    (m,))``; a pose beyond the travel is an InputError naming its CL move."""
+    lines = np.repeat(tp.line[first:first + 1], len(tip)) if within else tp.line[first:first + len(tip)]
     try:
-        joints, rewound = inverse(machine, tip, axis, tool_length=tool_length, tcp=tcp, start=start,
-                                  lines=tp.line[first:first + len(tip)])
+        joints, rewound = inverse(machine, tip, axis, tool_length=tool_length, tcp=tcp, start=start, lines=lines)
     except AxisLimitError as exc:
         value = format_number(exc.value, machine.gcode.decimals if exc.axis in "XYZ" else machine.gcode.angle_decimals)
-        raise InputError(f"{_where(tp, first + exc.move)}: {exc.axis} {value} is beyond its travel "
-                         f"[{exc.travel[0]:g}, {exc.travel[1]:g}] on {machine.name}") from None
+        raise InputError(f"{_where(tp, first if within else first + exc.move)}: {exc.axis} {value} is beyond its "
+                         f"travel [{exc.travel[0]:g}, {exc.travel[1]:g}] on {machine.name}") from None
     return _round_joints(joints, machine.gcode), np.asarray(rewound, bool)
 
 
@@ -296,7 +297,7 @@ class _Linearisation:
         """Poses inserted into the CL feed moves ``moves (r,)`` (tips ``tp.tip[move - 1]`` ->
         ``tp.tip[move]``, unit axes ``a0`` -> ``a1`` (r, 3)) whose joints ``j0`` -> ``j1`` (r, n)
         stray beyond the tolerance: per move ``(s (q,), joints (q, n), largest)`` in order, ``s``
-        the fractions of the move (see :meth:`_midpoint`, ``strict`` passed on), ``largest`` mm
+        the fractions of the move (see :meth:`_midpoints`, ``strict`` passed on), ``largest`` mm
         the largest deviation of its blocks. Each half is split again while it strays, MAX_DEPTH
         deep, and on to DEEPEST while a halving still leaves no more than ``FALLS`` of its half's
         deviation. The halvings of all moves are measured together, one depth at a time."""
@@ -307,15 +308,14 @@ class _Linearisation:
         for depth in range(1, DEEPEST + 1):
             if not open_:
                 break
-            mids = [self._midpoint(moves[k], a0[k], a1[k], 0.5 * (s0 + s1), ja, jb, strict)
-                    for k, s0, s1, ja, jb, _ in open_]
             ks = np.array([o[0] for o in open_])
             ja = np.array([o[3] for o in open_])
             jb = np.array([o[4] for o in open_])
-            jm = np.array(mids)
-            p0, p1 = self.tp.tip[moves[ks] - 1], self.tp.tip[moves[ks]]
             lo, hi = np.array([o[1] for o in open_]), np.array([o[2] for o in open_])
             mid = 0.5 * (lo + hi)
+            jm = self._midpoints(moves[ks], a0[ks], a1[ks], mid, ja, jb, strict)
+            mids = list(jm)
+            p0, p1 = self.tp.tip[moves[ks] - 1], self.tp.tip[moves[ks]]
             both = self.deviation(np.r_[ja, jm], np.r_[jm, jb], np.r_[p0, p0], np.r_[p1, p1],
                                   np.r_[a0[ks], a0[ks]], np.r_[a1[ks], a1[ks]], np.r_[lo, mid], np.r_[mid, hi])
             left, right = both[:len(open_)], both[len(open_):]
@@ -335,28 +335,32 @@ class _Linearisation:
             out.append((np.array([sj[0] for sj in pieces]), np.array([sj[1] for sj in pieces]), float(worst)))
         return out
 
-    def _midpoint(self, move, a0, a1, sm, ja, jb, strict=False):
-        """The joints (n,) at fraction ``sm`` of CL move ``move``, the middle of the interval whose
-        ends are ``ja`` and ``jb`` (n,): the rotaries halfway between them and X Y Z putting the tip
-        on the CL segment, when that keeps the axis within half the tolerance (at the flutes' top),
-        or, within POLE_REACH pole cones of the pole and not ``strict``, within the cone's angle
-        (``chain.singular``, the axis error the pole hold allows), of the great circle from ``a0``
-        to ``a1`` (always for a rapid, whose axis is free); else the pose with its axis on the
-        great circle, solved next to ``ja`` (near the pole of the rotaries the first keeps C from
-        swinging where the axis hardly moves; ``strict`` where that left the flutes astray)."""
-        p0, p1 = self.tp.tip[move - 1], self.tp.tip[move]
-        target = p0 + sm * (p1 - p0)
+    def _midpoints(self, moves, a0, a1, sm, ja, jb, strict=False):
+        """The joints (q, n) at fractions ``sm (q,)`` of CL moves ``moves (q,)`` (unit axes ``a0``
+        -> ``a1`` (q, 3)), the middles of the intervals whose ends are ``ja`` and ``jb`` (q, n):
+        the rotaries halfway between them and X Y Z putting the tip on the CL segment, when that
+        keeps the axis within half the tolerance (at the flutes' top), or, within POLE_REACH pole
+        cones of the pole and not ``strict``, within the cone's angle (``chain.singular``, the axis
+        error the pole hold allows), of the great circle from ``a0`` to ``a1`` (always for a rapid,
+        whose axis is free); else the pose with its axis on the great circle, solved next to ``ja``
+        (near the pole of the rotaries the first keeps C from swinging where the axis hardly
+        moves; ``strict`` where that left the flutes astray)."""
+        p0, p1 = self.tp.tip[moves - 1], self.tp.tip[moves]
+        target = p0 + sm[:, None] * (p1 - p0)
         jm = 0.5 * (ja + jb)
-        tip, axis = forward(self.machine, jm[None], self.tool_length, self.tcp)
-        jm = _retract_joints(self.machine, jm, target - tip[0], self.tool_length, self.tcp)
+        tip, axis = forward(self.machine, jm, self.tool_length, self.tcp)
+        jm = _retract_joints(self.machine, jm, target - tip, self.tool_length, self.tcp)
         if self.rapid:
             return jm
-        want = _great_circle(a0, a1, [sm])[0]
-        off = np.linalg.norm(axis[0] - want)  # rad, about
-        near_pole = math.acos(min(1.0, abs(want[2]))) < POLE_REACH * self.machine.chain.singular
-        if self.flutes * off <= 0.5 * self.tolerance or (near_pole and not strict and off <= self.machine.chain.singular):
-            return jm
-        return _solve(self.machine, self.tp, move, target[None], want[None], self.tool_length, self.tcp, ja)[0][0]
+        want = _great_circle(a0, a1, sm)
+        off = np.linalg.norm(axis - want, axis=1)  # rad, about
+        singular = self.machine.chain.singular
+        near_pole = np.arccos(np.minimum(1.0, np.abs(want[:, 2]))) < POLE_REACH * singular
+        held = (self.flutes * off <= 0.5 * self.tolerance) | (near_pole & (not strict) & (off <= singular))
+        for k in np.flatnonzero(~held):
+            jm[k] = _solve(self.machine, self.tp, int(moves[k]), target[k:k + 1], want[k:k + 1], self.tool_length,
+                           self.tcp, ja[k])[0][0]
+        return jm
 
 
 def _peak(samples):
@@ -374,15 +378,20 @@ def _peak(samples):
 
 
 def _retract_joints(machine, joints, displacement, tool_length, tcp):
-    """Joints (n,) as written that move the tip of ``joints (n,)`` by ``displacement (3,)`` mm in
-    work coordinates with the rotaries held: for fixed rotaries the tip is affine in X Y Z, so one
-    linear solve with forward's X Y Z columns is exact."""
-    probe = np.repeat(joints[None], 4, axis=0)
-    probe[1:, :3] += np.eye(3)
-    tip, _ = forward(machine, probe, tool_length, tcp)
-    out = joints.copy()
-    out[:3] += np.linalg.solve((tip[1:] - tip[0]).T, displacement)
-    return _round_joints(out, machine.gcode)
+    """Joints (n,) or (q, n) as written that move the tip of ``joints`` by ``displacement`` ((3,)
+    or (q, 3)) mm in work coordinates with the rotaries held: for fixed rotaries the tip is affine
+    in X Y Z, so one linear solve with forward's X Y Z columns is exact."""
+    joints = np.asarray(joints, np.float64)
+    rows = np.atleast_2d(joints)
+    probe = np.repeat(rows[:, None], 4, axis=1)  # (q, 4, n)
+    probe[:, 1:, :3] += np.eye(3)
+    tip, _ = forward(machine, probe.reshape(-1, rows.shape[1]), tool_length, tcp)
+    tip = tip.reshape(len(rows), 4, 3)
+    out = rows.copy()
+    step = np.atleast_2d(displacement)
+    out[:, :3] += np.linalg.solve((tip[:, 1:] - tip[:, :1]).transpose(0, 2, 1), step[..., None])[..., 0]
+    out = _round_joints(out, machine.gcode)
+    return out if joints.ndim == 2 else out[0]
 
 
 class _Blocks:
@@ -495,11 +504,11 @@ def _linearise(tp, poses: _ToolPoses, rapid, turns, machine, tcp, tolerance, flu
     deviation[cut] = lin.deviation(before[cut - 1], joints[cut], tip[cut - 1], tip[cut], unit[cut - 1], unit[cut])
     lin_rapid = _Linearisation(machine, tp, length, tcp, tolerance, 0.0, rapid=True)
     linear_turn = np.zeros(b - a, bool)
-    for i in np.flatnonzero(turns):
-        ja = before[i - 1]
-        for g in np.linspace(0.0, 1.0, 33)[1:]:  # follow the great circle's solutions from the start
-            ja = _solve(machine, tp, a + i, tip[i - 1:i] + g * (tip[i:i + 1] - tip[i - 1:i]),
-                        _great_circle(unit[i - 1], unit[i], [g]), length, tcp, ja)[0][0]
+    g = np.linspace(0.0, 1.0, 33)[1:]
+    for i in np.flatnonzero(turns):  # follow the great circle's solutions from the start
+        circle = _great_circle(np.repeat(unit[i - 1:i], len(g), axis=0), np.repeat(unit[i:i + 1], len(g), axis=0), g)
+        ja = _solve(machine, tp, a + i, tip[i - 1] + g[:, None] * (tip[i] - tip[i - 1]), circle, length, tcp,
+                    before[i - 1], within=True)[0][-1]
         linear_turn[i] = np.abs(ja[3:] - joints[i, 3:]).max() > 1e-3
     fast = np.flatnonzero(linear_turn)
     deviation[fast] = lin_rapid.deviation(before[fast - 1], joints[fast], tip[fast - 1], tip[fast],
