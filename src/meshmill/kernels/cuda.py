@@ -162,7 +162,7 @@ def axis_search(ce, feed, side, tool, candidates, cand_tilt, slack, radius, body
     _axis_search[_grid(len(ce))](*args, *bvh, choice)
     n_contours = len(offsets) - 1
     _keep_previous[_grid(n_contours)](choice, STAGE.put("as.off", offsets, np.int64),
-                                                 STAGE.put("as.tilt", cand_tilt), float(slack), *args, *bvh)
+                                      STAGE.put("as.tilt", cand_tilt), float(slack), *args, *bvh)
     return choice.copy_to_host()
 
 
@@ -185,9 +185,9 @@ def pose_penetration(tip, axis, tool, grow, rings, segs, base, bvh, inside, stop
     depth = STAGE.zeros("pp.depth", (k, np.shape(segs[2])[1]))
     ring_t, ring_rho, ring_r, ring_n = rings
     _pose_penetration[_grid(k)](*_s("pp", tip, axis), STAGE.put("pp.tool", tool, np.int32),
-                                           *_s("ppg", grow, ring_t, ring_rho, ring_r),
-                                           STAGE.put("pp.n", ring_n, np.asarray(ring_n).dtype),
-                                           *_s("pps", *segs, base), *bvh, *inside, float(stop), ring, depth)
+                                *_s("ppg", grow, ring_t, ring_rho, ring_r),
+                                STAGE.put("pp.n", ring_n, np.asarray(ring_n).dtype),
+                                *_s("pps", *segs, base), *bvh, *inside, float(stop), ring, depth)
     return ring.copy_to_host(), depth.copy_to_host()
 
 
@@ -208,7 +208,7 @@ def intervals_clear(tip_a, axis_a, tip_b, axis_b, tool, grow, limit, rings, segs
     k = len(tip_a)
     out = STAGE.empty("ic.out", (k,), np.bool_)
     _intervals_clear[_grid(k)](*_s("ic", tip_a, axis_a, tip_b, axis_b), STAGE.put("ic.tool", tool, np.int32),
-                                          *_s("icg", grow, limit, *rings[:3], *segs, base), *bvh, out)
+                               *_s("icg", grow, limit, *rings[:3], *segs, base), *bvh, out)
     return out.copy_to_host()
 
 
@@ -246,7 +246,7 @@ def drop_cutter(xy, radius, corner_radius, floor, bvh, body=None, chunk=CHUNK):
     cc = STAGE.empty("dc.cc", (k, 3))
     d_xy, body_r, body_t = _s("dc", xy, *body[:2])
     _drop_cutter[_grid(_blocks(k, chunk))](d_xy, float(radius), float(corner_radius), body_r, body_t,
-                                                      float(floor), int(chunk), *bvh, z, cc)
+                                           float(floor), int(chunk), *bvh, z, cc)
     return z.copy_to_host(), cc.copy_to_host()
 
 
@@ -269,8 +269,8 @@ def touch_points(inside_xy, outside_xy, f_inside, f_outside, z, radius, corner_r
     out = STAGE.put("tp.out", outside_xy)
     pa, pb, fa, fb, qa, body_r, body_t = _s("tp", inside_xy, outside_xy, f_inside, f_outside, inside_contacts, *body[:2])
     _touch_points[_grid(len(inside_xy))](pa, pb, fa, fb, qa, float(z), float(radius), float(corner_radius),
-                                                    body_r, body_t, float(floor), float(touch), float(width),
-                                                    int(rounds), *bvh, out)
+                                         body_r, body_t, float(floor), float(touch), float(width),
+                                         int(rounds), *bvh, out)
     return out.copy_to_host()
 
 
@@ -309,7 +309,7 @@ def cast_lines(a, lu, lv, step, nu, nv, bvh, first_row=0):
         out = cuda.device_array((n_lines, cap, 2), np.float64)
         count = cuda.device_array(n_lines, np.int64)
         _cast_bvh[_grid(n_lines)](a, int(first_row) * int(nv), float(lu), float(lv), float(step), int(nu),
-                                            int(nv), cap, *bvh, out, count)
+                                  int(nv), cap, *bvh, out, count)
         c = count.copy_to_host()
         need = int(c.max(initial=0))
         if need <= cap:
