@@ -92,6 +92,24 @@ def test_swept_interval_matches_dense_sampling(tool, turn):
             assert (gap <= SWEEP_TOL + np.linalg.norm(pb - pa) / 4000 + 1e-6).all()
 
 
+def test_the_floor_of_a_convex_function_from_four_values_is_never_above_its_minimum():
+    """The golden search of a line point's distance to a bull-nose's swept core stops once the
+    chords of its four values prove the minimum beyond the radius (the bisection asks only that):
+    that floor is never above the true minimum, on smooth, kinked and tilted convex functions."""
+    rng = np.random.default_rng(1)
+    gaps = []
+    for _ in range(3000):
+        k, p, s0, m = rng.uniform(0.1, 5), rng.choice([1.0, 1.5, 2.0, 4.0]), rng.uniform(-0.5, 1.5), rng.normal()
+        a, b = np.sort(rng.uniform(0, 1, 2))
+        s1, s2 = b - 0.6180339887498949 * (b - a), a + 0.6180339887498949 * (b - a)
+        f = lambda s: k * np.abs(s - s0) ** p + m * s  # noqa: E731
+        floor = swp.convex_floor(a, s1, s2, b, f(a), f(s1), f(s2), f(b))
+        true = f(np.linspace(a, b, 4001)).min()
+        assert floor <= true + 1e-9 * (1 + abs(true))
+        gaps.append(true - floor)
+    assert np.median(gaps) < 0.05  # and it is a useful bound
+
+
 def _tool_boxes(tips, x, R, r, F):
     """Boxes ``(k, 2, 3)`` (lowest, highest corner) of a cutter's surface at ``k`` poses (tips and
     unit axes ``(k, 3)``): its corner torus at the bottom and its rounded top at F (the model of

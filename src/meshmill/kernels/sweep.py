@@ -202,6 +202,25 @@ def build(jit):
         return lo, hi
 
     @jit
+    def convex_floor(a, s1, s2, b, fa, f1, f2, fb):
+        """A lower bound of a convex function on ``[a, b]`` from its values at ``a < s1 < s2 < b``:
+        each piece lies above the chords of its neighbours extended (-INF where points coincide)."""
+        if not (a < s1 < s2 < b):
+            return -INF
+        m12 = (f2 - f1) / (s2 - s1)
+        m01 = (f1 - fa) / (s1 - a)
+        m23 = (fb - f2) / (b - s2)
+        # [a, s1] and [s2, b]: above the middle chord extended, least at their ends
+        low = min(min(f1, f2), min(f1 + m12 * (a - s1), f2 + m12 * (b - s2)))
+        # [s1, s2]: above both outer chords; the least of their maximum at an end or where they cross
+        mid = min(max(f1, f2 + m23 * (s1 - s2)), max(f1 + m01 * (s2 - s1), f2))
+        if m01 < m23:
+            x = (f2 - f1 + m01 * s1 - m23 * s2) / (m01 - m23)
+            if s1 < x < s2:
+                mid = min(mid, f1 + m01 * (x - s1))
+        return min(low, mid)
+
+    @jit
     def offset_dist2(s, su, sv, sw, eu, ev, ew, qa, Da, H, rho):
         """Squared distance of :func:`core_dist2` to the core placed at fraction s of the move
         (``su..`` the point's part normal to the axis, ``eu..`` the move's, ``qa, Da`` along it)."""
@@ -214,10 +233,11 @@ def build(jit):
         return radial * radial + gap * gap
 
     @jit
-    def core_dist2(pu, pv, pw, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, enough):
+    def core_dist2(pu, pv, pw, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, enough, prove):
         """Squared distance from p to ``Disk(rho) + Parallelogram(c; D, H x)``, x the unit axis,
         the disk perpendicular to x; or any value <= ``enough`` once one is found (the callers
-        only ask whether p lies within a distance)."""
+        only ask whether p lies within a distance); with ``prove``, any value > ``enough`` once
+        the distance is proven to exceed it (for callers that ask only that)."""
         qu = pu - cu
         qv = pv - cv
         qw = pw - cw
@@ -248,8 +268,9 @@ def build(jit):
             gap = max(0.0, max(-qa, qa - H))
             return radial * radial + gap * gap
         # general: convex in s; the ends, then a golden-section search on [0, 1]
-        best = min(offset_dist2(0.0, su, sv, sw, eu, ev, ew, qa, Da, H, rho),
-                   offset_dist2(1.0, su, sv, sw, eu, ev, ew, qa, Da, H, rho))
+        fa = offset_dist2(0.0, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
+        fb = offset_dist2(1.0, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
+        best = min(fa, fb)
         a = 0.0
         b = 1.0
         s1 = b - GOLDEN
@@ -258,6 +279,13 @@ def build(jit):
         f2 = offset_dist2(s2, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
         while b - a > 1e-12 and best > enough:
             best = min(best, min(f1, f2))
+            if prove and best > enough and convex_floor(a, s1, s2, b, fa, f1, f2, fb) \
+                    > enough + 1e-12 * (1.0 + max(max(fa, fb), max(f1, f2))):
+                return best  # the whole bracket proven beyond enough
+            if f1 <= f2:
+                fb = f2
+            else:
+                fa = f1
             a, b, s1, s2, f1, f2, left = golden_step(a, b, s1, s2, f1, f2)
             if left:
                 f1 = offset_dist2(s1, su, sv, sw, eu, ev, ew, qa, Da, H, rho)
@@ -271,7 +299,7 @@ def build(jit):
         ``core_dist2 <= r2``; returns the inside end, within ``BISECT_TOL`` of the boundary."""
         while abs(w_in - w_out) > BISECT_TOL:
             m = 0.5 * (w_out + w_in)
-            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2) <= r2:
+            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2, True) <= r2:
                 w_in = m
             else:
                 w_out = m
@@ -293,17 +321,17 @@ def build(jit):
             b = ohi
             inside = INF
             m = 0.5 * (a + b)
-            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2) <= r2:
+            if core_dist2(u0, v0, m, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2, False) <= r2:
                 inside = m
             else:
                 for _ in range(80):
                     w1 = b - GOLDEN * (b - a)
                     w2 = a + GOLDEN * (b - a)
-                    f1 = core_dist2(u0, v0, w1, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2)
+                    f1 = core_dist2(u0, v0, w1, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2, False)
                     if f1 <= r2:
                         inside = w1
                         break
-                    f2 = core_dist2(u0, v0, w2, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2)
+                    f2 = core_dist2(u0, v0, w2, cu, cv, cw, Du, Dv, Dw, xu, xv, xw, H, rho, r2, False)
                     if f2 <= r2:
                         inside = w2
                         break
@@ -942,8 +970,8 @@ def build(jit):
         return lo, hi
 
     return namespace(sphere=sphere, capsule=capsule, pgram_ball=pgram_ball, core_dist2=core_dist2,
-                     rounded_sweep=rounded_sweep, flat_sweep=flat_sweep, aligned_sweep=aligned_sweep,
-                     aligned_poses=aligned_poses,
+                     convex_floor=convex_floor, rounded_sweep=rounded_sweep, flat_sweep=flat_sweep,
+                     aligned_sweep=aligned_sweep, aligned_poses=aligned_poses,
                      aligned_at=aligned_at, fixed_sweep=fixed_sweep, pose=pose, flute_plane=flute_plane,
                      flute_range=flute_range, pose_at=pose_at, stand=stand,
                      turning_search=turning_search, tool_move=tool_move)
