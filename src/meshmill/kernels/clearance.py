@@ -230,22 +230,28 @@ def build(jit):
         return tris_search((q, box), cap2, stop2, node_lo, node_hi, node_child, node_range, tris, stack)[0]
 
     @jit
-    def plane_beyond(tris, t, ax, ay, az, bx, by, bz, r, slack):
-        """Whether points a and b lie on one side of triangle t's plane, both farther than ``r +
-        slack`` from it: then every point of segment a-b is farther than r from the triangle.
-        ``slack`` covers the rounding of the normal and of coordinates (False for a sliver whose
-        normal is not known to a millionth)."""
+    def tri_normal(tris, t):
+        """Triangle t's normal ``(e1 x e2)`` (its edges from the first vertex; not unit) and the
+        product of its two edges' squared lengths (the normal's squared length is that times the
+        squared sine of their angle)."""
         e1x = tris[t, 3] - tris[t, 0]
         e1y = tris[t, 4] - tris[t, 1]
         e1z = tris[t, 5] - tris[t, 2]
         e2x = tris[t, 6] - tris[t, 0]
         e2y = tris[t, 7] - tris[t, 1]
         e2z = tris[t, 8] - tris[t, 2]
-        nx = e1y * e2z - e1z * e2y
-        ny = e1z * e2x - e1x * e2z
-        nz = e1x * e2y - e1y * e2x
+        return (e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x,
+                (e1x * e1x + e1y * e1y + e1z * e1z) * (e2x * e2x + e2y * e2y + e2z * e2z))
+
+    @jit
+    def plane_beyond(tris, t, ax, ay, az, bx, by, bz, r, slack):
+        """Whether points a and b lie on one side of triangle t's plane, both farther than ``r +
+        slack`` from it: then every point of segment a-b is farther than r from the triangle.
+        ``slack`` covers the rounding of the normal and of coordinates (False for a sliver whose
+        normal is not known to a millionth)."""
+        nx, ny, nz, ee = tri_normal(tris, t)
         nn2 = nx * nx + ny * ny + nz * nz
-        if not nn2 > 1e-12 * (e1x * e1x + e1y * e1y + e1z * e1z) * (e2x * e2x + e2y * e2y + e2z * e2z):
+        if not nn2 > 1e-12 * ee:
             return False
         nn = math.sqrt(nn2)
         da = ((ax - tris[t, 0]) * nx + (ay - tris[t, 1]) * ny + (az - tris[t, 2]) * nz) / nn
@@ -642,15 +648,7 @@ def build(jit):
             if low - top >= r + slack:
                 return best
         # the hull wholly beyond r on one side of the triangle's plane (a facet along the tool)
-        e1x = tris[t, 3] - tris[t, 0]
-        e1y = tris[t, 4] - tris[t, 1]
-        e1z = tris[t, 5] - tris[t, 2]
-        e2x = tris[t, 6] - tris[t, 0]
-        e2y = tris[t, 7] - tris[t, 1]
-        e2z = tris[t, 8] - tris[t, 2]
-        nx = e1y * e2z - e1z * e2y
-        ny = e1z * e2x - e1x * e2z
-        nz = e1x * e2y - e1y * e2x
+        nx, ny, nz, _ = tri_normal(tris, t)
         nn = math.sqrt(nx * nx + ny * ny + nz * nz)
         if nn > 0.0:
             lo = INF
