@@ -314,14 +314,12 @@ class _Linearisation:
             lo, hi = np.array([o[1] for o in open_]), np.array([o[2] for o in open_])
             mid = 0.5 * (lo + hi)
             jm = self._midpoints(moves[ks], a0[ks], a1[ks], mid, ja, jb, strict)
-            mids = list(jm)
             p0, p1 = self.tp.tip[moves[ks] - 1], self.tp.tip[moves[ks]]
             both = self.deviation(np.r_[ja, jm], np.r_[jm, jb], np.r_[p0, p0], np.r_[p1, p1],
                                   np.r_[a0[ks], a0[ks]], np.r_[a1[ks], a1[ks]], np.r_[lo, mid], np.r_[mid, hi])
             left, right = both[:len(open_)], both[len(open_):]
             still = []
-            for (k, s0, s1, ja_, jb_, whole), j, dl, dr in zip(open_, mids, left, right):
-                sm = 0.5 * (s0 + s1)
+            for (k, s0, s1, ja_, jb_, whole), sm, j, dl, dr in zip(open_, mid.tolist(), jm, left, right):
                 inserted[k].append((sm, j))
                 for d, half in ((dl, (k, s0, sm, ja_, j, dl)), (dr, (k, sm, s1, j, jb_, dr))):
                     if d > self.tolerance and (depth < MAX_DEPTH or (depth < DEEPEST and d <= FALLS * whole)):
