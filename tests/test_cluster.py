@@ -182,6 +182,27 @@ def test_waterline_levels_on_a_cluster_are_the_same_path(client):
     assert one.summary["passes"] == many.summary["passes"]
 
 
+def test_a_worker_keeps_what_this_run_built_when_its_cache_fills():
+    """A worker drops what earlier runs built once it holds more than 16 things, never what this
+    run built: a piece reads its mesh index again after building the kernels (once this cleared
+    the whole cache and a piece read None there, a flaky failure of the job test)."""
+    from meshmill import cluster
+
+    saved = dict(cluster._CACHE)
+    cluster._CACHE.clear()
+    try:
+        for k in range(16):  # the index makes 17, the kernels then 18
+            cluster.worker_cached({"token": "earlier"}, f"thing {k}", lambda: k)
+        now = {"token": "now"}
+        assert cluster.worker_cached(now, "index", lambda: "built") == "built"
+        assert cluster.worker_cached(now, "kernels", lambda: "kernels") == "kernels"
+        assert cluster.worker_cached(now, "index", lambda: None) == "built"
+        assert all(key[0] == "now" for key in cluster._CACHE)
+    finally:
+        cluster._CACHE.clear()
+        cluster._CACHE.update(saved)
+
+
 def test_rough_heights_on_a_cluster_are_the_same_path(client):
     """The grid's drop heights in pieces of rows; the levels after them as in one process."""
     part = shapes.post_with_fillet(height=10.0, plate_radius=20.0, segments=48)

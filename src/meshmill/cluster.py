@@ -228,8 +228,9 @@ def worker_cached(shared: dict, name: str, build):
     same worker reuse it (a BVH, kernels)."""
     key = (shared["token"], name)
     if key not in _CACHE:
-        if len(_CACHE) > 16:  # an earlier run's
-            _CACHE.clear()
+        if len(_CACHE) > 16:  # earlier runs' go (this run's stay: its pieces read them again)
+            for old in [k for k in _CACHE if k[0] != key[0]]:
+                del _CACHE[old]
         _CACHE[key] = build()
     return _CACHE[key]
 

@@ -243,7 +243,7 @@ def cast_block(shared: dict, piece) -> tuple:
 
     a, i0, i1 = piece
     start, iv, bad = cast_rows(shared, "mesh", a, (i0, i1))
-    return start, iv, bad, worker_cached(shared, "mesh index", lambda: None)[1]
+    return start, iv, bad, worker_cached(shared, "mesh index", lambda: mesh_index(shared["mesh"][0]))[1]
 
 
 def line_rows(start, iv, nv: int, i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
