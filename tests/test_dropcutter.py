@@ -104,6 +104,53 @@ def test_triangle_drop_against_dense_samples(pts, xy, kind):
     assert abs(cz - _profile(math.hypot(cx - xy[0], cy - xy[1]), R, r) - z) < 1e-6
 
 
+def _drop_above(tri, xy, R, r, best):
+    return cpu.cut.triangle_drop(np.asarray(tri, np.float64).reshape(1, 9), 0, xy[0], xy[1], R, r, best)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(coord, coord, coord), min_size=3, max_size=3), st.tuples(coord, coord),
+       st.sampled_from(list(CUTTERS)), st.sampled_from([-1.0, -1e-3, -1e-8, 0.0, 1e-8, 1e-3, 1.0]))
+def test_a_triangle_gives_its_drop_above_any_bound_and_nothing_below_it(pts, xy, kind, shift):
+    # the searches pass the best height so far: a triangle must give its own drop when that is
+    # above it, whatever it skips (a ball's sphere test, the plane's), and nothing otherwise
+    R, r = CUTTERS[kind]
+    tri = np.array(pts, np.float64)
+    if np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0])) < 1e-2:
+        return  # (the loader drops degenerate triangles)
+    alone = _drop_above(tri, xy, R, r, -1e300)
+    if alone[0] < -1e299:
+        return
+    got = _drop_above(tri, xy, R, r, alone[0] + shift)
+    if shift < 0.0:
+        assert got == alone
+    else:
+        assert got[0] < -1e299
+
+
+def test_a_ball_meets_a_wall_above_its_centre_that_its_sphere_misses():
+    # the tool is the sphere only below its centre: above it, the flutes' column; a steep triangle
+    # rising past the centre beside the axis lifts the ball though the sphere about the centre
+    # (at the bound's height) is farther than R from it
+    R = 3.0
+    wall = [[2.5, -5.0, 0.0], [2.5, 5.0, 0.0], [2.9, 0.0, 20.0]]
+    alone = _drop_above(wall, (0.0, 0.0), R, R, -1e300)
+    assert alone[0] > 10.0
+    assert _drop_above(wall, (0.0, 0.0), R, R, alone[0] - 1e-6) == alone
+
+
+def test_a_ball_resting_exactly_on_an_edge_keeps_it_at_the_bound_and_below():
+    # a horizontal edge 2 mm beside the axis at z 5: the ball's tip rests at 5 - (3 - sqrt(5));
+    # the edge is exactly R from the centre there, on the sphere test's boundary
+    R = 3.0
+    tri = [[2.0, -4.0, 5.0], [2.0, 4.0, 5.0], [6.0, 0.0, 1.0]]
+    z = 5.0 - (R - math.sqrt(R * R - 4.0))
+    alone = _drop_above(tri, (0.0, 0.0), R, R, -1e300)
+    assert abs(alone[0] - z) < 1e-12
+    assert _drop_above(tri, (0.0, 0.0), R, R, z - 1e-12) == alone
+    assert _drop_above(tri, (0.0, 0.0), R, R, alone[0])[0] < -1e299
+
+
 ocl = pytest.importorskip("opencamlib", reason="OpenCAMLib is a test-only peer")
 
 

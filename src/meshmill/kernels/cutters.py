@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 
+from . import geom
 from .geom import namespace
 
 NEG = -1.0e300
@@ -24,10 +25,12 @@ NO_BODY = ((), ())  # no shank or holder cylinders: ``body`` of the drop-cutter 
 PLANE_BOUND_NZ = 1e-6  # facets at least this far from vertical bound their triangle's contact by their plane's
 BISECTIONS = 60
 WARM_SLACK = 1e-9  # a neighbour's contact bounds the drop from below less this share of its height (+1 mm)
+SPHERE_SLACK = 1e-9  # a ball passes over a triangle farther than its radius and this share of the centre's coordinates
 
 
 def build(jit):
     """Compile the drop-cutter device functions with ``jit``."""
+    point_triangle = geom.build(jit).point_triangle_dist2
 
     @jit
     def profile(rho, R, r):
@@ -172,6 +175,14 @@ def build(jit):
         d2 = dx * dx + dy * dy
         if d2 > R * R or zmax - profile(math.sqrt(d2), R, r) <= best:
             return NEG, 0.0, 0.0, 0.0
+        cz = best + R
+        if r == R and zmax <= cz:
+            # a ball with its tip at best is, below its centre, the sphere about it: a triangle wholly
+            # below the centre and farther from it than R (and a slack far above the rounding of
+            # the tests below) cannot hold the tip at best, so none of its features needs a test
+            far = R + SPHERE_SLACK * (1.0 + abs(x) + abs(y) + abs(cz))
+            if point_triangle(x, y, cz, tris, t) >= far * far:
+                return NEG, 0.0, 0.0, 0.0
         top = best
         cx = 0.0
         cy = 0.0
