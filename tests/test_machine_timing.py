@@ -325,6 +325,20 @@ def test_programmed_feeds(tmp_path):
     assert np.isnan(feed[0]) and np.allclose(feed[1:], [300.0, 300.0, 254.0, 254.0]) and not warnings
 
 
+def test_feed_statements_are_found_at_the_start_of_their_lines_in_any_case(tmp_path):
+    # spaces or tabs before the word and the slash, any case, a comment after: read; a word that
+    # only contains FEDRAT, one after a comment or after another word on its line, or without
+    # its slash: not a feed statement (a lone CR ends a line, as the file is read)
+    cl = tmp_path / "w.cl"
+    cl.write_text("LOADTL/1\n  fedrat / 200, ipm $$ inch\r\nGOTO/0,0,0\n\tFedRat\t/ 5,MMPR\nGOTO/1,0,0\n"
+                  "XFEDRAT/3\nFEDRATE/4\n$$ FEDRAT/5\nGOTO FEDRAT/6\nFEDRAT 7\nGOTO/1,1,0\n"
+                  "FEDRAT/1e3, MMPM\rGOTO/9,9,9\nGOTO/2,0,0\nFEDRAT/300\nGOTO/3,0,0\n", newline="")
+    feed, warnings = programmed_feeds(cl, np.array([3, 5, 11, 13, 14, 16]), gcode=False)
+    assert feed[0] == pytest.approx(5080.0) and np.isnan(feed[1:3]).all()
+    assert feed[3] == feed[4] == pytest.approx(1000.0) and feed[5] == pytest.approx(300.0)
+    assert len(warnings) == 1 and "line 4" in warnings[0]
+
+
 # --- meshmill time -------------------------------------------------------------------------------------
 
 def _cl(tmp_path, tools):

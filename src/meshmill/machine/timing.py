@@ -169,18 +169,29 @@ def rotary_seconds(machine, tip, axis, tools=None, tool=None):
 
 INCH = 25.4
 APT_FEED_UNITS = {"MMPM": 1.0, "IPM": INCH}  # per minute; per revolution (MMPR, IPR) needs the spindle speed
-_FEDRAT = re.compile(r"^[ \t]*FEDRAT[ \t]*/([^\n]*)", re.M | re.I)
 _GCODE_COMMENT = re.compile(r"\([^)]*\)")
 _GCODE_WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+))")
 
 
 def _apt_feeds(text):
-    """``[(line, mm/min or None)]`` of the FEDRAT statements (None: not a feed per minute)."""
+    """``[(line, mm/min or None)]`` of the FEDRAT statements (None: not a feed per minute): the
+    lines ``FEDRAT/...``, spaces or tabs before the word and the slash allowed, any case."""
+    # (found with str.find, the words read upper-case: a multi-line regex took 0.06 s over a
+    # 100 k-line file)
+    up = text.upper()
     out, number, pos = [], 1, 0
-    for m in _FEDRAT.finditer(text):
-        number += text.count("\n", pos, m.start())
-        pos = m.start()
-        words = [w.strip().upper() for w in m.group(1).split("$$")[0].split(",") if w.strip()]
+    at = up.find("FEDRAT")
+    while at >= 0:
+        start = up.rfind("\n", 0, at) + 1
+        end = up.find("\n", at)
+        end = len(up) if end < 0 else end
+        line = up[start:end].lstrip(" \t")
+        at = up.find("FEDRAT", end)  # (the word must start its line: one a line)
+        if not line.startswith("FEDRAT") or not line[6:].lstrip(" \t").startswith("/"):
+            continue
+        number += up.count("\n", pos, start)
+        pos = start
+        words = [w.strip() for w in line[6:].lstrip(" \t")[1:].split("$$")[0].split(",") if w.strip()]
         values, units = [], []
         for w in words:
             try:

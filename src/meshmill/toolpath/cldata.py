@@ -111,6 +111,9 @@ def _statements(text):
     pending = ""
     start = 0
     for number, raw in enumerate(text.splitlines(), start=1):
+        if not pending and raw.startswith("GOTO/") and "$" not in raw and not raw[-1].isspace():
+            yield number, raw  # (the usual line: a statement as it stands)
+            continue
         line = raw.strip()
         if not line or line.startswith("$$"):
             continue
@@ -241,6 +244,14 @@ def _read_statements(text, name, tools, goto, scales, rapid, tool_idx, lines, sk
     next_rapid = False
     scale = 1.0  # mm per unit of the file (UNITS/INCHES: 25.4)
     for number, stmt in _statements(text):
+        if current >= 0 and stmt.startswith("GOTO/"):  # (the usual statement: as the GOTO below)
+            goto.append(stmt[5:])
+            scales.append(scale)
+            rapid.append(next_rapid)
+            tool_idx.append(current)
+            lines.append(number)
+            next_rapid = False
+            continue
         word, slash, args = stmt.partition("/")
         word = word.strip().upper()
         if not slash and word not in ("RAPID", "FINI", "END") and not word.isalpha():
