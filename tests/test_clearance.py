@@ -291,6 +291,63 @@ def test_a_fixed_axis_step_up_past_an_edge_is_decided_in_pieces(limit, clear):
     assert seg.max() == pytest.approx(0.01, abs=1e-6)
 
 
+def test_a_climbing_cylinders_sweep_is_the_least_distance_of_its_poses():
+    """The sweep of an axis segment moved along and across a fixed axis, against a triangle: never
+    farther than any of its poses (each pose's distance across the axis to the part of the
+    triangle level with it: the prism test of that pose alone), and no nearer than the nearest of
+    801 poses less their spacing. Corners and edges on the slab's faces and grid values included."""
+    rng = np.random.default_rng(11)
+    w = np.zeros(cpu.WORK_SIZE)
+    over = under = 0.0
+    for k in range(600):
+        u = np.array([0.0, 0.0, 1.0]) if k % 3 == 0 else rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        e1 = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(u, e1)
+        a = rng.normal(size=3)
+        h0 = rng.uniform(-1, 1)
+        h1 = h0 + rng.uniform(0.01, 3)
+        dh, dx, dy = rng.normal(size=3) * rng.choice([0.1, 1.0])
+        tri = rng.normal(size=(3, 3)) * 1.5 + a
+        if k % 5 == 0:  # corners on the slab's faces
+            tri = a + np.round((tri - a) * 2) / 2
+            h0, h1 = np.floor(h0 * 2) / 2, np.ceil(h1 * 2) / 2
+        tris = tri.reshape(1, 9).copy()
+        got = cpu.clr.sheared_tri_dist2(tris, 0, *a, *u, *e1, *e2, h0, h1, dh, dx, dy, w)
+        poses = [cpu.clr.stadium_tri_dist2(tris, 0, *(a + s * (dh * u + dx * e1 + dy * e2)), *u, *e1, *e2, h0, h1, 0.0,
+                                           0.0, w) for s in np.linspace(0.0, 1.0, 801)]
+        near = min(poses)
+        if near >= 1e299:
+            assert got >= 1e299 or got <= 4.0  # (a crossing between poses: only near them)
+            continue
+        over = max(over, np.sqrt(got) - np.sqrt(near))
+        under = max(under, np.sqrt(near) - np.sqrt(got))
+    assert over <= 1e-12  # never farther than a pose: a sweep found clear is clear at every pose
+    assert under <= 0.01  # and as near as the poses, to their spacing (moves of up to ~5 mm, 801 poses)
+
+
+def test_a_cylinder_sinking_away_from_a_ledge_is_proven_in_one_sweep():
+    """A flat cylinder (radius 1) whose rim leaves a block's top edge while it sinks 4 mm beside it:
+    the prism of the whole move reaches down to its lowest pose's bottom all along, and that of
+    each of its 16 pieces 0.25 mm below its own (0.02 mm into the block where the rim leaves it);
+    the exact sweep keeps 0.1 mm above the block there (dense poses, measured exactly, are the
+    reference). The same move 0.2 mm lower enters it."""
+    kern = solid_kernels(box([-20, -10, -10], [1, 10, 0]))
+    t0 = np.array([[0.0]])
+    segs = (t0, np.array([[10.0]]), np.array([[1.0]]))
+    rings = (np.zeros(1), np.zeros(1), np.zeros(1), np.ones(1, np.int64))
+    up = np.array([[0.0, 0.0, 1.0]])
+    s = np.linspace(0.0, 1.0, 2001)[:, None]
+    for lower, clear in ((0.0, True), (0.2, False)):
+        ta, tb = np.array([[1.53, 0.0, 1.98 - lower]]), np.array([[2.53, 0.0, -2.02 - lower]])
+        ok = kern.intervals_clear(ta, up, tb, up, np.zeros(1, np.int64), np.zeros(1), np.full(1, 0.01), rings, segs,
+                                  t0)
+        _, seg = kern.pose_penetration(ta + s * (tb - ta), np.repeat(up, len(s), 0), np.zeros(len(s), np.int64),
+                                       np.zeros(len(s)), rings, segs, t0)
+        assert ok[0] == clear and (seg.max() == 0.0) == clear
+
+
 @pytest.mark.parametrize("depth", [3e-8, 4e-6, 0.0123, 0.4])
 def test_a_cylinders_axial_depth_is_never_less_than_it_is(depth):
     """A cylinder of radius 1 whose bottom lies ``depth`` into a block's top, its axis 0.5 mm in

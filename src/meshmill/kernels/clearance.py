@@ -45,13 +45,16 @@ EMPTY_BOX = (INF, INF, INF, -INF, -INF, -INF)  # (lox, loy, loz, hix, hiy, hiz) 
 RING_ARCS = 8  # chords the circle of a rounded end starts with
 MIN_ARC = 1e-4  # rad: a chord is not halved below this
 ARC_STACK = 64  # chords waiting at once (pairs of angles in the work array)
-WORK_SIZE = 2 * ARC_STACK + 64  # float64 scratch a caller hands in: arcs, then two triangles and a polygon
 _TRI_A = 2 * ARC_STACK  # offsets in the work array
 _TRI_B = _TRI_A + 9
 _POLY = _TRI_B + 9  # up to 5 clipped points (h, x, y), twice
 _POLY_B = _POLY + 15
 _SUB = _POLY_B + 15  # the tips of a piece of a fixed-axis interval (6)
 _HULL = _TRI_A  # a tetrahedron's four faces (36) then its corners (12), over the triangles and polygons
+_SHEAR = _SUB + 6  # the points of a sheared sweep's slice (up to 24, x and y) ...
+_SHEAR_HULL = _SHEAR + 48  # ... and their hull's indices (up to 49)
+_SHEAR_AXIS = _SHEAR_HULL + 50  # the swept segment's ends along the axis and its move along it (3)
+WORK_SIZE = _SHEAR_AXIS + 3  # float64 scratch a caller hands in (the offsets above)
 SPLIT_SHARE = 0.25  # a fixed-axis interval is cut so that each piece moves along the axis by at most
 MAX_SPLIT = 16  # this share of the limit (at most this many pieces; see cylinder_clear)
 AXIAL_TOL = 1e-7  # mm: a cylinder's axial depth is bisected to this (from above: never less than it is)
@@ -277,16 +280,29 @@ def build(jit):
     @jit
     def segment_leaf(q, tris, t, best, reach):
         ax, ay, az, bx, by, bz, ux, uy, uz, length, mx, my, mz, pad = q
-        if plane_beyond(tris, t, ax, ay, az, bx, by, bz, reach[0], 1e-9 * (1.0 + abs(mx) + abs(my) + abs(mz) + pad)):
+        slack = 1e-9 * (1.0 + abs(mx) + abs(my) + abs(mz) + pad)
+        if plane_beyond(tris, t, ax, ay, az, bx, by, bz, reach[0], slack):
             return best  # both ends farther than the reach on one side of the triangle's plane
-        if point_tri(mx, my, mz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5], tris[t, 6],
-                     tris[t, 7], tris[t, 8]) > reach[1]:
+        dm = point_tri(mx, my, mz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5], tris[t, 6],
+                       tris[t, 7], tris[t, 8])
+        if dm > reach[1]:
             return best  # a cheap bound first
-        d = axis_dist(tris, t, ax, ay, az, ux, uy, uz, 0.0, length)
-        d = min(d, point_tri(ax, ay, az, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
-                             tris[t, 6], tris[t, 7], tris[t, 8]))
-        return min(d, point_tri(bx, by, bz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5],
-                                tris[t, 6], tris[t, 7], tris[t, 8]))
+        da = point_tri(ax, ay, az, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5], tris[t, 6],
+                       tris[t, 7], tris[t, 8])
+        db = point_tri(bx, by, bz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5], tris[t, 6],
+                       tris[t, 7], tris[t, 8])
+        nx, ny, nz, ee = tri_normal(tris, t)
+        if nx * nx + ny * ny + nz * nz > 1e-12 * ee:
+            # along the segment the distance to the triangle is convex: beyond the middle it stays
+            # above the line through the middle's and the far end's (and the ends' own), so no
+            # point comes nearer than the least of those (not on a sliver, whose point distances
+            # may fall short of the true ones by its width)
+            fa = math.sqrt(da)
+            fb = math.sqrt(db)
+            fm = math.sqrt(dm)
+            if min(fa, fb, fm, 2.0 * fm - fa, 2.0 * fm - fb) >= reach[0] + slack:
+                return best
+        return min(axis_dist(tris, t, ax, ay, az, ux, uy, uz, 0.0, length), da, db)
 
     segment_search = bvh_search(jit, capsule_box, segment_leaf, reach_of=capsule_reach)
 
@@ -447,7 +463,161 @@ def build(jit):
         ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, box, w = q
         return stadium_tri_dist2(tris, t, ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, w)
 
+    @jit
+    def hull2d_dist2(w, n):
+        """Squared distance from the origin to the convex hull of the ``n`` 2-D points (x, y) at
+        ``w[_SHEAR:]`` (sorted there; the hull's indices at ``w[_SHEAR_HULL:]``): 0 inside it."""
+        if n == 0:
+            return INF
+        for i in range(1, n):  # by x, then y
+            x = w[_SHEAR + 2 * i]
+            y = w[_SHEAR + 2 * i + 1]
+            j = i - 1
+            while j >= 0 and (w[_SHEAR + 2 * j] > x or (w[_SHEAR + 2 * j] == x and w[_SHEAR + 2 * j + 1] > y)):
+                w[_SHEAR + 2 * j + 2] = w[_SHEAR + 2 * j]
+                w[_SHEAR + 2 * j + 3] = w[_SHEAR + 2 * j + 1]
+                j -= 1
+            w[_SHEAR + 2 * j + 2] = x
+            w[_SHEAR + 2 * j + 3] = y
+        # Andrew's monotone chain: the lower hull left to right, the upper back, counter-clockwise,
+        # the first point again at the end (m entries)
+        m = 0
+        m_lower = 0
+        for k in range(2 * n - 1):
+            if k == n:
+                m_lower = m
+            i = k if k < n else 2 * n - 2 - k
+            low = 2 if k < n else m_lower + 1
+            px = w[_SHEAR + 2 * i]
+            py = w[_SHEAR + 2 * i + 1]
+            while m >= low:
+                a = int(w[_SHEAR_HULL + m - 2])
+                b = int(w[_SHEAR_HULL + m - 1])
+                qx = w[_SHEAR + 2 * a]
+                qy = w[_SHEAR + 2 * a + 1]
+                if (w[_SHEAR + 2 * b] - qx) * (py - qy) - (w[_SHEAR + 2 * b + 1] - qy) * (px - qx) > 0.0:
+                    break
+                m -= 1
+            w[_SHEAR_HULL + m] = i
+            m += 1
+        if m == 1:
+            return w[_SHEAR] * w[_SHEAR] + w[_SHEAR + 1] * w[_SHEAR + 1]
+        best = INF
+        inside = m >= 4  # (three corners at least)
+        for k in range(m - 1):
+            a = int(w[_SHEAR_HULL + k])
+            b = int(w[_SHEAR_HULL + k + 1])
+            ax = w[_SHEAR + 2 * a]
+            ay = w[_SHEAR + 2 * a + 1]
+            ex = w[_SHEAR + 2 * b] - ax
+            ey = w[_SHEAR + 2 * b + 1] - ay
+            if ex * (0.0 - ay) - ey * (0.0 - ax) < 0.0:
+                inside = False  # the origin right of an edge
+            ee = ex * ex + ey * ey
+            f = 0.0
+            if ee > 0.0:
+                f = min(1.0, max(0.0, -(ax * ex + ay * ey) / ee))
+            dx = ax + f * ex
+            dy = ay + f * ey
+            best = min(best, dx * dx + dy * dy)
+        return 0.0 if inside else best
+
+    @jit
+    def sheared_tri_dist2(tris, t, ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, h0, h1, dh, dx, dy, w):
+        """Distance² across the axis u between triangle t and the sweep of the axis segment
+        a + [h0, h1]·u moved by (dh along u, (dx, dy) across it in the frame (e1, e2)): the least,
+        over the poses, of the distance across the axis from the pose's segment to the part of the
+        triangle level with it. The slice of the triangle less the sweep's path, {p - s·move}, level
+        with [h0, h1], projected across the axis: the hull of its corners within the slab and its
+        edges' crossings of the slab's faces, and its distance from the origin."""
+        n = 0
+        for k in range(6):  # the triangle's corners, then moved back along the move
+            c = k % 3
+            px = tris[t, 3 * c] - ax
+            py = tris[t, 3 * c + 1] - ay
+            pz = tris[t, 3 * c + 2] - az
+            h = px * ux + py * uy + pz * uz
+            x = px * e1x + py * e1y + pz * e1z
+            y = px * e2x + py * e2y + pz * e2z
+            if k >= 3:
+                h -= dh
+                x -= dx
+                y -= dy
+            w[_POLY_B + 3 * k] = h
+            w[_POLY_B + 3 * k + 1] = x
+            w[_POLY_B + 3 * k + 2] = y
+            if h0 <= h <= h1:
+                w[_SHEAR + 2 * n] = x
+                w[_SHEAR + 2 * n + 1] = y
+                n += 1
+        for e in range(9):  # the prism's edges: the triangle's, the moved one's, and between them
+            if e < 3:
+                i = e
+                j = (e + 1) % 3
+            elif e < 6:
+                i = e
+                j = 3 + (e - 2) % 3
+            else:
+                i = e - 6
+                j = e - 3
+            hi_ = w[_POLY_B + 3 * i]
+            hj = w[_POLY_B + 3 * j]
+            for c in range(2):
+                level = h0 if c == 0 else h1
+                if (hi_ - level) * (hj - level) < 0.0:
+                    f = (level - hi_) / (hj - hi_)
+                    w[_SHEAR + 2 * n] = w[_POLY_B + 3 * i + 1] + f * (w[_POLY_B + 3 * j + 1] - w[_POLY_B + 3 * i + 1])
+                    w[_SHEAR + 2 * n + 1] = w[_POLY_B + 3 * i + 2] + f * (w[_POLY_B + 3 * j + 2]
+                                                                          - w[_POLY_B + 3 * i + 2])
+                    n += 1
+        return hull2d_dist2(w, n)
+
+    @jit
+    def sheared_leaf(q, tris, t, best, reach):
+        # the prism of the sweep first (it holds the sweep: never farther), the sweep where it is near
+        ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, box, w = q
+        d = stadium_tri_dist2(tris, t, ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, w)
+        if d >= best:
+            return d
+        return max(d, sheared_tri_dist2(tris, t, ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, w[_SHEAR_AXIS],
+                                        w[_SHEAR_AXIS + 1], w[_SHEAR_AXIS + 2], vx, vy, w))
+
     prism_search = bvh_search(jit, prism_box, prism_leaf)
+    sheared_search = bvh_search(jit, prism_box, sheared_leaf)
+
+    @jit
+    def sheared_clear(ta, u, tb, lo, hi, rad, node_lo, node_hi, node_child, node_range, tris, stack, w):
+        """Whether the flat cylinder [lo, hi] along the fixed unit axis u, of radius rad, swept from
+        tip ta to tip tb (3-arrays), keeps off the mesh: its exact sweep (:func:`sheared_tri_dist2`),
+        searched within the prism that holds it (a move that climbs or sinks along the axis takes
+        that prism lower and higher than any of its poses)."""
+        if rad <= 0.0:
+            return True
+        e1x, e1y, e1z, e2x, e2y, e2z = normal_frame(u[0], u[1], u[2])
+        tm = 0.5 * (lo + hi)
+        ax = ta[0] + tm * u[0]
+        ay = ta[1] + tm * u[1]
+        az = ta[2] + tm * u[2]
+        mx = tb[0] - ta[0]
+        my = tb[1] - ta[1]
+        mz = tb[2] - ta[2]
+        dh = mx * u[0] + my * u[1] + mz * u[2]
+        vx = mx * e1x + my * e1y + mz * e1z
+        vy = mx * e2x + my * e2y + mz * e2z
+        s0 = lo - tm + min(0.0, dh)
+        s1 = hi - tm + max(0.0, dh)
+        box = EMPTY_BOX
+        for k in range(4):
+            h = s0 if k < 2 else s1
+            f = 0.0 if k % 2 == 0 else 1.0
+            box = grow_box(box, ax + h * u[0] + f * (vx * e1x + vy * e2x), ay + h * u[1] + f * (vx * e1y + vy * e2y),
+                           az + h * u[2] + f * (vx * e1z + vy * e2z))
+        w[_SHEAR_AXIS] = lo - tm
+        w[_SHEAR_AXIS + 1] = hi - tm
+        w[_SHEAR_AXIS + 2] = dh
+        q = (ax, ay, az, u[0], u[1], u[2], e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, box, w)
+        need2 = rad * rad
+        return sheared_search(q, need2, need2, node_lo, node_hi, node_child, node_range, tris, stack)[0] >= need2
     leaning_prism_search = bvh_search(jit, leaning_prism_box, prism_leaf)
 
     @jit
@@ -819,10 +989,11 @@ def build(jit):
                        node_lo, node_hi, node_child, node_range, tris, stack, w):
         """Whether the flat cylinder [t0, t1] of radius rad (grown by ``grow``) keeps within
         ``limit`` between poses a and b (:func:`cylinder_pass`). Where that fails on a move with a
-        fixed axis, the move is cut into pieces that move along the axis by at most
-        ``SPLIT_SHARE`` of the limit (up to ``MAX_SPLIT``), each tested: a piece's prism holds its
-        sweep with the bottom lowered and the top raised by that much only, where the whole
-        move's takes all of it."""
+        fixed axis that moves along it too, its exact sweep is tested radially
+        (:func:`sheared_clear`), and where that fails the move is cut into pieces that move along
+        the axis by at most ``SPLIT_SHARE`` of the limit (up to ``MAX_SPLIT``), each tested: a
+        piece's prism holds its sweep with the bottom lowered and the top raised by that much
+        only, where the whole move's takes all of it (axially too)."""
         if cylinder_pass(ta, ua, tb, ub, t0, t1, rad, base, grow, limit,
                          node_lo, node_hi, node_child, node_range, tris, stack, w):
             return True
@@ -838,6 +1009,12 @@ def build(jit):
             pieces = min(MAX_SPLIT, max(1, int(math.ceil(abs(along) / (SPLIT_SHARE * limit)))))
         if pieces == 1:
             return False
+        # first the exact sweep, radially: the prism of cylinder_pass holds the cylinder's lowest
+        # and highest places over the move at every pose, and a move that climbs or sinks with its
+        # rim near the part fails it where no pose comes near
+        if sheared_clear(ta, ua, tb, t0 - grow, t1 + grow, rad + grow - limit, node_lo, node_hi, node_child,
+                         node_range, tris, stack, w):
+            return True
         for j in range(pieces):
             f0 = j / pieces
             f1 = (j + 1) / pieces
@@ -1048,6 +1225,7 @@ def build(jit):
     return namespace(seg_seg_dist2=seg_seg_dist2, tri_tri_dist2=tri_tri_dist2, tri_gap=tri_gap,
                      mesh_tris_dist2=mesh_tris_dist2,
                      mesh_segment_dist2=mesh_segment_dist2, seg2d_dist2=seg2d_dist2, stadium_tri_dist2=stadium_tri_dist2,
+                     sheared_tri_dist2=sheared_tri_dist2,
                      mesh_stadium_dist2=mesh_stadium_dist2, inside=inside, ring_clear=ring_clear,
                      patch_clear=patch_clear, in_tetra=in_tetra,
                      cylinder_clear=cylinder_clear, interval_clear=interval_clear, pose_depth=pose_depth)
