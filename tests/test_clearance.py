@@ -291,6 +291,7 @@ def test_a_fixed_axis_step_up_past_an_edge_is_decided_in_pieces(limit, clear):
     assert seg.max() == pytest.approx(0.01, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_a_climbing_cylinders_sweep_is_the_least_distance_of_its_poses():
     """The sweep of an axis segment moved along and across a fixed axis, against a triangle: never
     farther than any of its poses (each pose's distance across the axis to the part of the
