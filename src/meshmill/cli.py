@@ -89,6 +89,14 @@ def _mm(x) -> str:
     return f"{x:.4f}"
 
 
+def _verified(v, tol) -> str:
+    """What an operation's certified check found, as the command line says it: OK means every pose
+    of every move within the tolerance; the depth is the deepest of the poses measured (the moves'
+    ends and the middles of the intervals halved), not a bound between them."""
+    return (f"{'OK' if v['ok'] else 'PROBLEMS'} (deepest pose measured {_mm(v['max_gouge'])} mm; every pose "
+            f"{'within' if v['ok'] else 'checked against'} the tolerance {tol:g} mm)")
+
+
 def _load_part(args, path):
     """The part ``path`` placed into the work frame by the set-up options (``--units``, ``--up``,
     ``--scale``, ``--origin``, ``--flip``), its warnings said."""
@@ -145,8 +153,7 @@ def cmd_finish(args):
                f"tilted {summary['points_tilted']}, passes {summary['passes']}")
     for name, entry in summary["tools_used"].items():
         _say(args, f"  {name}: {entry['contours']} contour(s), {entry['cc_points']} CC points")
-    _say(args, f"verify: {'OK' if v['ok'] else 'PROBLEMS'} ({v['poses_checked']} poses, max gouge "
-               f"{_mm(v['max_gouge'])} mm, tolerance {summary['tolerance']:g} mm)")
+    _say(args, f"verify ({v['poses_checked']} poses): {_verified(v, summary['tolerance'])}")
     _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
                f"(device {summary['device']})")
     _finish_json(args, summary)
@@ -166,8 +173,7 @@ def cmd_rough(args):
     _say(args, f"{len(summary['levels'])} levels, {sum(lv['walks'] for lv in summary['levels'])} walks; "
                f"cut {length['cut'] / 1000:.2f} m, links {length['link'] / 1000:.2f} m at feed; radial width "
                f"max {w['max']:.3f} mean {w['mean']:.3f} (set {w['set']:g}) mm; left {summary['left_mm2']:.1f} mm^2")
-    _say(args, f"{summary['moves']} moves; verify: {'OK' if v['ok'] else 'PROBLEMS'} "
-               f"(max gouge {_mm(v['max_gouge'])} mm, tolerance {v['tolerance']:g} mm)")
+    _say(args, f"{summary['moves']} moves; verify: {_verified(v, v['tolerance'])}")
     _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')}, moves.npz and summary.json in "
                f"{summary['seconds']['total']:.1f} s (device {summary['device']})")
     _finish_json(args, summary)
@@ -187,8 +193,7 @@ def _three_axis(args):
         _say(args, f"simulated at {s['step']:g} mm: removed {s['removed_volume']:.1f} of {s['stock_volume']:.1f} mm^3, "
                    f"{s['remaining_volume']:.1f} mm^3 left over the part")
     v = summary["verify"]
-    _say(args, f"{summary['cl_points']} CL points, {summary['moves']} moves; verify: {'OK' if v['ok'] else 'PROBLEMS'} "
-               f"(max gouge {_mm(v['max_gouge'])} mm, tolerance {v['tolerance']:g} mm)")
+    _say(args, f"{summary['cl_points']} CL points, {summary['moves']} moves; verify: {_verified(v, v['tolerance'])}")
     _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')} and summary.json in {summary['seconds']['total']:.1f} s "
                f"(device {summary['device']})")
     _finish_json(args, summary)
@@ -219,8 +224,8 @@ def cmd_verify(args):
           + f", {report['poses_checked']} poses checked: "
           f"{count(report['gouging_moves'], 'gouge')} gouging, {count(report['colliding_moves'], 'collision')} colliding, "
           f"{count(report['rapid_moves_touching'], 'rapid')} rapid into the {'stock' if res.stock_checked else 'part'}; "
-          f"max gouge {_mm(report['max_gouge'])} mm, "
-          f"max collision {_mm(report['max_collision'])} mm (tolerance {report['tolerance']:g} mm; device {res.device})")
+          f"the deepest poses measured: gouge {_mm(report['max_gouge'])} mm, "
+          f"collision {_mm(report['max_collision'])} mm (tolerance {report['tolerance']:g} mm; device {res.device})")
     for line in report["worst"]:
         print("  " + line)
     print("OK" if res.ok else "PROBLEMS FOUND")
@@ -498,8 +503,7 @@ def cmd_choose(args):
         if not z["machined"]:
             _say(args, f"warning: zone {z['zone']} ({z['cells']} cells) is not machined: no candidate covers it "
                        f"(best {100 * z['coverage']:.0f} % of its cells{', no passes' if not z['planes'] else ''})")
-    _say(args, f"verify: {'OK' if v['ok'] else 'PROBLEMS'} (max gouge {_mm(v['max_gouge'])} mm, tolerance "
-               f"{v['tolerance']:g} mm)")
+    _say(args, f"verify: {_verified(v, v['tolerance'])}")
     _say(args, f"wrote {os.path.join(args.out, 'toolpath.cl')}, tools.toml, zones.npz and summary.json in "
                f"{summary['seconds']['total']:.1f} s (device {res.device})")
     _finish_json(args, summary)
