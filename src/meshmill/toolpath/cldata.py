@@ -244,19 +244,14 @@ def _read_statements(text, name, tools, goto, scales, rapid, tool_idx, lines, sk
     next_rapid = False
     scale = 1.0  # mm per unit of the file (UNITS/INCHES: 25.4)
     for number, stmt in _statements(text):
-        if current >= 0 and stmt.startswith("GOTO/"):  # (the usual statement: as the GOTO below)
-            goto.append(stmt[5:])
-            scales.append(scale)
-            rapid.append(next_rapid)
-            tool_idx.append(current)
-            lines.append(number)
-            next_rapid = False
-            continue
-        word, slash, args = stmt.partition("/")
-        word = word.strip().upper()
-        if not slash and word not in ("RAPID", "FINI", "END") and not word.isalpha():
-            raise InputError(f"{name}:{number}: cannot read '{stmt.strip()[:40]}' (an APT statement is WORD or "
-                             "WORD/arguments)")
+        if stmt.startswith("GOTO/"):  # (the usual statement: no parsing of its word)
+            word, args = "GOTO", stmt[5:]
+        else:
+            word, slash, args = stmt.partition("/")
+            word = word.strip().upper()
+            if not slash and word not in ("RAPID", "FINI", "END") and not word.isalpha():
+                raise InputError(f"{name}:{number}: cannot read '{stmt.strip()[:40]}' (an APT statement is WORD "
+                                 "or WORD/arguments)")
         if word == "GOTO":
             if current < 0:
                 where = f"{name}:{number}"
