@@ -247,16 +247,12 @@ def build(jit):
                 (e1x * e1x + e1y * e1y + e1z * e1z) * (e2x * e2x + e2y * e2y + e2z * e2z))
 
     @jit
-    def plane_beyond(tris, t, ax, ay, az, bx, by, bz, r, slack):
-        """Whether points a and b lie on one side of triangle t's plane, both farther than ``r +
-        slack`` from it: then every point of segment a-b is farther than r from the triangle.
-        ``slack`` covers the rounding of the normal and of coordinates (False for a sliver whose
-        normal is not known to a millionth)."""
-        nx, ny, nz, ee = tri_normal(tris, t)
-        nn2 = nx * nx + ny * ny + nz * nz
-        if not nn2 > 1e-12 * ee:
-            return False
-        nn = math.sqrt(nn2)
+    def plane_beyond(tris, t, nx, ny, nz, ax, ay, az, bx, by, bz, r, slack):
+        """Whether points a and b lie on one side of triangle t's plane (normal n, known to a
+        millionth: not a sliver's), both farther than ``r + slack`` from it: then every point of
+        segment a-b is farther than r from the triangle. ``slack`` covers the rounding of the
+        normal and of coordinates."""
+        nn = math.sqrt(nx * nx + ny * ny + nz * nz)
         da = ((ax - tris[t, 0]) * nx + (ay - tris[t, 1]) * ny + (az - tris[t, 2]) * nz) / nn
         db = ((bx - tris[t, 0]) * nx + (by - tris[t, 1]) * ny + (bz - tris[t, 2]) * nz) / nn
         far = r + slack + 1e-9 * (abs(tris[t, 0]) + abs(tris[t, 1]) + abs(tris[t, 2]))
@@ -281,7 +277,9 @@ def build(jit):
     def segment_leaf(q, tris, t, best, reach):
         ax, ay, az, bx, by, bz, ux, uy, uz, length, mx, my, mz, pad = q
         slack = 1e-9 * (1.0 + abs(mx) + abs(my) + abs(mz) + pad)
-        if plane_beyond(tris, t, ax, ay, az, bx, by, bz, reach[0], slack):
+        nx, ny, nz, ee = tri_normal(tris, t)
+        sliver = not nx * nx + ny * ny + nz * nz > 1e-12 * ee  # (its normal not known to a millionth)
+        if not sliver and plane_beyond(tris, t, nx, ny, nz, ax, ay, az, bx, by, bz, reach[0], slack):
             return best  # both ends farther than the reach on one side of the triangle's plane
         dm = point_tri(mx, my, mz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5], tris[t, 6],
                        tris[t, 7], tris[t, 8])
@@ -291,8 +289,7 @@ def build(jit):
                        tris[t, 7], tris[t, 8])
         db = point_tri(bx, by, bz, tris[t, 0], tris[t, 1], tris[t, 2], tris[t, 3], tris[t, 4], tris[t, 5], tris[t, 6],
                        tris[t, 7], tris[t, 8])
-        nx, ny, nz, ee = tri_normal(tris, t)
-        if nx * nx + ny * ny + nz * nz > 1e-12 * ee:
+        if not sliver:
             # along the segment the distance to the triangle is convex: beyond the middle it stays
             # above the line through the middle's and the far end's (and the ends' own), so no
             # point comes nearer than the least of those (not on a sliver, whose point distances
@@ -464,6 +461,19 @@ def build(jit):
         return stadium_tri_dist2(tris, t, ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, w)
 
     @jit
+    def stadium_query(ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, w):
+        """The query of the stadium prism of :func:`stadium_tri_dist2` for :func:`prism_box` and
+        the leaves: its arguments with the box of its four corner points (the distance asked
+        about widens it in the box test) and the work array."""
+        box = EMPTY_BOX
+        for k in range(4):
+            h = s0 if k < 2 else s1
+            f = 0.0 if k % 2 == 0 else 1.0
+            box = grow_box(box, ax + h * ux + f * (vx * e1x + vy * e2x), ay + h * uy + f * (vx * e1y + vy * e2y),
+                           az + h * uz + f * (vx * e1z + vy * e2z))
+        return (ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, box, w)
+
+    @jit
     def hull2d_dist2(w, n):
         """Squared distance from the origin to the convex hull of the ``n`` 2-D points (x, y) at
         ``w[_SHEAR:]`` (sorted there; the hull's indices at ``w[_SHEAR_HULL:]``): 0 inside it."""
@@ -583,6 +593,7 @@ def build(jit):
                                         w[_SHEAR_AXIS + 1], w[_SHEAR_AXIS + 2], vx, vy, w))
 
     prism_search = bvh_search(jit, prism_box, prism_leaf)
+    leaning_prism_search = bvh_search(jit, leaning_prism_box, prism_leaf)
     sheared_search = bvh_search(jit, prism_box, sheared_leaf)
 
     @jit
@@ -604,21 +615,13 @@ def build(jit):
         dh = mx * u[0] + my * u[1] + mz * u[2]
         vx = mx * e1x + my * e1y + mz * e1z
         vy = mx * e2x + my * e2y + mz * e2z
-        s0 = lo - tm + min(0.0, dh)
-        s1 = hi - tm + max(0.0, dh)
-        box = EMPTY_BOX
-        for k in range(4):
-            h = s0 if k < 2 else s1
-            f = 0.0 if k % 2 == 0 else 1.0
-            box = grow_box(box, ax + h * u[0] + f * (vx * e1x + vy * e2x), ay + h * u[1] + f * (vx * e1y + vy * e2y),
-                           az + h * u[2] + f * (vx * e1z + vy * e2z))
         w[_SHEAR_AXIS] = lo - tm
         w[_SHEAR_AXIS + 1] = hi - tm
         w[_SHEAR_AXIS + 2] = dh
-        q = (ax, ay, az, u[0], u[1], u[2], e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, box, w)
+        q = stadium_query(ax, ay, az, u[0], u[1], u[2], e1x, e1y, e1z, e2x, e2y, e2z, lo - tm + min(0.0, dh),
+                          hi - tm + max(0.0, dh), vx, vy, w)
         need2 = rad * rad
         return sheared_search(q, need2, need2, node_lo, node_hi, node_child, node_range, tris, stack)[0] >= need2
-    leaning_prism_search = bvh_search(jit, leaning_prism_box, prism_leaf)
 
     @jit
     def mesh_stadium_dist2(ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, cap2, stop2,
@@ -626,14 +629,7 @@ def build(jit):
         """Smallest squared distance across the axis from the stadium prism (see
         :func:`stadium_tri_dist2`) to the mesh: a flat cylinder of radius rad over [s0, s1], swept
         across its axis by (vx, vy), overlaps the mesh iff this is below rad²."""
-        # the prism's box: its four corner points, widened by the distance being asked about
-        box = EMPTY_BOX
-        for k in range(4):
-            h = s0 if k < 2 else s1
-            f = 0.0 if k % 2 == 0 else 1.0
-            box = grow_box(box, ax + h * ux + f * (vx * e1x + vy * e2x), ay + h * uy + f * (vx * e1y + vy * e2y),
-                           az + h * uz + f * (vx * e1z + vy * e2z))
-        q = (ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, box, w)
+        q = stadium_query(ax, ay, az, ux, uy, uz, e1x, e1y, e1z, e2x, e2y, e2z, s0, s1, vx, vy, w)
         # an axis leaning off x, y and z by more than the distance asked: the prism's box is that
         # much wider than the prism, and boxes are tested against the band round its mid axis too
         if (s1 - s0) * math.sqrt(max(0.0, 1.0 - max(ux * ux, uy * uy, uz * uz))) > math.sqrt(cap2):
