@@ -187,11 +187,12 @@ def _apt_feeds(text):
         end = len(up) if end < 0 else end
         line = up[start:end].lstrip(" \t")
         at = up.find("FEDRAT", end)  # (the word must start its line: one a line)
-        if not line.startswith("FEDRAT") or not line[6:].lstrip(" \t").startswith("/"):
+        rest = line[6:].lstrip(" \t")
+        if not line.startswith("FEDRAT") or not rest.startswith("/"):
             continue
         number += up.count("\n", pos, start)
         pos = start
-        words = [w.strip() for w in line[6:].lstrip(" \t")[1:].split("$$")[0].split(",") if w.strip()]
+        words = [w.strip() for w in rest[1:].split("$$")[0].split(",") if w.strip()]
         values, units = [], []
         for w in words:
             try:
